@@ -1,0 +1,134 @@
+"""Device facts as plain data, so allocation can be planned for devices we do not have.
+
+A model names a profile (``device: portable``), or gives facts (``device: {profile:
+portable, max_work_group_size: 128}``); ``gpucompgen build --device auto`` reads the
+OpenCL device that ``PYOPENCL_CTX`` selects.  The build result depends only on these facts,
+never on the machine that runs the generator, so checked-in output is reproducible.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, fields, replace
+from typing import Any
+
+from .errors import Pos, Reporter, did_you_mean
+
+KiB, MiB, GiB = 1 << 10, 1 << 20, 1 << 30
+
+
+@dataclass(frozen=True)
+class DeviceFacts:
+    name: str
+    compute_units: int
+    max_work_group_size: int
+    max_work_item_sizes: tuple[int, int, int]
+    local_mem_size: int
+    global_mem_size: int
+    max_mem_alloc_size: int
+    host_unified_memory: bool
+    # Threads one compute unit keeps resident; compute_units * this is the device's total,
+    # the default thread budget for components that run at the same time.
+    threads_per_compute_unit: int = 2048
+
+    @property
+    def total_threads(self) -> int:
+        return self.compute_units * self.threads_per_compute_unit
+
+    def as_dict(self) -> dict[str, Any]:
+        d = asdict(self)
+        d["max_work_item_sizes"] = list(self.max_work_item_sizes)
+        return d
+
+
+PROFILES: dict[str, DeviceFacts] = {
+    # What every OpenCL 1.2 GPU and CPU device offers: safe default for checked-in code.
+    "portable": DeviceFacts("portable OpenCL 1.2 device", 8, 256, (256, 256, 64), 32 * KiB,
+                            1 * GiB, 256 * MiB, False, 2048),
+    # PoCL on a CPU: host memory is device memory.
+    "pocl-cpu": DeviceFacts("PoCL CPU device", 2, 4096, (4096, 4096, 4096), 4 * MiB,
+                            8 * GiB, 4 * GiB, True, 4096),
+    # The paper's evaluation platform: an NVIDIA Kepler GPU (GK104-class).
+    "nvidia-kepler": DeviceFacts("NVIDIA Kepler GPU", 8, 1024, (1024, 1024, 64), 48 * KiB,
+                                 2 * GiB, 512 * MiB, False, 2048),
+    # An embedded board with an integrated GPU (Jetson-class): unified memory.
+    "embedded-igpu": DeviceFacts("embedded integrated GPU", 2, 1024, (1024, 1024, 64),
+                                 48 * KiB, 4 * GiB, 1 * GiB, True, 2048),
+    # A small mobile GPU (Mali-class): small work-groups.
+    "mobile-gpu": DeviceFacts("small mobile GPU", 2, 64, (64, 64, 64), 32 * KiB, 1 * GiB,
+                              256 * MiB, True, 384),
+    # A large discrete GPU (Hopper-class).
+    "nvidia-hopper": DeviceFacts("NVIDIA Hopper GPU", 132, 1024, (1024, 1024, 64), 48 * KiB,
+                                 80 * GiB, 20 * GiB, False, 2048),
+}
+
+FACT_KEYS = tuple(f.name for f in fields(DeviceFacts))
+
+
+def resolve(spec: Any, pos: Pos, rep: Reporter) -> DeviceFacts | None:
+    """Turn a model's ``platform.device`` into facts; report problems at pos."""
+    if spec is None:
+        spec = "portable"
+    if isinstance(spec, str):
+        if spec == "auto":
+            return query_device()
+        if spec not in PROFILES:
+            rep.error(pos, f"unknown device profile {spec!r}",
+                      did_you_mean(spec, list(PROFILES) + ["auto"]))
+            return None
+        return PROFILES[spec]
+    if not isinstance(spec, dict):
+        rep.error(pos, "platform.device must be a profile name or a mapping of device facts")
+        return None
+    base_name = spec.get("profile", "portable")
+    if base_name not in PROFILES:
+        rep.error(pos, f"unknown device profile {base_name!r}", did_you_mean(str(base_name),
+                                                                               PROFILES))
+        return None
+    changes: dict[str, Any] = {}
+    for key, value in spec.items():
+        if key == "profile":
+            continue
+        if key not in FACT_KEYS:
+            rep.error(pos, f"unknown device fact '{key}'", did_you_mean(key, FACT_KEYS))
+            continue
+        if key == "name":
+            if not isinstance(value, str):
+                rep.error(pos, "device name must be a string")
+                continue
+        elif key == "host_unified_memory":
+            if not isinstance(value, bool):
+                rep.error(pos, "host_unified_memory must be true or false")
+                continue
+        elif key == "max_work_item_sizes":
+            if not (isinstance(value, list) and len(value) == 3 and all(
+                    isinstance(v, int) and not isinstance(v, bool) and v > 0 for v in value)):
+                rep.error(pos, "max_work_item_sizes must be a list of three positive integers")
+                continue
+            value = tuple(value)
+        elif isinstance(value, bool) or not isinstance(value, int) or value <= 0:
+            rep.error(pos, f"device fact '{key}' must be a positive integer, not {value!r}")
+            continue
+        changes[key] = value
+    return replace(PROFILES[base_name], **changes)
+
+
+def query_device(device: Any = None) -> DeviceFacts:
+    """Facts of a real OpenCL device (the one PYOPENCL_CTX selects when device is None)."""
+    import pyopencl as cl
+
+    if device is None:
+        device = cl.create_some_context(interactive=False).devices[0]
+    sizes = tuple(device.max_work_item_sizes)[:3]
+    sizes = tuple(sizes) + (1,) * (3 - len(sizes))
+    return DeviceFacts(
+        name=device.name.strip(),
+        compute_units=device.max_compute_units,
+        max_work_group_size=device.max_work_group_size,
+        max_work_item_sizes=sizes,
+        local_mem_size=device.local_mem_size,
+        global_mem_size=device.global_mem_size,
+        max_mem_alloc_size=device.max_mem_alloc_size,
+        host_unified_memory=bool(getattr(device, "host_unified_memory", False)),
+        threads_per_compute_unit=2048 if device.type & cl.device_type.GPU else
+        device.max_work_group_size,
+    )

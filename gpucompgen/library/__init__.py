@@ -1,0 +1,2 @@
+"""Component types shipped with gpucompgen: declarations (*.yaml), kernels (*.cl) and the
+Python classes of standard components."""

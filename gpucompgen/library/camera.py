@@ -1,0 +1,132 @@
+"""Camera: a standard source component.
+
+By default it renders deterministic synthetic underwater frames: blue-green water with a
+vertical gradient and seeded noise, and red buoys that bob along known paths.  The same
+seed always gives the same frames, and :meth:`Camera.ground_truth` tells where every buoy
+is in any frame, so tests can check what the pipeline detected.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from gpucompgen.runtime import PipelineError, Size
+
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".ppm", ".bmp")
+NOISE_FIELDS = 4  # pre-rendered noise fields, cycled, so a frame costs little CPU
+
+
+@dataclass(frozen=True)
+class Buoy:
+    x: int  # centre column
+    y: int  # centre row
+    radius: int
+
+
+class Camera:
+    def __init__(self, *, width: int = 640, height: int = 480, seed: int = 1, buoys: int = 2,
+                 frames: int = 0, folder: str = ""):
+        self.width, self.height, self.seed = width, height, seed
+        self.buoys, self.frames, self.folder = buoys, frames, folder
+        self.frame = 0
+        self.files: list[Path] = []
+        self.background = None
+        self.noise: list[np.ndarray] = []
+
+    # -- the component interface ------------------------------------------------------
+    def initialize(self) -> Size:
+        if self.folder:
+            folder = Path(self.folder)
+            if not folder.is_dir():
+                raise PipelineError(f"camera folder '{self.folder}' does not exist")
+            self.files = sorted(p for p in folder.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES)
+            if not self.files:
+                raise PipelineError(f"camera folder '{self.folder}' has no images "
+                                    f"({', '.join(IMAGE_SUFFIXES)})")
+        else:
+            rng = np.random.default_rng(self.seed)
+            rows = np.linspace(0.0, 1.0, self.height, dtype=np.float32)[:, None]
+            bg = np.empty((self.height, self.width, 3), np.int16)
+            bg[..., 0] = 12
+            bg[..., 1] = (150 - 60 * rows).astype(np.int16)  # lighter near the surface
+            bg[..., 2] = (190 - 70 * rows).astype(np.int16)
+            self.background = bg
+            self.noise = [rng.integers(-12, 13, size=bg.shape, dtype=np.int16)
+                          for _ in range(NOISE_FIELDS)]
+        return Size(self.height, self.width, 3)
+
+    def execute(self) -> np.ndarray | None:
+        """The next RGB frame (height x width x 3, uint8), or None at the end of the stream."""
+        if self.frames and self.frame >= self.frames:
+            return None
+        if self.files:
+            if self.frame >= len(self.files):
+                return None
+            image = self._read(self.files[self.frame])
+        else:
+            image = self.render(self.frame)
+        self.frame += 1
+        return image
+
+    def free_memory(self) -> None:
+        self.background = None
+        self.noise = []
+
+    # -- synthetic scene ----------------------------------------------------------------
+    def ground_truth(self, frame: int) -> list[Buoy]:
+        """Where the buoys are in a synthetic frame: a pure function of seed and frame."""
+        rng = np.random.default_rng([self.seed, 7919])
+        lanes = max(self.buoys, 1)
+        lane = self.width / lanes
+        result = []
+        for i in range(self.buoys):
+            radius = int(rng.integers(max(4, self.height // 40), max(5, self.height // 10) + 1))
+            radius = min(radius, int(lane // 2) - 3, self.height // 2 - 3)
+            if radius < 2:
+                continue
+            period = float(rng.uniform(40, 120))
+            phase = float(rng.uniform(0, 2 * math.pi))
+            lo, hi = i * lane + radius + 2, (i + 1) * lane - radius - 3
+            swing = (hi - lo) / 2
+            x = lo + swing + swing * math.sin(2 * math.pi * frame / period + phase)
+            ylo, yhi = radius + 2, self.height - radius - 3
+            ymid = float(rng.uniform(ylo, yhi))
+            yamp = min(ymid - ylo, yhi - ymid, self.height / 8)
+            y = ymid + yamp * math.sin(2 * math.pi * frame / (period * 1.7) + phase)
+            result.append(Buoy(int(round(x)), int(round(y)), radius))
+        return result
+
+    def render(self, frame: int) -> np.ndarray:
+        if self.background is None:
+            raise PipelineError("camera: execute() before initialize()")
+        img = self.background + self.noise[frame % NOISE_FIELDS]
+        for b in self.ground_truth(frame):
+            y0, y1 = b.y - b.radius, b.y + b.radius + 1
+            x0, x1 = b.x - b.radius, b.x + b.radius + 1
+            yy, xx = np.ogrid[y0:y1, x0:x1]
+            disk = (yy - b.y) ** 2 + (xx - b.x) ** 2 <= b.radius ** 2
+            patch = img[y0:y1, x0:x1]
+            patch[disk] = (210, 30, 35) + self.noise[(frame + 1) % NOISE_FIELDS][y0:y1, x0:x1][disk]
+        return np.clip(img, 0, 255).astype(np.uint8)
+
+    def _read(self, path: Path) -> np.ndarray:
+        try:
+            from PIL import Image
+        except ImportError:
+            raise PipelineError("reading camera images needs Pillow: "
+                                "pip install 'gpucompgen[image]'") from None
+        try:
+            with Image.open(path) as im:
+                array = np.asarray(im.convert("RGB"))
+        except OSError as exc:
+            raise PipelineError(f"camera: cannot read image {path}: {exc}") from None
+        if array.shape[:2] != (self.height, self.width):
+            raise PipelineError(
+                f"camera: image {path.name} is {array.shape[1]}x{array.shape[0]} (width x "
+                f"height), but the system was built for {self.width}x{self.height}; set the "
+                "camera's width and height params to the images' size")
+        return np.ascontiguousarray(array)

@@ -1,0 +1,161 @@
+"""Safe YAML loading that keeps every node's position for error messages.
+
+Only the safe subset of YAML is accepted: no anchors or aliases, no merge keys, no
+explicit tags, no duplicate keys, bounded size and nesting.  The result is plain Python
+data (dict/list/str/int/float/bool/None) plus a table from each value's path to its
+position, so later passes can point at the exact line and column of any value.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from .errors import Diagnostic, GpucompgenError, Pos
+
+MAX_FILE_BYTES = 1 << 20
+MAX_DEPTH = 32
+
+PathKey = tuple  # a tuple of str keys and int indices
+
+
+@dataclass
+class Document:
+    """A loaded YAML file: its data and where each value (and each key) came from."""
+
+    file: str
+    data: Any
+    positions: dict[PathKey, Pos] = field(default_factory=dict)
+    key_positions: dict[PathKey, Pos] = field(default_factory=dict)
+
+    def pos(self, *path: Any) -> Pos:
+        """Position of the value at path, or of its nearest ancestor that has one."""
+        path = tuple(path)
+        while path:
+            if path in self.positions:
+                return self.positions[path]
+            path = path[:-1]
+        return self.positions.get((), Pos(self.file, 1, 1))
+
+    def key_pos(self, *path: Any) -> Pos:
+        """Position of the mapping key that ends path (falls back to the value)."""
+        return self.key_positions.get(tuple(path)) or self.pos(*path)
+
+
+def _fail(file: str, mark: Any, message: str, hint: str = "") -> GpucompgenError:
+    line = (mark.line + 1) if mark is not None else 0
+    col = (mark.column + 1) if mark is not None else 0
+    return GpucompgenError([Diagnostic(file, line, col, "error", message, hint)])
+
+
+def load_text(text: str, file: str) -> Document:
+    """Parse YAML text into a Document, or raise GpucompgenError with a position."""
+    if len(text.encode("utf-8", "surrogatepass")) > MAX_FILE_BYTES:
+        raise _fail(file, None, f"file is larger than {MAX_FILE_BYTES} bytes",
+                    "a model file should be a few kilobytes; split component types into files")
+    try:
+        # Reject anchors, aliases and explicit tags at the event level, before composing.
+        depth = 0
+        for event in yaml.parse(text, Loader=yaml.SafeLoader):
+            if isinstance(event, yaml.AliasEvent):
+                raise _fail(file, event.start_mark, f"alias '*{event.anchor}' is not allowed",
+                            "write the value out in full; anchors and aliases are rejected")
+            anchor = getattr(event, "anchor", None)
+            if anchor is not None:
+                raise _fail(file, event.start_mark, f"anchor '&{anchor}' is not allowed",
+                            "write the value out in full; anchors and aliases are rejected")
+            tag = getattr(event, "tag", None)
+            if isinstance(event, (yaml.ScalarEvent,)) and tag is not None and event.implicit == (False, False):
+                raise _fail(file, event.start_mark, f"explicit tag '{tag}' is not allowed",
+                            "remove the tag; quote the value if it should be a string")
+            if isinstance(event, (yaml.MappingStartEvent, yaml.SequenceStartEvent)):
+                if tag is not None and not event.implicit:
+                    raise _fail(file, event.start_mark, f"explicit tag '{tag}' is not allowed",
+                                "remove the tag")
+                depth += 1
+                if depth > MAX_DEPTH:
+                    raise _fail(file, event.start_mark,
+                                f"nesting is deeper than {MAX_DEPTH} levels", "flatten the model")
+            elif isinstance(event, (yaml.MappingEndEvent, yaml.SequenceEndEvent)):
+                depth -= 1
+        node = yaml.compose(text, Loader=yaml.SafeLoader)
+    except yaml.MarkedYAMLError as exc:
+        mark = exc.problem_mark or exc.context_mark
+        problem = exc.problem or exc.context or "invalid YAML"
+        raise _fail(file, mark, f"invalid YAML: {problem}",
+                    "check indentation, colons and quotes near this place") from None
+    except yaml.YAMLError as exc:  # pragma: no cover - PyYAML raises marked errors in practice
+        raise _fail(file, None, f"invalid YAML: {exc}") from None
+    doc = Document(file, None)
+    if node is None:
+        doc.data = None
+        doc.positions[()] = Pos(file, 1, 1)
+        return doc
+    doc.data = _convert(node, (), doc)
+    return doc
+
+
+def load_file(path: Path, display: str | None = None) -> Document:
+    """Read and parse a YAML file; display is the name used in messages."""
+    shown = display or str(path)
+    try:
+        size = path.stat().st_size
+        if size > MAX_FILE_BYTES:
+            raise _fail(shown, None, f"file is larger than {MAX_FILE_BYTES} bytes")
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise GpucompgenError([Diagnostic(shown, 0, 0, "error", "file not found",
+                                          "check the path")]) from None
+    except IsADirectoryError:
+        raise GpucompgenError([Diagnostic(shown, 0, 0, "error", "is a directory, not a file",
+                                          "give the path of a .yaml file")]) from None
+    except UnicodeDecodeError as exc:
+        raise GpucompgenError([Diagnostic(shown, 0, 0, "error",
+                                          f"file is not UTF-8 text ({exc.reason} at byte {exc.start})",
+                                          "save the model as UTF-8")]) from None
+    except OSError as exc:
+        raise GpucompgenError([Diagnostic(shown, 0, 0, "error",
+                                          f"cannot read file: {exc.strerror}")]) from None
+    return load_text(text, shown)
+
+
+def _convert(node: yaml.Node, path: PathKey, doc: Document) -> Any:
+    doc.positions[path] = Pos(doc.file, node.start_mark.line + 1, node.start_mark.column + 1)
+    if isinstance(node, yaml.ScalarNode):
+        constructor = yaml.SafeLoader(node.value)
+        try:
+            return constructor.construct_object(node, deep=True)
+        except yaml.constructor.ConstructorError as exc:
+            raise _fail(doc.file, node.start_mark, f"invalid value: {exc.problem}") from None
+        finally:
+            constructor.dispose()
+    if isinstance(node, yaml.SequenceNode):
+        return [_convert(item, path + (i,), doc) for i, item in enumerate(node.value)]
+    if isinstance(node, yaml.MappingNode):
+        result: dict[Any, Any] = {}
+        for key_node, value_node in node.value:
+            if key_node.tag == "tag:yaml.org,2002:merge":
+                raise _fail(doc.file, key_node.start_mark, "merge key '<<' is not allowed",
+                            "write the keys out in full")
+            if not isinstance(key_node, yaml.ScalarNode):
+                raise _fail(doc.file, key_node.start_mark, "mapping keys must be plain scalars")
+            key = _convert(key_node, path + ("<key>",), doc)
+            del doc.positions[path + ("<key>",)]
+            if not isinstance(key, (str, int)) or isinstance(key, bool):
+                raise _fail(doc.file, key_node.start_mark,
+                            f"mapping key {key_node.value!r} is read as {type(key).__name__}, "
+                            "not a string",
+                            f"quote it: '{key_node.value}' (YAML 1.1 reads on/off/yes/no as booleans)")
+            key = str(key)
+            if key in result:
+                first = doc.key_positions[path + (key,)]
+                raise _fail(doc.file, key_node.start_mark, f"duplicate key '{key}'",
+                            f"'{key}' is already defined at line {first.line}; remove one of them")
+            doc.key_positions[path + (key,)] = Pos(doc.file, key_node.start_mark.line + 1,
+                                                   key_node.start_mark.column + 1)
+            result[key] = _convert(value_node, path + (key,), doc)
+        return result
+    raise _fail(doc.file, node.start_mark, "unsupported YAML node")  # pragma: no cover

@@ -1,0 +1,717 @@
+"""The typed model: component types (ports, parameters, kernels) and system models.
+
+Built from positioned YAML documents (see loader.py).  Every problem found while building
+is reported through a Reporter with the exact position; building goes on so that one run
+shows all problems at once.
+"""
+
+from __future__ import annotations
+
+import ast
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from . import sizeexpr
+from .errors import Pos, Reporter, did_you_mean
+from .loader import Document, load_file
+from .names import fold, name_problem, snake
+
+DTYPES = {  # element type → (numpy name, OpenCL C type, bytes)
+    "uint8": ("uint8", "uchar", 1),
+    "int8": ("int8", "char", 1),
+    "uint16": ("uint16", "ushort", 2),
+    "int16": ("int16", "short", 2),
+    "int32": ("int32", "int", 4),
+    "uint32": ("uint32", "uint", 4),
+    "float32": ("float32", "float", 4),
+}
+MEMORIES = ("gpu", "cpu")
+PARAM_TYPES = {"int": int, "float": float, "bool": bool, "str": str}
+KINDS = ("standard", "gpu-aware")
+SETTING_KEYS = ("tile", "block_x", "block_y", "block_z")
+LIBRARY_DIR = Path(__file__).resolve().parent / "library"
+
+
+@dataclass(frozen=True)
+class ParamDecl:
+    name: str
+    type: str
+    default: Any = None
+    required: bool = False
+    minimum: float | None = None
+    maximum: float | None = None
+    description: str = ""
+
+
+@dataclass(frozen=True)
+class PortDecl:
+    name: str
+    direction: str  # "in" | "out"
+    memory: str  # "gpu" | "cpu"
+    dtype: str
+    channels: int
+    height: ast.Expression | None = None  # outputs only
+    width: ast.Expression | None = None
+    pos: Pos = Pos("")
+
+    @property
+    def itemsize(self) -> int:
+        return DTYPES[self.dtype][2]
+
+    def describe(self) -> str:
+        return f"{self.memory.upper()} {self.dtype}x{self.channels}"
+
+
+@dataclass(frozen=True)
+class GpuDecl:
+    tiles: tuple[int, ...] = (8, 16, 32, 64)
+    block_z: tuple[int, ...] = (1,)
+    prefer: tuple[int, int, int, int] = (32, 16, 16, 1)
+
+
+@dataclass
+class ComponentType:
+    name: str
+    kind: str
+    description: str
+    params: dict[str, ParamDecl]
+    inputs: dict[str, PortDecl]
+    outputs: dict[str, PortDecl]
+    requires: list[tuple[ast.Expression, str]]
+    decl_file: Path
+    origin: str  # "library" | "user"
+    pos: Pos
+    kernel_file: Path | None = None
+    kernel_function: str = ""
+    grid: str = ""  # output port the kernel's work-items cover
+    python_file: Path | None = None
+    python_class: str = ""
+    gpu: GpuDecl = field(default_factory=GpuDecl)
+
+    @property
+    def gpu_aware(self) -> bool:
+        return self.kind == "gpu-aware"
+
+    @property
+    def snake(self) -> str:
+        return snake(self.name)
+
+    def port(self, name: str) -> PortDecl | None:
+        return self.inputs.get(name) or self.outputs.get(name)
+
+
+@dataclass
+class Instance:
+    name: str
+    type: ComponentType
+    params: dict[str, Any]
+    pos: Pos
+    order: int
+
+
+@dataclass(frozen=True)
+class Endpoint:
+    component: str
+    port: str
+
+    def __str__(self) -> str:
+        return f"{self.component}.{self.port}"
+
+
+@dataclass
+class Connection:
+    source: Endpoint
+    target: Endpoint
+    pos: Pos
+
+
+@dataclass
+class SystemModel:
+    name: str
+    description: str
+    file: Path
+    display: str  # the model's path as shown in messages and generated headers
+    text_sha256: str
+    components: dict[str, Instance]
+    connections: list[Connection]
+    device: Any  # a profile name or a mapping of facts (resolved by device.py)
+    device_pos: Pos
+    gpu_overrides: dict[str, tuple[dict[str, int], Pos]]
+    thread_budget: int | None
+    types: dict[str, ComponentType]
+
+
+# --------------------------------------------------------------------------- helpers
+
+def _expect_map(doc: Document, rep: Reporter, path: tuple, value: Any, what: str) -> dict:
+    if value is None:
+        return {}
+    if not isinstance(value, dict):
+        rep.error(doc.pos(*path), f"{what} must be a mapping, not {_kind(value)}")
+        return {}
+    return value
+
+
+def _kind(value: Any) -> str:
+    return {bool: "a boolean", int: "an integer", float: "a number", str: "a string",
+            list: "a list", dict: "a mapping", type(None): "empty"}.get(type(value),
+                                                                         type(value).__name__)
+
+
+def _unknown_keys(doc: Document, rep: Reporter, path: tuple, mapping: dict,
+                  allowed: tuple[str, ...], what: str) -> None:
+    for key in mapping:
+        if key not in allowed:
+            rep.error(doc.key_pos(*path, key), f"unknown key '{key}' in {what}",
+                      did_you_mean(key, allowed))
+
+
+def _text(doc: Document, rep: Reporter, path: tuple, value: Any, what: str) -> str:
+    if value is None:
+        return ""
+    if not isinstance(value, str):
+        rep.error(doc.pos(*path), f"{what} must be a string, not {_kind(value)}",
+                  "quote the value")
+        return ""
+    return value
+
+
+def _positive_int(doc: Document, rep: Reporter, path: tuple, value: Any, what: str,
+                  default: int | None = None) -> int | None:
+    if value is None:
+        return default
+    if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+        rep.error(doc.pos(*path), f"{what} must be a positive integer, not {value!r}")
+        return default
+    return value
+
+
+# --------------------------------------------------------------------------- types
+
+TYPE_KEYS = ("kind", "description", "params", "inputs", "outputs", "requires", "kernel",
+             "python", "gpu")
+PORT_KEYS = ("memory", "dtype", "channels", "height", "width", "description")
+PARAM_KEYS = ("type", "default", "min", "max", "description")
+
+
+def load_types_file(path: Path, display: str, origin: str, rep: Reporter
+                    ) -> dict[str, ComponentType]:
+    """Load one file of component types: ``component_types: {Name: {...}, ...}``."""
+    doc = load_file(path, display)
+    root = _expect_map(doc, rep, (), doc.data, "a component-type file")
+    _unknown_keys(doc, rep, (), root, ("component_types",), "a component-type file")
+    types_map = _expect_map(doc, rep, ("component_types",), root.get("component_types"),
+                            "component_types")
+    if not types_map and not rep.has_errors:
+        rep.error(doc.pos(), "no component types defined",
+                  "add 'component_types:' with one or more types")
+    result = {}
+    for tname, spec in types_map.items():
+        ctype = _load_type(doc, rep, path, origin, tname, spec)
+        if ctype is not None:
+            result[tname] = ctype
+    return result
+
+
+def _load_type(doc: Document, rep: Reporter, path: Path, origin: str, tname: str,
+               spec: Any) -> ComponentType | None:
+    base = ("component_types", tname)
+    problem = name_problem(tname, "component type name")
+    if problem:
+        rep.error(doc.key_pos(*base), problem, "use a CamelCase name such as 'ImageMerger'")
+        return None
+    spec = _expect_map(doc, rep, base, spec, f"component type '{tname}'")
+    _unknown_keys(doc, rep, base, spec, TYPE_KEYS, f"component type '{tname}'")
+    kind = spec.get("kind")
+    if kind not in KINDS:
+        rep.error(doc.pos(*base, "kind") if "kind" in spec else doc.key_pos(*base),
+                  f"component type '{tname}' needs kind 'standard' or 'gpu-aware', "
+                  f"not {kind!r}", "add 'kind: gpu-aware' or 'kind: standard'")
+        return None
+    ctype = ComponentType(
+        name=tname, kind=kind,
+        description=_text(doc, rep, base + ("description",), spec.get("description"),
+                          "description"),
+        params={}, inputs={}, outputs={}, requires=[], decl_file=path, origin=origin,
+        pos=doc.key_pos(*base))
+    # parameters
+    params = _expect_map(doc, rep, base + ("params",), spec.get("params"), "params")
+    for pname, pspec in params.items():
+        ppath = base + ("params", pname)
+        problem = name_problem(pname, "parameter name")
+        if problem:
+            rep.error(doc.key_pos(*ppath), problem)
+            continue
+        if isinstance(pspec, str):
+            pspec = {"type": pspec}
+        pspec = _expect_map(doc, rep, ppath, pspec, f"parameter '{pname}'")
+        _unknown_keys(doc, rep, ppath, pspec, PARAM_KEYS, f"parameter '{pname}'")
+        ptype = pspec.get("type")
+        if ptype not in PARAM_TYPES:
+            rep.error(doc.pos(*ppath, "type"), f"parameter '{pname}' has type {ptype!r}",
+                      "use one of 'int', 'float', 'bool', 'str'")
+            continue
+        if gpu_kernel_param_problem(kind, ptype):
+            rep.error(doc.pos(*ppath, "type"),
+                      f"parameter '{pname}' of GPU-aware type '{tname}' is {ptype}: "
+                      "kernel parameters must be int, float or bool")
+            continue
+        default = pspec.get("default")
+        if default is not None and not _value_fits(default, ptype):
+            rep.error(doc.pos(*ppath, "default"),
+                      f"default of '{pname}' must be {ptype}, not {_kind(default)}")
+            default = None
+        ctype.params[pname] = ParamDecl(pname, ptype, default, "default" not in pspec,
+                                        pspec.get("min"), pspec.get("max"),
+                                        _text(doc, rep, ppath + ("description",),
+                                              pspec.get("description"), "description"))
+    # ports
+    seen_ports: dict[str, str] = {}
+    for direction, key in (("in", "inputs"), ("out", "outputs")):
+        ports = _expect_map(doc, rep, base + (key,), spec.get(key), key)
+        for pname, pspec in ports.items():
+            port = _load_port(doc, rep, base + (key, pname), ctype, direction, pname, pspec)
+            if port is None:
+                continue
+            if fold(pname) in seen_ports:
+                rep.error(doc.key_pos(*base, key, pname),
+                          f"port '{pname}' collides with port '{seen_ports[fold(pname)]}'",
+                          "input and output ports of a type need distinct names")
+                continue
+            seen_ports[fold(pname)] = pname
+            (ctype.inputs if direction == "in" else ctype.outputs)[pname] = port
+    if not ctype.inputs and not ctype.outputs:
+        rep.error(ctype.pos, f"component type '{tname}' has no ports",
+                  "declare 'inputs:' and/or 'outputs:'")
+    # output sizes need the input ports, so parse them after all ports are known
+    for pname, port in list(ctype.outputs.items()):
+        ctype.outputs[pname] = _port_sizes(doc, rep, base + ("outputs", pname), ctype, port)
+    # requirements between input sizes
+    requires = spec.get("requires") or []
+    if not isinstance(requires, list):
+        rep.error(doc.pos(*base, "requires"), "requires must be a list of conditions")
+        requires = []
+    for i, req in enumerate(requires):
+        rpath = base + ("requires", i)
+        message = ""
+        if isinstance(req, dict):
+            _unknown_keys(doc, rep, rpath, req, ("check", "message"), "a requirement")
+            message = _text(doc, rep, rpath + ("message",), req.get("message"), "message")
+            req = req.get("check")
+        try:
+            tree = sizeexpr.parse(req, set(ctype.inputs), set(_int_params(ctype)))
+        except sizeexpr.SizeExprError as exc:
+            rep.error(doc.pos(*rpath), f"requirement of '{tname}': {exc}")
+            continue
+        ctype.requires.append((tree, message or f"requires {ast.unparse(tree.body)}"))
+    # implementation
+    if kind == "gpu-aware":
+        _load_kernel(doc, rep, base, ctype, spec)
+        if "python" in spec:
+            rep.error(doc.key_pos(*base, "python"),
+                      "a GPU-aware type is implemented by its OpenCL kernel, not 'python'",
+                      "remove 'python:' or make the type 'kind: standard'")
+    else:
+        _load_python(doc, rep, base, ctype, spec)
+        for key in ("kernel", "gpu"):
+            if key in spec:
+                rep.error(doc.key_pos(*base, key),
+                          f"'{key}' is only for GPU-aware types; '{tname}' is standard",
+                          "set 'kind: gpu-aware' or remove the key")
+    return ctype
+
+
+def gpu_kernel_param_problem(kind: str, ptype: str) -> bool:
+    return kind == "gpu-aware" and ptype == "str"
+
+
+def _int_params(ctype: ComponentType) -> list[str]:
+    return [p.name for p in ctype.params.values() if p.type == "int"]
+
+
+def _value_fits(value: Any, ptype: str) -> bool:
+    if ptype == "float":
+        return isinstance(value, (int, float)) and not isinstance(value, bool)
+    if ptype == "int":
+        return isinstance(value, int) and not isinstance(value, bool)
+    return isinstance(value, PARAM_TYPES[ptype])
+
+
+def _load_port(doc, rep, path, ctype, direction, pname, pspec) -> PortDecl | None:
+    problem = name_problem(pname, "port name")
+    if problem:
+        rep.error(doc.key_pos(*path), problem)
+        return None
+    pspec = _expect_map(doc, rep, path, pspec, f"port '{pname}'")
+    _unknown_keys(doc, rep, path, pspec, PORT_KEYS, f"port '{pname}'")
+    memory = pspec.get("memory", "cpu")
+    if memory not in MEMORIES:
+        rep.error(doc.pos(*path, "memory"), f"port '{pname}': memory must be 'gpu' or 'cpu', "
+                  f"not {memory!r}")
+        return None
+    if memory == "gpu" and ctype.kind == "standard":
+        rep.error(doc.pos(*path, "memory"),
+                  f"standard type '{ctype.name}' cannot have GPU port '{pname}'",
+                  "standard components have only CPU ports; make the type 'kind: gpu-aware'")
+        return None
+    if memory == "cpu" and ctype.kind == "gpu-aware":
+        rep.error(doc.pos(*path, "memory"),
+                  f"GPU-aware kernel type '{ctype.name}': port '{pname}' must be a GPU port",
+                  "kernel components read and write device buffers; let the system insert "
+                  "adapters by declaring 'memory: gpu'")
+        return None
+    dtype = pspec.get("dtype", "uint8")
+    if dtype not in DTYPES:
+        rep.error(doc.pos(*path, "dtype"), f"port '{pname}': unknown element type {dtype!r}",
+                  did_you_mean(str(dtype), DTYPES))
+        return None
+    channels = _positive_int(doc, rep, path + ("channels",), pspec.get("channels"),
+                             "channels", 1)
+    if direction == "in":
+        for key in ("height", "width"):
+            if key in pspec:
+                rep.error(doc.key_pos(*path, key),
+                          f"input port '{pname}' takes its size from what feeds it",
+                          f"remove '{key}'; sizes are declared on outputs")
+    return PortDecl(pname, direction, memory, dtype, channels, pos=doc.key_pos(*path))
+
+
+def _port_sizes(doc, rep, path, ctype, port: PortDecl) -> PortDecl:
+    spec = doc.data
+    for key in path:
+        spec = spec.get(key, {}) if isinstance(spec, dict) else {}
+    trees = {}
+    for dim in sizeexpr.DIMS:
+        text = spec.get(dim) if isinstance(spec, dict) else None
+        if text is None:
+            if len(ctype.inputs) == 1:  # default: same size as the only input
+                text = f"{next(iter(ctype.inputs))}.{dim}"
+            else:
+                rep.error(port.pos, f"output '{port.name}' of '{ctype.name}' needs '{dim}:'",
+                          f"give a size expression, e.g. '{dim}: 480' or "
+                          f"'{dim}: <input>.{dim}'")
+                continue
+        try:
+            trees[dim] = sizeexpr.parse(text, set(ctype.inputs), set(_int_params(ctype)))
+        except sizeexpr.SizeExprError as exc:
+            rep.error(doc.pos(*path, dim), f"output '{port.name}' of '{ctype.name}': {exc}")
+    return PortDecl(port.name, port.direction, port.memory, port.dtype, port.channels,
+                    trees.get("height"), trees.get("width"), port.pos)
+
+
+def _resolve_file(doc, rep, path, decl_dir: Path, value: Any, suffix: str) -> Path | None:
+    if not isinstance(value, str) or not value:
+        rep.error(doc.pos(*path), f"expected a file name ending in {suffix}")
+        return None
+    rel = Path(value)
+    if rel.is_absolute() or ".." in rel.parts or rel.suffix != suffix:
+        rep.error(doc.pos(*path), f"file {value!r} must be a relative path ending in {suffix}, "
+                  "inside the folder of the type file", "move the file next to the type file")
+        return None
+    full = decl_dir / rel
+    if not full.is_file():
+        rep.error(doc.pos(*path), f"file {value!r} not found (looked in {decl_dir.name}/)",
+                  "paths are relative to the component-type file")
+        return None
+    return full
+
+
+def _load_kernel(doc, rep, base, ctype: ComponentType, spec) -> None:
+    kspec = _expect_map(doc, rep, base + ("kernel",), spec.get("kernel"), "kernel")
+    if not kspec:
+        rep.error(ctype.pos, f"GPU-aware type '{ctype.name}' needs 'kernel: {{file, function}}'")
+        return
+    _unknown_keys(doc, rep, base + ("kernel",), kspec, ("file", "function", "grid"), "kernel")
+    ctype.kernel_file = _resolve_file(doc, rep, base + ("kernel", "file"),
+                                      ctype.decl_file.parent, kspec.get("file"), ".cl")
+    function = kspec.get("function", ctype.snake)
+    problem = name_problem(function, "kernel function name")
+    if problem:
+        rep.error(doc.pos(*base, "kernel", "function"), problem)
+    else:
+        ctype.kernel_function = function
+        if ctype.kernel_file is not None and not re.search(
+                rf"__kernel\s+void\s+{function}\s*\(|kernel\s+void\s+{function}\s*\(",
+                ctype.kernel_file.read_text(encoding="utf-8", errors="replace")):
+            rep.error(doc.pos(*base, "kernel", "function"),
+                      f"kernel file {ctype.kernel_file.name} defines no "
+                      f"'__kernel void {function}(...)'", "check the function name")
+    grid = kspec.get("grid", next(iter(ctype.outputs), ""))
+    if grid not in ctype.outputs:
+        rep.error(doc.pos(*base, "kernel", "grid") if "grid" in kspec else ctype.pos,
+                  f"kernel grid {grid!r} of '{ctype.name}' is not an output port",
+                  did_you_mean(str(grid), ctype.outputs))
+    else:
+        ctype.grid = grid
+    gspec = _expect_map(doc, rep, base + ("gpu",), spec.get("gpu"), "gpu")
+    _unknown_keys(doc, rep, base + ("gpu",), gspec, ("tiles", "block_z", "prefer"), "gpu")
+    decl = GpuDecl()
+    tiles = gspec.get("tiles", list(decl.tiles))
+    block_z = gspec.get("block_z", list(decl.block_z))
+    for key, values in (("tiles", tiles), ("block_z", block_z)):
+        if not isinstance(values, list) or not values or not all(
+                isinstance(v, int) and not isinstance(v, bool) and v >= 1 for v in values):
+            rep.error(doc.pos(*base, "gpu", key), f"gpu.{key} must be a list of positive integers")
+            return
+    prefer = _expect_map(doc, rep, base + ("gpu", "prefer"), gspec.get("prefer"), "prefer")
+    _unknown_keys(doc, rep, base + ("gpu", "prefer"), prefer, SETTING_KEYS, "prefer")
+    values = []
+    for key, fallback in zip(SETTING_KEYS, decl.prefer):
+        v = _positive_int(doc, rep, base + ("gpu", "prefer", key), prefer.get(key), key, fallback)
+        values.append(v)
+    ctype.gpu = GpuDecl(tuple(sorted(set(tiles))), tuple(sorted(set(block_z))), tuple(values))
+
+
+def _load_python(doc, rep, base, ctype: ComponentType, spec) -> None:
+    pspec = _expect_map(doc, rep, base + ("python",), spec.get("python"), "python")
+    if not pspec:
+        rep.error(ctype.pos, f"standard type '{ctype.name}' needs 'python: {{file, class}}'")
+        return
+    _unknown_keys(doc, rep, base + ("python",), pspec, ("file", "class"), "python")
+    ctype.python_file = _resolve_file(doc, rep, base + ("python", "file"),
+                                      ctype.decl_file.parent, pspec.get("file"), ".py")
+    cls = pspec.get("class", ctype.name)
+    problem = name_problem(cls, "class name")
+    if problem:
+        rep.error(doc.pos(*base, "python", "class"), problem)
+    else:
+        ctype.python_class = cls
+    if ctype.python_file is not None and ctype.origin == "user":
+        problem = name_problem(ctype.python_file.stem, "Python module name")
+        if problem:
+            rep.error(doc.pos(*base, "python", "file"), problem,
+                      "rename the file to a valid module name")
+
+
+_LIBRARY_CACHE: dict[str, ComponentType] | None = None
+
+
+def library_types() -> dict[str, ComponentType]:
+    """Component types shipped with gpucompgen (gpucompgen/library/*.yaml)."""
+    global _LIBRARY_CACHE
+    if _LIBRARY_CACHE is None:
+        rep = Reporter()
+        types: dict[str, ComponentType] = {}
+        for path in sorted(LIBRARY_DIR.glob("*.yaml")):
+            types.update(load_types_file(path, f"<gpucompgen>/library/{path.name}", "library",
+                                         rep))
+        rep.raise_if_errors()
+        _LIBRARY_CACHE = types
+    return dict(_LIBRARY_CACHE)
+
+
+# --------------------------------------------------------------------------- systems
+
+SYSTEM_KEYS = ("system", "description", "types", "platform", "components", "connections")
+PLATFORM_KEYS = ("device", "gpu_settings", "thread_budget")
+INSTANCE_KEYS = ("type", "params", "description")
+CONNECTION_RE = re.compile(r"^\s*([^\s.]+)\.([^\s.]+)\s*->\s*([^\s.]+)\.([^\s.]+)\s*$")
+
+
+def load_system(path: Path, display: str | None = None) -> SystemModel:
+    """Load a system model and everything it refers to; raise GpucompgenError on problems."""
+    import hashlib
+
+    display = display or str(path)
+    doc = load_file(path, display)
+    rep = Reporter()
+    root = _expect_map(doc, rep, (), doc.data, "a system model")
+    rep.raise_if_errors()
+    _unknown_keys(doc, rep, (), root, SYSTEM_KEYS, "the system model")
+    name = root.get("system")
+    problem = name_problem(name, "system name", top_level=True)
+    if problem:
+        rep.error(doc.pos("system") if "system" in root else doc.pos(), problem,
+                  "start the model with 'system: my_system'")
+        name = "system"
+    description = _text(doc, rep, ("description",), root.get("description"), "description")
+    # component types: library, then the user's files
+    types = library_types()
+    type_files = root.get("types") or []
+    if not isinstance(type_files, list):
+        rep.error(doc.pos("types"), "types must be a list of component-type files")
+        type_files = []
+    for i, rel in enumerate(type_files):
+        if not isinstance(rel, str) or not rel:
+            rep.error(doc.pos("types", i), "expected the path of a component-type .yaml file")
+            continue
+        tpath = (path.parent / rel)
+        shown = str(Path(display).parent / rel)
+        if not tpath.is_file():
+            rep.error(doc.pos("types", i), f"component-type file {rel!r} not found",
+                      "paths are relative to the model file")
+            continue
+        from .errors import GpucompgenError
+        try:
+            user = load_types_file(tpath.resolve(), shown, "user", rep)
+        except GpucompgenError as exc:
+            rep.diagnostics.extend(exc.diagnostics)
+            continue
+        for tname, ctype in user.items():
+            if tname in types:
+                rep.error(ctype.pos, f"component type '{tname}' is already defined "
+                          f"({'by the library' if types[tname].origin == 'library' else 'elsewhere'})",
+                          "give your type another name")
+                continue
+            types[tname] = ctype
+    # platform
+    platform = _expect_map(doc, rep, ("platform",), root.get("platform"), "platform")
+    _unknown_keys(doc, rep, ("platform",), platform, PLATFORM_KEYS, "platform")
+    device = platform.get("device", "portable")
+    overrides: dict[str, tuple[dict[str, int], Pos]] = {}
+    settings = _expect_map(doc, rep, ("platform", "gpu_settings"), platform.get("gpu_settings"),
+                           "gpu_settings")
+    for cname, sspec in settings.items():
+        spath = ("platform", "gpu_settings", cname)
+        sspec = _expect_map(doc, rep, spath, sspec, f"gpu_settings of '{cname}'")
+        _unknown_keys(doc, rep, spath, sspec, SETTING_KEYS, f"gpu_settings of '{cname}'")
+        values = {}
+        for key in SETTING_KEYS:
+            if key in sspec:
+                v = _positive_int(doc, rep, spath + (key,), sspec[key], key)
+                if v is not None:
+                    values[key] = v
+        overrides[cname] = (values, doc.key_pos(*spath))
+    budget = _positive_int(doc, rep, ("platform", "thread_budget"),
+                           platform.get("thread_budget"), "thread_budget")
+    # components
+    components: dict[str, Instance] = {}
+    comps = _expect_map(doc, rep, ("components",), root.get("components"), "components")
+    if not comps:
+        rep.error(doc.pos("components") if "components" in root else doc.pos(),
+                  "the system has no components", "add 'components:' with named instances")
+    folded: dict[str, str] = {}
+    for order, (cname, cspec) in enumerate(comps.items()):
+        cpath = ("components", cname)
+        problem = name_problem(cname, "component name", top_level=True)
+        if problem:
+            rep.error(doc.key_pos(*cpath), problem, "use a name such as 'camera1'")
+            continue
+        if fold(cname) in folded:
+            rep.error(doc.key_pos(*cpath),
+                      f"component name '{cname}' collides with '{folded[fold(cname)]}'",
+                      "names must differ by more than case and underscores")
+            continue
+        folded[fold(cname)] = cname
+        if isinstance(cspec, str):
+            cspec = {"type": cspec}
+        cspec = _expect_map(doc, rep, cpath, cspec, f"component '{cname}'")
+        _unknown_keys(doc, rep, cpath, cspec, INSTANCE_KEYS, f"component '{cname}'")
+        tname = cspec.get("type")
+        if tname not in types:
+            rep.error(doc.pos(*cpath, "type") if "type" in cspec else doc.key_pos(*cpath),
+                      f"unknown component type {tname!r} for '{cname}'",
+                      did_you_mean(str(tname), types))
+            continue
+        ctype = types[tname]
+        params = _instance_params(doc, rep, cpath, ctype, cspec.get("params"))
+        components[cname] = Instance(cname, ctype, params, doc.key_pos(*cpath), order)
+    for cname, (_, pos) in overrides.items():
+        if cname not in components and cname in comps:
+            continue
+        if cname not in components:
+            rep.error(pos, f"gpu_settings for unknown component '{cname}'",
+                      did_you_mean(cname, comps))
+        elif not components[cname].type.gpu_aware:
+            rep.error(pos, f"gpu_settings for '{cname}', which is a standard component",
+                      "only GPU-aware components take GPU settings")
+    # connections
+    connections = []
+    conns = root.get("connections") or []
+    if not isinstance(conns, list):
+        rep.error(doc.pos("connections"), "connections must be a list of "
+                  "'producer.port -> consumer.port'")
+        conns = []
+    for i, text in enumerate(conns):
+        conn = _parse_connection(doc, rep, ("connections", i), text, comps, components)
+        if conn is not None:
+            connections.append(conn)
+    rep.raise_if_errors()
+    return SystemModel(name=name, description=description, file=path, display=display,
+                       text_sha256=hashlib.sha256(path.read_bytes()).hexdigest(),
+                       components=components, connections=connections, device=device,
+                       device_pos=doc.pos("platform", "device"), gpu_overrides=overrides,
+                       thread_budget=budget, types=types)
+
+
+def _instance_params(doc, rep, cpath, ctype: ComponentType, given) -> dict[str, Any]:
+    given = _expect_map(doc, rep, cpath + ("params",), given, "params")
+    params: dict[str, Any] = {}
+    for pname, value in given.items():
+        decl = ctype.params.get(pname)
+        if decl is None:
+            rep.error(doc.key_pos(*cpath, "params", pname),
+                      f"'{ctype.name}' has no parameter '{pname}'",
+                      did_you_mean(pname, ctype.params) or f"'{ctype.name}' takes no parameters")
+            continue
+        if not _value_fits(value, decl.type):
+            hint = ""
+            if isinstance(value, bool) and decl.type == "str":
+                hint = "YAML 1.1 reads yes/no/on/off as booleans: quote the value"
+            rep.error(doc.pos(*cpath, "params", pname),
+                      f"parameter '{pname}' of '{ctype.name}' must be {decl.type}, "
+                      f"not {_kind(value)} ({value!r})", hint)
+            continue
+        if decl.type in ("int", "float"):
+            if decl.minimum is not None and value < decl.minimum or \
+                    decl.maximum is not None and value > decl.maximum:
+                rep.error(doc.pos(*cpath, "params", pname),
+                          f"parameter '{pname}' = {value} is outside "
+                          f"[{decl.minimum}, {decl.maximum}]")
+                continue
+        if decl.type == "float":
+            value = float(value)
+        params[pname] = value
+    for pname, decl in ctype.params.items():
+        if pname not in params and pname not in given:
+            if decl.required:
+                rep.error(doc.key_pos(*cpath), f"component '{cpath[-1]}' of type "
+                          f"'{ctype.name}' needs parameter '{pname}' ({decl.type})",
+                          f"add 'params: {{{pname}: ...}}'")
+            else:
+                params[pname] = decl.default
+    return params
+
+
+def _parse_connection(doc, rep, path, text, comps, components) -> Connection | None:
+    pos = doc.pos(*path)
+    if isinstance(text, dict) and set(text) == {"from", "to"}:
+        text = f"{text['from']} -> {text['to']}"
+    if not isinstance(text, str):
+        rep.error(pos, "a connection is written 'producer.port -> consumer.port'")
+        return None
+    m = CONNECTION_RE.match(text)
+    if not m:
+        rep.error(pos, f"cannot read connection {text!r}",
+                  "write it as 'producer.port -> consumer.port'")
+        return None
+    src, dst = Endpoint(m[1], m[2]), Endpoint(m[3], m[4])
+    ok = True
+    for end, want in ((src, "out"), (dst, "in")):
+        if end.component not in components:
+            if end.component not in comps:  # else: already reported where it was declared
+                rep.error(pos, f"unknown component '{end.component}' in connection",
+                          did_you_mean(end.component, comps))
+            ok = False
+            continue
+        ctype = components[end.component].type
+        port = ctype.port(end.port)
+        if port is None:
+            rep.error(pos, f"'{end.component}' ({ctype.name}) has no port '{end.port}'",
+                      did_you_mean(f"{end.component}.{end.port}",
+                                   [f"{end.component}.{p}" for p in
+                                    (ctype.outputs if want == "out" else ctype.inputs)]))
+            ok = False
+        elif port.direction != want:
+            if want == "out":
+                rep.error(pos, f"connection from '{end}', which is an input",
+                          "a connection goes from an output to an input: "
+                          "'producer.out -> consumer.in'")
+            else:
+                rep.error(pos, f"connection to '{end}', which is an output",
+                          "a connection goes from an output to an input: "
+                          "'producer.out -> consumer.in'")
+            ok = False
+    return Connection(src, dst, pos) if ok else None

@@ -1,0 +1,60 @@
+"""Names from a model become Python and OpenCL identifiers: validate them first."""
+
+from __future__ import annotations
+
+import builtins
+import keyword
+import re
+
+NAME_RE = re.compile(r"[A-Za-z][A-Za-z0-9_]*\Z")
+MAX_NAME = 48
+
+OPENCL_RESERVED = frozenset("""
+auto break case char const continue default do double else enum extern float for goto if
+inline int long register restrict return short signed sizeof static struct switch typedef
+union unsigned void volatile while bool half uchar ushort uint ulong size_t ptrdiff_t
+intptr_t uintptr_t image2d_t image3d_t image2d_array_t image1d_t image1d_buffer_t
+image1d_array_t sampler_t event_t kernel __kernel global __global local __local constant
+__constant private __private read_only __read_only write_only __write_only read_write
+__read_write complex imaginary true false
+""".split())
+
+# Names the generated program itself uses at module level or in run().
+GENERATED_RESERVED = frozenset({
+    "np", "cl", "runtime", "run", "main", "args", "argv", "frame", "frames", "context", "queue",
+    "sys", "Size", "components", "result", "KERNEL_DIR", "Path",
+})
+
+_RESERVED = (frozenset(keyword.kwlist) | frozenset(keyword.softkwlist) | frozenset(dir(builtins))
+             | OPENCL_RESERVED | {"self"})
+
+
+def name_problem(name: object, what: str, top_level: bool = False) -> str | None:
+    """Why name is not a valid identifier for a model, or None when it is.
+
+    top_level names (components, systems) become variables of the generated run()
+    function, so they must also avoid the names generated code itself uses.
+    """
+    if not isinstance(name, str):
+        return f"{what} must be a name, not {type(name).__name__} {name!r}"
+    if not NAME_RE.match(name):
+        return (f"invalid {what} {name!r}: use letters, digits and '_' only, "
+                "starting with a letter")
+    if len(name) > MAX_NAME:
+        return f"{what} {name!r} is longer than {MAX_NAME} characters"
+    if name in _RESERVED or name.lower() in OPENCL_RESERVED or (
+            top_level and name in GENERATED_RESERVED):
+        return f"{what} {name!r} is a reserved word in Python, OpenCL or generated code"
+    return None
+
+
+def fold(name: str) -> str:
+    """Names that fold to the same string collide (case and underscores ignored)."""
+    return name.replace("_", "").lower()
+
+
+def snake(name: str) -> str:
+    """CamelCase → snake_case (ImageMerger → image_merger)."""
+    out = re.sub(r"(?<=[a-z0-9])([A-Z])", r"_\1", name)
+    out = re.sub(r"(?<=[A-Z])([A-Z][a-z])", r"_\1", out)
+    return out.lower()

@@ -1,0 +1,92 @@
+"""Shared test setup: pin the OpenCL device, give each xdist worker its own PoCL cache.
+
+Without an OpenCL device, OpenCL tests skip on a developer's machine but FAIL when
+CI=true: CI installs PoCL, so a missing device there is a broken install, not a skip.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+IN_CI = os.environ.get("CI", "").lower() in ("1", "true", "yes")
+
+_worker = os.environ.get("PYTEST_XDIST_WORKER", "main")
+os.environ.setdefault("POCL_CACHE_DIR", str(Path(os.environ.get("TMPDIR", "/tmp"))
+                                             / f"gpucompgen-pocl-cache-{os.getuid()}-{_worker}"))
+
+
+def _pin_device() -> str | None:
+    """Pin PYOPENCL_CTX (inherited by generated programs run as subprocesses)."""
+    if os.environ.get("PYOPENCL_CTX"):
+        return None
+    try:
+        import pyopencl as cl
+
+        platforms = cl.get_platforms()
+    except Exception as exc:  # no ICD loader or no platform at all
+        return f"no OpenCL platform: {exc}"
+    for i, p in enumerate(platforms):
+        if p.get_devices():
+            if "portable" in p.name.lower() or i == len(platforms) - 1:
+                os.environ["PYOPENCL_CTX"] = f"{i}:0"
+                return None
+    for i, p in enumerate(platforms):
+        if p.get_devices():
+            os.environ["PYOPENCL_CTX"] = f"{i}:0"
+            return None
+    return "no OpenCL device on any platform"
+
+
+_NO_DEVICE = _pin_device()
+
+
+def require_opencl():
+    if _NO_DEVICE:
+        if IN_CI:
+            pytest.fail(f"CI=true but {_NO_DEVICE}: install PoCL (pip install 'pyopencl[pocl]')")
+        pytest.skip(_NO_DEVICE)
+
+
+@pytest.fixture(scope="session")
+def cl_context():
+    require_opencl()
+    import pyopencl as cl
+
+    return cl.create_some_context(interactive=False)
+
+
+@pytest.fixture(scope="session")
+def cl_queue(cl_context):
+    import pyopencl as cl
+
+    return cl.CommandQueue(cl_context)
+
+
+def load_generated(path: Path, name: str):
+    """Import a generated program as a module (a fresh one each time)."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location(name, path)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[name] = module
+    spec.loader.exec_module(module)
+    return module
+
+
+@pytest.fixture
+def build(tmp_path):
+    """Build a model into a temporary folder; returns (result, out_dir)."""
+    from gpucompgen.build import compile_model, write
+
+    def _build(model: Path, mode: str = "gpu-aware", device: str | None = None):
+        out = tmp_path / f"out-{mode}"
+        result = compile_model(Path(model), out, mode, device)
+        write(result, out)
+        return result, out
+
+    return _build
