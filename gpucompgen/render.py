@@ -29,8 +29,17 @@ class OutputFile:
     text: str
 
 
+def template_folder() -> Path:
+    """Installed: the package data gpucompgen.templates; in a source checkout run without
+    installing (PYTHONPATH=.), the top-level templates/ folder it is built from."""
+    try:
+        return Path(str(resources.files("gpucompgen.templates")))
+    except ModuleNotFoundError:
+        return Path(__file__).resolve().parent.parent / "templates"
+
+
 def environment() -> jinja2.Environment:
-    folder = resources.files("gpucompgen.templates")
+    folder = template_folder()
     env = jinja2.Environment(
         loader=jinja2.FileSystemLoader(str(folder)),
         undefined=jinja2.StrictUndefined, trim_blocks=True, lstrip_blocks=True,
