@@ -47,7 +47,7 @@ class Camera:
     # -- the component interface ------------------------------------------------------
     def initialize(self) -> Size:
         if self.folder and self.video:
-            raise PipelineError("camera: set 'folder' or 'video', not both")
+            raise PipelineError("set 'folder' or 'video', not both")
         if self.folder:
             self.files = self._image_files(self.folder)
         elif self.video:
@@ -114,7 +114,7 @@ class Camera:
 
     def render(self, frame: int) -> np.ndarray:
         if self.background is None:
-            raise PipelineError("camera: execute() before initialize()")
+            raise PipelineError("execute() before initialize()")
         img = self.background + self.noise[frame % NOISE_FIELDS]
         for b in self.ground_truth(frame):
             y0, y1 = b.y - b.radius, b.y + b.radius + 1
@@ -132,16 +132,16 @@ class Camera:
             files = sorted(Path(p) for p in glob.glob(spec)
                            if Path(p).suffix.lower() in IMAGE_SUFFIXES)
             if not files:
-                raise PipelineError(f"camera: no images match '{spec}' "
+                raise PipelineError(f"no images match '{spec}' "
                                     f"({', '.join(IMAGE_SUFFIXES)})")
             return files
         folder = Path(spec)
         if not folder.is_dir():
             what = "is not a folder" if folder.exists() else "does not exist"
-            raise PipelineError(f"camera: image folder '{spec}' {what}")
+            raise PipelineError(f"image folder '{spec}' {what}")
         files = sorted(p for p in folder.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES)
         if not files:
-            raise PipelineError(f"camera: image folder '{spec}' has no images "
+            raise PipelineError(f"image folder '{spec}' has no images "
                                 f"({', '.join(IMAGE_SUFFIXES)})")
         return files
 
@@ -155,18 +155,18 @@ class Camera:
         if spec.startswith("device:"):
             index = spec.removeprefix("device:")
             if not index.isdigit():
-                raise PipelineError(f"camera: '{spec}' is not a camera; write device:N, e.g. "
+                raise PipelineError(f"'{spec}' is not a camera; write device:N, e.g. "
                                     "device:0")
             capture = cv2.VideoCapture(int(index))
             what = f"live camera {index}"
         else:
             if not Path(spec).is_file():
-                raise PipelineError(f"camera: video file '{spec}' does not exist")
+                raise PipelineError(f"video file '{spec}' does not exist")
             capture = cv2.VideoCapture(spec)
             what = f"video file '{spec}'"
         if not capture.isOpened():
             capture.release()
-            raise PipelineError(f"camera: cannot open {what} with OpenCV")
+            raise PipelineError(f"cannot open {what} with OpenCV")
         return capture
 
     def _grab(self) -> np.ndarray | None:
@@ -177,7 +177,7 @@ class Camera:
             return None
         if bgr.shape[:2] != (self.height, self.width):
             raise PipelineError(
-                f"camera: frame {self.frame} of '{self.video}' is {bgr.shape[1]}x{bgr.shape[0]} "
+                f"frame {self.frame} of '{self.video}' is {bgr.shape[1]}x{bgr.shape[0]} "
                 f"(width x height), but the system was built for {self.width}x{self.height}; "
                 "set the camera's width and height params to the video's size")
         return cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
@@ -192,10 +192,10 @@ class Camera:
             with Image.open(path) as im:
                 array = np.asarray(im.convert("RGB"))
         except OSError as exc:
-            raise PipelineError(f"camera: cannot read image {path}: {exc}") from None
+            raise PipelineError(f"cannot read image {path}: {exc}") from None
         if array.shape[:2] != (self.height, self.width):
             raise PipelineError(
-                f"camera: image {path} is {array.shape[1]}x{array.shape[0]} (width x "
+                f"image {path} is {array.shape[1]}x{array.shape[0]} (width x "
                 f"height), but the system was built for {self.width}x{self.height}; set the "
                 "camera's width and height params to the images' size")
         return np.ascontiguousarray(array)
