@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import math
+from collections import deque
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
@@ -57,6 +58,7 @@ def decide(sightings: list[Sighting], width: int, stop_radius: float) -> tuple[s
 
 class VisionManager:
     RUNTIME_OPTIONS = ("decisions", "images", "quiet")
+    HISTORY = 1000  # the latest decisions kept for inspection: memory stays flat for hours
 
     def __init__(self, *, min_area: int = 30, stop_radius: int = 60,
                  print_decisions: bool = True, decisions_file: str = ""):
@@ -64,7 +66,7 @@ class VisionManager:
         self.print_decisions, self.decisions_file = print_decisions, decisions_file
         self.decisions_json = True
         self.images: Path | None = None
-        self.history: list[Decision] = []
+        self.history: deque[Decision] = deque(maxlen=self.HISTORY)
         self.frame = 0
         self.size: Size | None = None
         self._out = None
