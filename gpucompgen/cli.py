@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import signal
 import subprocess
 import sys
 import tempfile
@@ -191,13 +192,19 @@ def cmd_run(args) -> int:
             cmd.append("--quiet")
         if args.debug:
             cmd.append("--debug")
-        # the program handles SIGINT itself (frees, exits 130); wait for it to do so
+        # The program stops cleanly on SIGINT (which a terminal sends it too) and SIGTERM
+        # (forwarded here); wait for it to free everything and take its exit code.
         with subprocess.Popen(cmd, env=dict(os.environ)) as proc:
-            while True:
-                try:
-                    return proc.wait()
-                except KeyboardInterrupt:
-                    continue
+            previous = signal.signal(signal.SIGTERM,
+                                     lambda signum, frame: proc.send_signal(signum))
+            try:
+                while True:
+                    try:
+                        return proc.wait()
+                    except KeyboardInterrupt:
+                        continue
+            finally:
+                signal.signal(signal.SIGTERM, previous)
 
 
 def cmd_check(args) -> int:

@@ -260,3 +260,23 @@ def test_progress_shows_on_a_terminal_only():
     assert "1 frames, " in term.text and "frames/s" in term.text
     assert Monitor(stream=SimpleNamespace(isatty=lambda: False)).progress is False
     assert Monitor(stream=term, progress=False).progress is False
+
+
+def test_gpucompgen_run_forwards_sigterm_to_the_program(tmp_path):
+    require_opencl()
+    proc = subprocess.Popen([sys.executable, "-m", "gpucompgen", "run",
+                             str(ROOT / "models" / "vision_system.yaml")], cwd=tmp_path,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            env=dict(os.environ))
+    try:
+        lines = [proc.stdout.readline() for _ in range(2)]
+        assert all(line.startswith("frame ") for line in lines), lines
+        proc.send_signal(signal.SIGTERM)
+        _, err = proc.communicate(timeout=120)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert proc.returncode == 143, err
+    assert "stopped by SIGTERM" in err and "Traceback" not in err
+    assert not list(tmp_path.iterdir())
