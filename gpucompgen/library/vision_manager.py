@@ -57,7 +57,7 @@ def decide(sightings: list[Sighting], width: int, stop_radius: float) -> tuple[s
 
 
 class VisionManager:
-    RUNTIME_OPTIONS = ("decisions", "images", "quiet")
+    RUNTIME_OPTIONS = ("decisions", "save_images", "quiet")
     HISTORY = 1000  # the latest decisions kept for inspection: memory stays flat for hours
 
     def __init__(self, *, min_area: int = 30, stop_radius: int = 60,
@@ -76,8 +76,8 @@ class VisionManager:
         if options.get("decisions"):
             self.decisions_file = options["decisions"]
             self.decisions_json = Path(self.decisions_file).suffix.lower() in (".jsonl", ".json")
-        if options.get("images"):
-            self.images = Path(options["images"])
+        if options.get("save_images"):
+            self.images = Path(options["save_images"])
         if options.get("quiet"):
             self.print_decisions = False
 

@@ -368,7 +368,7 @@ def main(run: Callable[..., Result], description: str, argv: list[str] | None = 
     if args.frames is not None and args.frames < 0:
         parser.error("--frames must be 0 or more")
     monitor = Monitor(progress=False if args.quiet else None, stats_path=args.stats_json,
-                      options={"decisions": args.decisions, "images": args.save_images,
+                      options={"decisions": args.decisions, "save_images": args.save_images,
                                "quiet": args.quiet})
     restore = _stop_on_signals()
     try:
