@@ -18,7 +18,7 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 #   6     detector (ObjectDetector)  GPU   tile 32, block 16x16x1, 16384 threads  mask 480x1280x1 uint8           614,400
 #   7     adapter3_gpu2cpu           copy  -                                      detector.mask 480x1280x1 uint8  614,400
 #   8     manager (VisionManager)    CPU   -                                      -                               -
-#   
+#
 #   device: portable OpenCL 1.2 device; bytes between CPU and GPU per frame: 2,457,600
 
 from __future__ import annotations
@@ -191,18 +191,29 @@ class ObjectDetector:
             self.mask = None
 
 
-def run(frames=None, context=None):
-    """Build the system, stream up to `frames` frames (default: until a source ends)."""
+def run(frames=None, context=None, monitor=None):
+    """Build the system, stream up to `frames` frames (default: until a source ends).
+
+    A runtime.Monitor shows progress, times the components when asked and hands them
+    runtime options such as --decisions; main() makes one from the command line.
+    """
+    monitor = monitor or runtime.Monitor(progress=False)
     context = context or runtime.create_context()
     queue = cl.CommandQueue(context)
+    runtime.check_device_memory(queue.device, {
+        'adapter1_cpu2gpu (camera1.image)': 921_600,
+        'adapter2_cpu2gpu (camera2.image)': 921_600,
+        'merger.merged': 1_843_200,
+        'detector.mask': 614_400,
+    })
     image_merger_program = runtime.build_program(
         context, LIB_DIR / 'image_merger.cl', 'ImageMerger')
     object_detector_program = runtime.build_program(
         context, LIB_DIR / 'object_detector.cl', 'ObjectDetector')
 
-    camera1 = Camera(width=640, height=480, seed=1, buoys=2, frames=0, folder='')
+    camera1 = Camera(width=640, height=480, seed=1, buoys=2, frames=0, folder='', video='')
     adapter1_cpu2gpu = CpuToGpuAdapter(context, queue)  # camera1.image -> merger.left
-    camera2 = Camera(width=640, height=480, seed=2, buoys=2, frames=0, folder='')
+    camera2 = Camera(width=640, height=480, seed=2, buoys=2, frames=0, folder='', video='')
     adapter2_cpu2gpu = CpuToGpuAdapter(context, queue)  # camera2.image -> merger.right
     merger = ImageMerger(context, queue, image_merger_program)
     detector = ObjectDetector(context, queue, object_detector_program, red_min=150, margin=80)
@@ -218,8 +229,9 @@ def run(frames=None, context=None):
         'adapter3_gpu2cpu': adapter3_gpu2cpu,
         'manager': manager,
     }
+    monitor.attach(parts)
 
-    frame = 0
+    frame = None  # while initializing
     try:
         camera1_image_size = camera1.initialize()
         runtime.expect_size("camera1.image", camera1_image_size, Size(480, 640, 3))
@@ -237,31 +249,26 @@ def run(frames=None, context=None):
         merger.config_gpu(tile=16, block_x=16, block_y=16, block_z=1)  # preferred
         detector.config_gpu(tile=32, block_x=16, block_y=16, block_z=1)  # model
 
+        frame = 0
         while frames is None or frame < frames:
-            try:
-                camera1_image = camera1.execute()
-                camera2_image = camera2.execute()
-                if camera1_image is None or camera2_image is None:
-                    break  # end of stream
-                camera1_image_gpu = adapter1_cpu2gpu.transfer(camera1_image)
-                camera2_image_gpu = adapter2_cpu2gpu.transfer(camera2_image)
-                merger_merged = merger.execute(camera1_image_gpu, camera2_image_gpu)
-                detector_mask = detector.execute(merger_merged)
-                detector_mask_cpu = adapter3_gpu2cpu.transfer(detector_mask)
-                manager.execute(detector_mask_cpu)
-            except Exception as exc:
-                raise runtime.component_failure(exc, frame, parts) from exc
+            camera1_image = camera1.execute()
+            camera2_image = camera2.execute()
+            if camera1_image is None or camera2_image is None:
+                break  # end of stream
+            camera1_image_gpu = adapter1_cpu2gpu.transfer(camera1_image)
+            camera2_image_gpu = adapter2_cpu2gpu.transfer(camera2_image)
+            merger_merged = merger.execute(camera1_image_gpu, camera2_image_gpu)
+            detector_mask = detector.execute(merger_merged)
+            detector_mask_cpu = adapter3_gpu2cpu.transfer(detector_mask)
+            manager.execute(detector_mask_cpu)
             frame += 1
+            monitor.frame_done(frame)
         queue.finish()
+    except Exception as exc:
+        raise runtime.component_failure(exc, frame, parts) from exc
     finally:
-        manager.free_memory()
-        adapter3_gpu2cpu.free_memory()
-        detector.free_memory()
-        merger.free_memory()
-        adapter2_cpu2gpu.free_memory()
-        camera2.free_memory()
-        adapter1_cpu2gpu.free_memory()
-        camera1.free_memory()
+        runtime.free_all(parts)  # free_memory() on each, in reverse order
+        monitor.close()
     return runtime.Result(frame, parts)
 
 

@@ -1,4 +1,4 @@
-"""gpucompgen's command line: build, run, check, plan.
+"""gpucompgen's command line: build, run, check, plan, graph.
 
 Exit codes as in black and datamodel-codegen: 0 ok, 1 problems found (or stale output with
 --check), 2 usage or internal error.  A user sees a traceback only with --debug.
@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import signal
 import subprocess
 import sys
 import tempfile
@@ -19,8 +20,21 @@ from .errors import GpucompgenError
 from .passes import MODES
 
 
+EPILOG = """\
+exit codes: 0 ok; 1 problems in the model, stale output with --check, or a failed run;
+2 usage or internal error (and a missing Graphviz for graph).
+A run stopped by SIGINT or SIGTERM exits 130 or 143.
+
+examples:
+  gpucompgen build models/vision_system.yaml              write generated/vision_system.py
+  gpucompgen build models/vision_system.yaml --check      is generated/ current? (CI)
+  gpucompgen run models/vision_system.yaml --frames 100   build to a temporary folder, run
+  gpucompgen graph models/vision_system.yaml -o vs.svg    draw the architecture
+"""
+
+
 def _common(p: argparse.ArgumentParser) -> None:
-    p.add_argument("model", type=Path, help="system model (.yaml)")
+    p.add_argument("model", type=Path, metavar="MODEL", help="the system model (.yaml)")
     p.add_argument("--mode", choices=MODES, default="gpu-aware",
                    help="gpu-aware: GPU ports and generated adapters (default); standard: every "
                         "GPU-aware component copies its own data, as in the paper's Section II")
@@ -29,47 +43,82 @@ def _common(p: argparse.ArgumentParser) -> None:
                         "device PYOPENCL_CTX selects (default: the model's platform.device)")
 
 
+def _sub(sub, name: str, summary: str, description: str) -> argparse.ArgumentParser:
+    return sub.add_parser(name, help=summary, description=description,
+                          formatter_class=argparse.RawDescriptionHelpFormatter)
+
+
 def parser() -> argparse.ArgumentParser:
     top = argparse.ArgumentParser(
         prog="gpucompgen",
         description="Generate GPU-aware pipe-and-filter systems (Campeanu et al.) as readable "
-                    "Python + pyopencl programs.")
+                    "Python + pyopencl programs: check a YAML system model, propagate sizes, "
+                    "insert CPU<->GPU adapters, choose GPU settings, render the program.",
+        epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     top.add_argument("--version", action="version", version=f"gpucompgen {__version__}")
-    top.add_argument("--debug", action="store_true", help="show tracebacks of internal errors")
-    sub = top.add_subparsers(dest="command", metavar="COMMAND", required=True)
+    top.add_argument("--debug", action="store_true",
+                     help="show tracebacks (of internal errors, and of a failing run)")
+    sub = top.add_subparsers(dest="command", metavar="COMMAND", required=True,
+                             title="commands")
 
-    b = sub.add_parser("build", help="check a model and generate its program",
-                       description="Check MODEL and write <system>.py and <system>_lib/ "
-                                   "into the output folder.")
+    b = _sub(sub, "build", "check a model and generate its program",
+             "Check MODEL and write <system>.py and <system>_lib/ into the output folder,\n"
+             "replacing what an earlier build wrote there. With --check or --diff nothing\n"
+             "is written: they print a unified diff from the folder to a fresh build.")
     _common(b)
-    b.add_argument("-o", "--output", type=Path, default=Path("generated"),
+    b.add_argument("-o", "--output", type=Path, default=Path("generated"), metavar="DIR",
                    help="output folder (default: generated)")
     b.add_argument("--check", action="store_true",
-                   help="write nothing; exit 1 and show a diff when the output is stale")
-    b.add_argument("--diff", action="store_true", help="show what would change; write nothing")
+                   help="write nothing; exit 1 and print the diff when DIR is stale, 0 when "
+                        "current")
+    b.add_argument("--diff", action="store_true",
+                   help="write nothing; print the diff a build would make (exit 0)")
     b.add_argument("--overwrite", action="store_true",
                    help="replace files in the output folder that gpucompgen did not write")
     b.add_argument("--print-between-passes", action="store_true",
                    help="dump the system after each pass (to stderr)")
 
-    r = sub.add_parser("run", help="build into a temporary folder and run",
-                       description="Build MODEL into a temporary folder and run the program.")
+    r = _sub(sub, "run", "build into a temporary folder and run",
+             "Build MODEL into a temporary folder and run the program; the options below\n"
+             "are the generated program's own and are passed to it.")
     _common(r)
     r.add_argument("--frames", type=int, default=None, metavar="N",
                    help="stop after N frames (default: until a source ends its stream)")
+    r.add_argument("-q", "--quiet", action="store_true",
+                   help="print nothing but errors (no progress, decisions or summary)")
+    r.add_argument("--stats-json", metavar="FILE",
+                   help="write frames processed, per-frame and per-component timings as JSON")
+    r.add_argument("--decisions", metavar="FILE",
+                   help="write the sinks' decisions: JSON lines for .jsonl/.json, else text")
+    r.add_argument("--save-images", metavar="DIR",
+                   help="write the sinks' images (masks, annotated frames) as PNG files")
 
-    c = sub.add_parser("check", help="run every check, generate nothing",
-                       description="Check MODEL and print every problem and a summary.")
+    c = _sub(sub, "check", "run every check, generate nothing",
+             "Check MODEL, print every problem, and a summary of the system.")
     _common(c)
     c.add_argument("--strict", action="store_true", help="warnings fail too")
 
-    pl = sub.add_parser("plan", help="show the system plan: order, sizes, adapters, settings")
+    pl = _sub(sub, "plan", "show the system plan: order, sizes, adapters, settings",
+              "Print the plan the generated program carries as a comment: the run order,\n"
+              "each output's size, the adapters, the GPU settings and the bytes that cross\n"
+              "between CPU and GPU per frame.")
     _common(pl)
+
+    g = _sub(sub, "graph", "draw the architecture (.dot, .svg, .png)",
+             "Draw MODEL's architecture as in the paper's Figure 3: components (GPU-aware\n"
+             "ones and their GPU ports marked), the generated adapters as nodes of their own,\n"
+             "edges labelled with element type and size. --mode standard draws the\n"
+             "Figure 1/2 variant, without adapters. .svg and .png need Graphviz's dot.")
+    _common(g)
+    g.add_argument("-o", "--output", type=Path, required=True, metavar="FILE",
+                   help="where to write: FILE.dot, FILE.svg or FILE.png")
     return top
 
 
 def main(argv: list[str] | None = None) -> int:
     args = parser().parse_args(argv)
+    if getattr(args, "frames", None) is not None and args.frames < 0:
+        parser().error("--frames must be 0 or more")
     try:
         return COMMANDS[args.command](args)
     except GpucompgenError as exc:
@@ -134,12 +183,28 @@ def cmd_run(args) -> int:
         write(result, out)
         program = out / f"{result.system.model.name}.py"
         cmd = [sys.executable, str(program)]
-        if args.frames is not None:
-            cmd += ["--frames", str(args.frames)]
+        for flag, value in (("--frames", args.frames), ("--stats-json", args.stats_json),
+                            ("--decisions", args.decisions),
+                            ("--save-images", args.save_images)):
+            if value is not None:
+                cmd += [flag, str(value)]
+        if args.quiet:
+            cmd.append("--quiet")
         if args.debug:
             cmd.append("--debug")
-        env = dict(os.environ)
-        return subprocess.call(cmd, env=env)
+        # The program stops cleanly on SIGINT (which a terminal sends it too) and SIGTERM
+        # (forwarded here); wait for it to free everything and take its exit code.
+        with subprocess.Popen(cmd, env=dict(os.environ)) as proc:
+            previous = signal.signal(signal.SIGTERM,
+                                     lambda signum, frame: proc.send_signal(signum))
+            try:
+                while True:
+                    try:
+                        return proc.wait()
+                    except KeyboardInterrupt:
+                        continue
+            finally:
+                signal.signal(signal.SIGTERM, previous)
 
 
 def cmd_check(args) -> int:
@@ -164,4 +229,22 @@ def cmd_plan(args) -> int:
     return 0
 
 
-COMMANDS = {"build": cmd_build, "run": cmd_run, "check": cmd_check, "plan": cmd_plan}
+def cmd_graph(args) -> int:
+    from .graph import FORMATS, GraphvizMissing, write_graph
+
+    if args.output.suffix.lower() not in FORMATS:
+        print(f"gpucompgen graph: error: {args.output}: unknown format; the file name must end "
+              f"in {', '.join(FORMATS)}", file=sys.stderr)
+        return 2
+    result = _compile(args, Path("generated"))
+    try:
+        write_graph(result.system, args.output)
+    except GraphvizMissing as exc:
+        print(f"gpucompgen graph: error: {exc}", file=sys.stderr)
+        return 2
+    print(f"wrote {args.output}")
+    return 0
+
+
+COMMANDS = {"build": cmd_build, "run": cmd_run, "check": cmd_check, "plan": cmd_plan,
+            "graph": cmd_graph}

@@ -157,8 +157,8 @@ def render(system: System, source: str) -> list[OutputFile]:
         programs[tname] = var
         taken.add(var)
 
-    # construction, initialize, config_gpu, stream loop, free: in the paper's order
-    construct, initialize, configure, free = [], [], [], []
+    # construction, initialize, config_gpu, stream loop: in the paper's order
+    construct, initialize, configure = [], [], []
     adapters = {a.name: a for a in system.adapters}
     by_source = {a.source: a for a in system.adapters}
     parts = []  # (name, object) in initialize order
@@ -198,7 +198,7 @@ def render(system: System, source: str) -> list[OutputFile]:
             s = system.settings[name]
             configure.append(f"{name}.config_gpu(tile={s.tile}, block_x={s.block_x}, "
                              f"block_y={s.block_y}, block_z={s.block_z})  # {s.source}")
-    free = [f"{p}.free_memory()" for p in reversed(parts)]
+    device_buffers = device_buffer_sizes(system)
 
     sources = [n for n in system.order if not system.components[n].type.inputs
                and not system.components[n].type.gpu_aware]
@@ -228,9 +228,34 @@ def render(system: System, source: str) -> list[OutputFile]:
         programs=[{"var": programs[t.name], "file": f"{t.snake}.cl", "type": t.name}
                   for t in gpu_types],
         construct=construct, initialize=initialize, configure=configure, loop=loop,
-        free=free, parts=parts, uses_gpu=bool(gpu_types))
+        parts=parts, device_buffers=device_buffers, uses_gpu=bool(gpu_types))
     files.insert(0, OutputFile(PurePosixPath(f"{model.name}.py"), program))
     return files
+
+
+def device_buffer_sizes(system: System) -> list[tuple[str, int]]:
+    """Every device buffer the program allocates, as (what, bytes), in run order.
+
+    gpu-aware mode: one per CPU-to-GPU adapter and per output of a GPU-aware component;
+    standard mode: one per port of a GPU-aware component (it copies its own data).
+    """
+    by_source = {a.source: a for a in system.adapters}
+    result = []
+    for name in system.order:
+        t = system.components[name].type
+        if t.gpu_aware:
+            ports = list(t.outputs)
+            if system.mode == "standard":
+                ports = list(t.inputs) + ports
+            for p in ports:
+                end = Endpoint(name, p)
+                size = system.sizes[system.writers[end]] if p in t.inputs else system.sizes[end]
+                result.append((f"{name}.{p}", size.nbytes))
+        for p in t.outputs:
+            a = by_source.get(Endpoint(name, p))
+            if a is not None and a.direction == "cpu2gpu":
+                result.append((f"{a.name} ({name}.{p})", a.size.nbytes))
+    return result
 
 
 def gpu_class_view(t: ComponentType, mode: str) -> dict:

@@ -4,10 +4,16 @@ By default it renders deterministic synthetic underwater frames: blue-green wate
 vertical gradient and seeded noise, and red buoys that bob along known paths.  The same
 seed always gives the same frames, and :meth:`Camera.ground_truth` tells where every buoy
 is in any frame, so tests can check what the pipeline detected.
+
+Real inputs: ``folder`` (a folder of images, or a glob such as ``shots/*.png``, read in
+sorted order with Pillow) or ``video`` (a video file, or ``device:N`` for live camera N,
+read with OpenCV's VideoCapture; OpenCV's BGR frames become RGB here, at the edge).
+Every frame must have the size the system was built for.
 """
 
 from __future__ import annotations
 
+import glob
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -29,24 +35,23 @@ class Buoy:
 
 class Camera:
     def __init__(self, *, width: int = 640, height: int = 480, seed: int = 1, buoys: int = 2,
-                 frames: int = 0, folder: str = ""):
+                 frames: int = 0, folder: str = "", video: str = ""):
         self.width, self.height, self.seed = width, height, seed
-        self.buoys, self.frames, self.folder = buoys, frames, folder
+        self.buoys, self.frames, self.folder, self.video = buoys, frames, folder, video
         self.frame = 0
         self.files: list[Path] = []
+        self.capture = None
         self.background = None
         self.noise: list[np.ndarray] = []
 
     # -- the component interface ------------------------------------------------------
     def initialize(self) -> Size:
+        if self.folder and self.video:
+            raise PipelineError("set 'folder' or 'video', not both")
         if self.folder:
-            folder = Path(self.folder)
-            if not folder.is_dir():
-                raise PipelineError(f"camera folder '{self.folder}' does not exist")
-            self.files = sorted(p for p in folder.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES)
-            if not self.files:
-                raise PipelineError(f"camera folder '{self.folder}' has no images "
-                                    f"({', '.join(IMAGE_SUFFIXES)})")
+            self.files = self._image_files(self.folder)
+        elif self.video:
+            self.capture = self._open_video(self.video)
         else:
             rng = np.random.default_rng(self.seed)
             rows = np.linspace(0.0, 1.0, self.height, dtype=np.float32)[:, None]
@@ -67,6 +72,10 @@ class Camera:
             if self.frame >= len(self.files):
                 return None
             image = self._read(self.files[self.frame])
+        elif self.capture is not None:
+            image = self._grab()
+            if image is None:
+                return None
         else:
             image = self.render(self.frame)
         self.frame += 1
@@ -75,6 +84,9 @@ class Camera:
     def free_memory(self) -> None:
         self.background = None
         self.noise = []
+        if self.capture is not None:
+            capture, self.capture = self.capture, None
+            capture.release()
 
     # -- synthetic scene ----------------------------------------------------------------
     def ground_truth(self, frame: int) -> list[Buoy]:
@@ -102,7 +114,7 @@ class Camera:
 
     def render(self, frame: int) -> np.ndarray:
         if self.background is None:
-            raise PipelineError("camera: execute() before initialize()")
+            raise PipelineError("execute() before initialize()")
         img = self.background + self.noise[frame % NOISE_FIELDS]
         for b in self.ground_truth(frame):
             y0, y1 = b.y - b.radius, b.y + b.radius + 1
@@ -112,6 +124,63 @@ class Camera:
             patch = img[y0:y1, x0:x1]
             patch[disk] = (210, 30, 35) + self.noise[(frame + 1) % NOISE_FIELDS][y0:y1, x0:x1][disk]
         return np.clip(img, 0, 255).astype(np.uint8)
+
+    # -- real inputs ------------------------------------------------------------------
+    @staticmethod
+    def _image_files(spec: str) -> list[Path]:
+        if glob.has_magic(spec):
+            files = sorted(Path(p) for p in glob.glob(spec)
+                           if Path(p).suffix.lower() in IMAGE_SUFFIXES)
+            if not files:
+                raise PipelineError(f"no images match '{spec}' "
+                                    f"({', '.join(IMAGE_SUFFIXES)})")
+            return files
+        folder = Path(spec)
+        if not folder.is_dir():
+            what = "is not a folder" if folder.exists() else "does not exist"
+            raise PipelineError(f"image folder '{spec}' {what}")
+        files = sorted(p for p in folder.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES)
+        if not files:
+            raise PipelineError(f"image folder '{spec}' has no images "
+                                f"({', '.join(IMAGE_SUFFIXES)})")
+        return files
+
+    @staticmethod
+    def _open_video(spec: str):
+        try:
+            import cv2
+        except ImportError:
+            raise PipelineError("reading video needs OpenCV: "
+                                "pip install 'gpucompgen[video]'") from None
+        if spec.startswith("device:"):
+            index = spec.removeprefix("device:")
+            if not index.isdigit():
+                raise PipelineError(f"'{spec}' is not a camera; write device:N, e.g. "
+                                    "device:0")
+            capture = cv2.VideoCapture(int(index))
+            what = f"live camera {index}"
+        else:
+            if not Path(spec).is_file():
+                raise PipelineError(f"video file '{spec}' does not exist")
+            capture = cv2.VideoCapture(spec)
+            what = f"video file '{spec}'"
+        if not capture.isOpened():
+            capture.release()
+            raise PipelineError(f"cannot open {what} with OpenCV")
+        return capture
+
+    def _grab(self) -> np.ndarray | None:
+        import cv2
+
+        ok, bgr = self.capture.read()
+        if not ok:
+            return None
+        if bgr.shape[:2] != (self.height, self.width):
+            raise PipelineError(
+                f"frame {self.frame} of '{self.video}' is {bgr.shape[1]}x{bgr.shape[0]} "
+                f"(width x height), but the system was built for {self.width}x{self.height}; "
+                "set the camera's width and height params to the video's size")
+        return cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
 
     def _read(self, path: Path) -> np.ndarray:
         try:
@@ -123,10 +192,10 @@ class Camera:
             with Image.open(path) as im:
                 array = np.asarray(im.convert("RGB"))
         except OSError as exc:
-            raise PipelineError(f"camera: cannot read image {path}: {exc}") from None
+            raise PipelineError(f"cannot read image {path}: {exc}") from None
         if array.shape[:2] != (self.height, self.width):
             raise PipelineError(
-                f"camera: image {path.name} is {array.shape[1]}x{array.shape[0]} (width x "
+                f"image {path} is {array.shape[1]}x{array.shape[0]} (width x "
                 f"height), but the system was built for {self.width}x{self.height}; set the "
                 "camera's width and height params to the images' size")
         return np.ascontiguousarray(array)

@@ -1,15 +1,23 @@
-"""VisionManager: a standard sink that turns a black-and-white mask into movement decisions."""
+"""VisionManager: a standard sink that turns a black-and-white mask into movement decisions.
+
+Sinks: one line per frame on stdout (print_decisions), JSON lines to decisions_file, and
+the runtime options of the generated program (see RUNTIME_OPTIONS): --decisions FILE
+(JSON lines for .jsonl/.json, else the text lines), --save-images DIR (mask_NNNNNN.png and
+annotated_NNNNNN.png per frame, with Pillow), --quiet (no lines on stdout).
+"""
 
 from __future__ import annotations
 
 import json
 import math
+from collections import deque
 from dataclasses import asdict, dataclass, field
+from pathlib import Path
 
 import numpy as np
 from scipy import ndimage
 
-from gpucompgen.runtime import Size
+from gpucompgen.runtime import PipelineError, Size
 
 ACTIONS = ("forward", "turn_left", "turn_right", "stop", "search")
 
@@ -49,19 +57,49 @@ def decide(sightings: list[Sighting], width: int, stop_radius: float) -> tuple[s
 
 
 class VisionManager:
+    RUNTIME_OPTIONS = ("decisions", "save_images", "quiet")
+    HISTORY = 1000  # the latest decisions kept for inspection: memory stays flat for hours
+
     def __init__(self, *, min_area: int = 30, stop_radius: int = 60,
                  print_decisions: bool = True, decisions_file: str = ""):
         self.min_area, self.stop_radius = min_area, stop_radius
         self.print_decisions, self.decisions_file = print_decisions, decisions_file
-        self.history: list[Decision] = []
+        self.decisions_json = True
+        self.images: Path | None = None
+        self.history: deque[Decision] = deque(maxlen=self.HISTORY)
         self.frame = 0
         self.size: Size | None = None
         self._out = None
 
+    def runtime_options(self, options: dict) -> None:
+        """Options of the generated program's command line; they override the params."""
+        if options.get("decisions"):
+            self.decisions_file = options["decisions"]
+            self.decisions_json = Path(self.decisions_file).suffix.lower() in (".jsonl", ".json")
+        if options.get("save_images"):
+            self.images = Path(options["save_images"])
+        if options.get("quiet"):
+            self.print_decisions = False
+
     def initialize(self, mask: Size) -> None:
         self.size = Size(*mask)
+        if self.images is not None:
+            try:
+                import PIL  # noqa: F401  (checked here, before the first frame)
+            except ImportError:
+                raise PipelineError("saving images needs Pillow: "
+                                    "pip install 'gpucompgen[image]'") from None
+            try:
+                self.images.mkdir(parents=True, exist_ok=True)
+            except OSError as exc:
+                raise PipelineError(f"cannot create image folder {self.images}: "
+                                    f"{exc.strerror}") from None
         if self.decisions_file:
-            self._out = open(self.decisions_file, "w", encoding="utf-8")
+            try:
+                self._out = open(self.decisions_file, "w", encoding="utf-8")  # noqa: SIM115
+            except OSError as exc:
+                raise PipelineError(f"cannot write decisions to {self.decisions_file}: "
+                                    f"{exc.strerror}") from None
 
     def execute(self, mask: np.ndarray) -> None:
         labels, count = ndimage.label(mask > 0)
@@ -81,10 +119,28 @@ class VisionManager:
         if self.print_decisions:
             print(decision.line(), flush=True)
         if self._out is not None:
-            self._out.write(json.dumps(asdict(decision)) + "\n")
+            text = json.dumps(asdict(decision)) if self.decisions_json else decision.line()
+            self._out.write(text + "\n")
+        if self.images is not None:
+            self._save_images(mask, decision)
         self.frame += 1
 
     def free_memory(self) -> None:
         if self._out is not None:
-            self._out.close()
-            self._out = None
+            out, self._out = self._out, None
+            out.close()
+
+    def _save_images(self, mask: np.ndarray, decision: Decision) -> None:
+        """The mask, and the mask in colour with every sighting boxed (the target in red)."""
+        from PIL import Image, ImageDraw
+
+        name = f"{decision.frame:06d}.png"
+        Image.fromarray(mask).save(self.images / f"mask_{name}")
+        annotated = Image.fromarray(np.stack([mask // 2] * 3, axis=-1))
+        draw = ImageDraw.Draw(annotated)
+        for s in decision.sightings:
+            colour = (255, 40, 40) if s == decision.target else (40, 200, 255)
+            r = s.radius + 3
+            draw.rectangle((s.x - r, s.y - r, s.x + r, s.y + r), outline=colour, width=2)
+        draw.text((8, 8), f"frame {decision.frame}: {decision.action}", fill=(255, 255, 0))
+        annotated.save(self.images / f"annotated_{name}")

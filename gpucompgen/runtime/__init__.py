@@ -9,10 +9,14 @@ from __future__ import annotations
 
 import argparse
 import importlib.util
+import json
+import signal
 import sys
+import time
 import traceback
 from pathlib import Path
-from typing import Any, Callable, NamedTuple
+from collections.abc import Callable
+from typing import Any, NamedTuple
 
 
 class PipelineError(Exception):
@@ -129,38 +133,266 @@ def failing_component(exc: BaseException, components: dict[str, Any]) -> str | N
     return found
 
 
+def component_failure(exc: BaseException, frame: int | None,
+                      parts: dict[str, Any]) -> PipelineError:
+    """Turn an exception raised by run() into a message naming who and when.
+
+    frame is None while the components are being initialized and configured.
+    """
+    who = failing_component(exc, parts)
+    when = "while initializing" if frame is None else f"at frame {frame}"
+    if isinstance(exc, PipelineError):
+        text = str(exc)
+        if who is None or text.startswith((f"{who}:", f"{who} ")):
+            return exc
+        return PipelineError(f"{who} failed {when}: {text}")
+    return PipelineError(f"{who or 'a component'} failed {when}: {type(exc).__name__}: {exc}")
+
+
+def free_all(parts: dict[str, Any]) -> None:
+    """free_memory() on every part in reverse order; one failing does not stop the others.
+
+    When run() is already failing, failures to free are printed as notes so the first
+    error stays the one reported; otherwise they raise one PipelineError naming them all.
+    """
+    failed = []
+    for name in reversed(list(parts)):
+        try:
+            parts[name].free_memory()
+        except Exception as exc:
+            failed.append(f"{name}.free_memory() failed: {type(exc).__name__}: {exc}")
+    if not failed:
+        return
+    if sys.exc_info()[1] is not None:
+        for line in failed:
+            print(f"note: {line}", file=sys.stderr)
+        return
+    raise PipelineError("; ".join(failed) + " (every other component was freed)")
+
+
+def check_device_memory(device, buffers: dict[str, int]) -> None:
+    """Before anything is allocated: every device buffer fits one allocation, all fit memory.
+
+    buffers maps 'component.port' to bytes, as propagated at build time.
+    """
+    name = device.name.strip()
+    limit = device.max_mem_alloc_size
+    for what, nbytes in buffers.items():
+        if nbytes > limit:
+            raise PipelineError(
+                f"{what} needs a device buffer of {nbytes:,} bytes, but device '{name}' "
+                f"allows at most {limit:,} bytes in one allocation; build the system for "
+                "smaller frames")
+    total = sum(buffers.values())
+    if total > device.global_mem_size:
+        raise PipelineError(
+            f"the system needs {total:,} bytes of device memory for its buffers, but device "
+            f"'{name}' has {device.global_mem_size:,} bytes; build the system for smaller "
+            "frames")
+
+
+class Stopped(BaseException):
+    """SIGINT or SIGTERM arrived: run() frees everything and the program exits 128 + signal."""
+
+    def __init__(self, signum: int):
+        super().__init__(signal.Signals(signum).name)
+        self.signum = signum
+
+
+class Monitor:
+    """What a run reports besides the components' own output, and the runtime options.
+
+    - progress: frames and frames/s on one redrawn stderr line, only on a terminal;
+    - stats: with stats_path, host wall time around every execute() and transfer(),
+      written as JSON when the run ends (fields: see write_stats); without it the
+      components are not wrapped and the stream loop pays one call per frame;
+    - options: runtime options (e.g. {"decisions": "out.jsonl"}) handed to each component
+      that declares them in RUNTIME_OPTIONS and takes them in runtime_options(options).
+    """
+
+    def __init__(self, *, progress: bool | None = None, stats_path: str | Path | None = None,
+                 options: dict[str, Any] | None = None, stream=None):
+        self.stream = stream if stream is not None else sys.stderr
+        if progress is None:
+            progress = hasattr(self.stream, "isatty") and self.stream.isatty()
+        self.progress = progress
+        self.stats_path = Path(stats_path) if stats_path else None
+        self.options = dict(options or {})
+        self.frames = 0
+        self.parts: dict[str, Any] = {}
+        self.calls: dict[str, list[float]] | None = None
+        self.frame_seconds: list[float] = []
+        self._started = time.perf_counter()
+        self._frame_start: float | None = None
+        self._drawn = 0.0
+
+    def attach(self, parts: dict[str, Any]) -> None:
+        """Called by run() once every component and adapter is constructed."""
+        self.parts = parts
+        self._give_options(parts)
+        if self.stats_path is not None:
+            self.calls = {name: [] for name in parts}
+            for name, obj in parts.items():
+                for method in ("execute", "transfer"):
+                    if hasattr(obj, method):
+                        setattr(obj, method, self._timed(name, getattr(obj, method)))
+        self._started = time.perf_counter()
+
+    def _give_options(self, parts: dict[str, Any]) -> None:
+        given = {k: v for k, v in self.options.items() if v not in (None, False, "")}
+        taken = set()
+        for obj in parts.values():
+            wanted = set(getattr(obj, "RUNTIME_OPTIONS", ()))
+            if wanted:
+                obj.runtime_options({k: v for k, v in self.options.items() if k in wanted})
+                taken |= wanted
+        unused = sorted(set(given) - taken - {"quiet"})
+        if unused:
+            raise PipelineError(
+                f"no component of this system takes --{unused[0].replace('_', '-')}")
+
+    def _timed(self, name: str, method: Callable) -> Callable:
+        record = self.calls[name]
+
+        def timed(*args):
+            start = time.perf_counter()
+            if self._frame_start is None:
+                self._frame_start = start
+            try:
+                return method(*args)
+            finally:
+                record.append(time.perf_counter() - start)
+
+        return timed
+
+    def frame_done(self, frames: int) -> None:
+        """Called by run() after each frame with the number of frames processed so far."""
+        self.frames = frames
+        if self.calls is not None or self.progress:
+            now = time.perf_counter()
+            if self.calls is not None and self._frame_start is not None:
+                self.frame_seconds.append(now - self._frame_start)
+                self._frame_start = None
+            if self.progress and now - self._drawn >= 0.5:
+                self._drawn = now
+                rate = frames / max(now - self._started, 1e-9)
+                self.stream.write(f"\r{frames} frames, {rate:.1f} frames/s ")
+                self.stream.flush()
+
+    def close(self) -> None:
+        """Called by run() after everything is freed, whether or not it failed."""
+        if self.progress and self._drawn:
+            self.stream.write("\r\033[K")
+            self.stream.flush()
+        if self.stats_path is not None:
+            self.write_stats(self.stats_path)
+
+    def stats(self) -> dict[str, Any]:
+        """The --stats-json document. Times are host wall-clock seconds.
+
+        frames: frames processed; wall_seconds: from the end of construction to the end of
+        the run (initialize included); frames_per_second: frames / wall_seconds;
+        frame_seconds: per frame, from the first execute() or transfer() of the frame to its
+        end; components: per component and adapter, in run order, the calls made and the
+        total, mean and max seconds spent in execute() or transfer(). For a GPU-aware
+        component that is the time to enqueue its kernel: the kernel's own time shows in
+        the next blocking transfer (or with the OpenCL profiling events, not here).
+        """
+        wall = time.perf_counter() - self._started
+        components = {}
+        for name, times in (self.calls or {}).items():
+            components[name] = {
+                "calls": len(times),
+                "total_seconds": sum(times),
+                "mean_seconds": sum(times) / len(times) if times else 0.0,
+                "max_seconds": max(times, default=0.0),
+            }
+        return {
+            "frames": self.frames,
+            "wall_seconds": wall,
+            "frames_per_second": self.frames / wall if wall > 0 else 0.0,
+            "frame_seconds": list(self.frame_seconds),
+            "components": components,
+        }
+
+    def write_stats(self, path: Path) -> None:
+        try:
+            path.write_text(json.dumps(self.stats(), indent=2) + "\n", encoding="utf-8")
+        except OSError as exc:
+            print(f"error: cannot write stats to {path}: {exc.strerror}", file=sys.stderr)
+
+
+def _stop_on_signals() -> Callable[[], None]:
+    """SIGINT and SIGTERM raise Stopped once (run() then frees everything); a second
+    signal while stopping is ignored so freeing is not cut short. Returns the restorer."""
+    stopping = []
+
+    def handler(signum, frame):
+        if not stopping:
+            stopping.append(signum)
+            raise Stopped(signum)
+
+    previous = {s: signal.signal(s, handler) for s in (signal.SIGINT, signal.SIGTERM)}
+
+    def restore():
+        for s, h in previous.items():
+            signal.signal(s, h)
+
+    return restore
+
+
 def main(run: Callable[..., Result], description: str, argv: list[str] | None = None) -> int:
-    """Command line of a generated program: run it, print errors without tracebacks."""
-    parser = argparse.ArgumentParser(description=description)
+    """Command line of a generated program: run it, print errors without tracebacks.
+
+    Exit codes: 0 done, 1 a component or the device failed, 2 usage, 130 SIGINT,
+    143 SIGTERM (128 + the signal's number).
+    """
+    parser = argparse.ArgumentParser(
+        description=description,
+        epilog="Exit codes: 0 done, 1 a component or the device failed, 2 usage, "
+               "130 on SIGINT, 143 on SIGTERM. Select the OpenCL device with PYOPENCL_CTX.")
     parser.add_argument("--frames", type=int, default=None, metavar="N",
                         help="stop after N frames (default: until a source ends its stream)")
+    parser.add_argument("-q", "--quiet", action="store_true",
+                        help="print nothing but errors (no progress, decisions or summary)")
+    parser.add_argument("--stats-json", metavar="FILE",
+                        help="time every execute() and transfer() and write frames, "
+                             "per-frame and per-component timings to FILE as JSON")
+    parser.add_argument("--decisions", metavar="FILE",
+                        help="write the sinks' decisions to FILE: JSON lines if it ends in "
+                             ".jsonl or .json, else one text line per frame")
+    parser.add_argument("--save-images", metavar="DIR",
+                        help="write the sinks' images (masks, annotated frames) as PNG to DIR")
     parser.add_argument("--debug", action="store_true", help="show tracebacks on errors")
     args = parser.parse_args(argv)
     if args.frames is not None and args.frames < 0:
         parser.error("--frames must be 0 or more")
+    monitor = Monitor(progress=False if args.quiet else None, stats_path=args.stats_json,
+                      options={"decisions": args.decisions, "save_images": args.save_images,
+                               "quiet": args.quiet})
+    restore = _stop_on_signals()
     try:
-        result = run(frames=args.frames)
+        result = run(frames=args.frames, monitor=monitor)
+    except Stopped as exc:
+        print(f"stopped by {exc} after {monitor.frames} frame(s); every component was freed",
+              file=sys.stderr)
+        return 128 + exc.signum
     except KeyboardInterrupt:
-        print("interrupted", file=sys.stderr)
+        print(f"interrupted after {monitor.frames} frame(s)", file=sys.stderr)
         return 130
     except PipelineError as exc:
         if args.debug:
             traceback.print_exc()
         print(f"error: {exc}", file=sys.stderr)
         return 1
-    except Exception as exc:  # a component failed: say which, without a traceback
+    except Exception as exc:  # a bug outside any component: still no traceback by default
         if args.debug:
             traceback.print_exc()
         print(f"error: {type(exc).__name__}: {exc}", file=sys.stderr)
         print("  (run with --debug for the traceback)", file=sys.stderr)
         return 1
-    print(f"processed {result.frames} frame(s)", file=sys.stderr)
+    finally:
+        restore()
+    if not args.quiet:
+        print(f"processed {result.frames} frame(s)", file=sys.stderr)
     return 0
-
-
-def component_failure(exc: BaseException, frame: int, parts: dict[str, Any]) -> PipelineError:
-    """Turn an exception raised inside the stream loop into a message naming who and when."""
-    if isinstance(exc, PipelineError):
-        return exc
-    who = failing_component(exc, parts) or "a component"
-    return PipelineError(f"{who} failed at frame {frame}: {type(exc).__name__}: {exc}")

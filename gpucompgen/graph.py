@@ -1,0 +1,114 @@
+"""The architecture of a checked system as a Graphviz drawing (the paper's Figures 1-3).
+
+gpu-aware mode draws Figure 3: GPU-aware components (double border, green) with their GPU
+ports marked, and every generated adapter as a node of its own between the ports it joins.
+standard mode draws Figure 1/2: every component standard, no adapters (each GPU-aware
+component copies its own data). Edges carry the element type and size of what flows.
+
+The DOT text is written here, deterministically (system order, no timestamps); `dot`
+renders .svg and .png.
+"""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+from pathlib import Path
+
+from .model import Endpoint
+from .passes import System
+
+FORMATS = (".dot", ".svg", ".png")
+
+
+class GraphvizMissing(Exception):
+    """`dot` is needed for svg/png and is not on PATH."""
+
+
+def quote(text: str) -> str:
+    """A DOT double-quoted string: backslashes, quotes and line breaks escaped."""
+    escaped = str(text).replace("\\", "\\\\").replace('"', '\\"')
+    escaped = escaped.replace("\r", "").replace("\n", "\\n")
+    return f'"{escaped}"'
+
+
+def _port(system: System, end: Endpoint) -> str:
+    return f"{end.port} [GPU]" if system.memory(end) == "gpu" else end.port
+
+
+def dot_text(system: System) -> str:
+    """The DOT source of the system's architecture."""
+    gpu_aware_mode = system.mode == "gpu-aware"
+    figure = "Figure 3" if gpu_aware_mode else "Figures 1 and 2"
+    title = f"{system.model.name} ({system.mode} mode, as in the paper's {figure})"
+    lines = [
+        f"digraph {quote(system.model.name)} {{",
+        f"  label={quote(title)};",
+        "  labelloc=t;",
+        "  rankdir=LR;",
+        "  ranksep=1.1;",
+        "  nodesep=0.5;",
+        "  fontname=\"Helvetica\";",
+        '  node [shape=box, style="rounded,filled", fillcolor="#f2f2f2", fontname="Helvetica"];',
+        '  edge [fontname="Helvetica", fontsize=10, labelfontsize=9, labeldistance=2.5, '
+        'labelangle=20];',
+    ]
+    for name in system.order:
+        t = system.components[name].type
+        if t.gpu_aware and gpu_aware_mode:
+            label = f"{name}\n{t.name}\nGPU-aware"
+            lines.append(f"  {quote(name)} [label={quote(label)}, peripheries=2, "
+                         'fillcolor="#d9f2d9"];')
+        elif t.gpu_aware:
+            label = f"{name}\n{t.name}\nstandard: copies its own GPU data"
+            lines.append(f"  {quote(name)} [label={quote(label)}];")
+        else:
+            label = f"{name}\n{t.name}"
+            lines.append(f"  {quote(name)} [label={quote(label)}];")
+    for a in system.adapters:
+        arrow = "CPU to GPU" if a.direction == "cpu2gpu" else "GPU to CPU"
+        label = f"{a.name}\ngenerated adapter\n{arrow} copy"
+        lines.append(f"  {quote(a.name)} [label={quote(label)}, shape=cds, "
+                     'style="filled,dashed", fillcolor="#fff2cc"];')
+
+    by_source = {a.source: a for a in system.adapters}
+    for name in system.order:
+        for pname in system.components[name].type.outputs:
+            src = Endpoint(name, pname)
+            size = system.sizes.get(src)
+            label = quote(str(size) if size else "")
+            adapter = by_source.get(src)
+            via = set(adapter.consumers) if adapter else set()
+            if adapter is not None:
+                lines.append(f"  {quote(name)} -> {quote(adapter.name)} [label={label}, "
+                             f"taillabel={quote(_port(system, src))}];")
+            for dst in system.readers.get(src, []):
+                head = quote(_port(system, dst))
+                if dst in via:
+                    lines.append(f"  {quote(adapter.name)} -> {quote(dst.component)} "
+                                 f"[label={label}, headlabel={head}];")
+                else:
+                    lines.append(f"  {quote(name)} -> {quote(dst.component)} [label={label}, "
+                                 f"taillabel={quote(_port(system, src))}, headlabel={head}];")
+    lines.append("}")
+    return "\n".join(lines) + "\n"
+
+
+def write_graph(system: System, path: Path) -> None:
+    """Write .dot text, or render .svg/.png with Graphviz's dot."""
+    suffix = path.suffix.lower()
+    if suffix not in FORMATS:
+        raise ValueError(f"unknown graph format '{path.suffix}'; use one of {', '.join(FORMATS)}")
+    text = dot_text(system)
+    if suffix == ".dot":
+        path.write_text(text, encoding="utf-8")
+        return
+    dot = shutil.which("dot")
+    if dot is None:
+        raise GraphvizMissing(
+            f"drawing {suffix} needs Graphviz's 'dot' program, which is not on PATH; install "
+            "Graphviz (apt-get install graphviz, brew install graphviz) or write a .dot file")
+    proc = subprocess.run([dot, f"-T{suffix[1:]}", "-o", str(path)], input=text.encode(),
+                          capture_output=True, check=False)
+    if proc.returncode != 0:
+        raise RuntimeError(f"dot failed: {proc.stderr.decode(errors='replace').strip()}")

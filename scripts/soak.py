@@ -1,0 +1,183 @@
+#!/usr/bin/env python3
+"""Soak test of the generated vision system (not part of the default test suite: slow).
+
+1. Stream FRAMES frames through one run of the vision system; every SAMPLE frames record
+   the process's resident memory (RSS) and the number of live OpenCL buffers.
+   Pass: after warm-up (the first 10% of frames) RSS stays within --rss-slack MiB of its
+   warm-up value, and the live buffer count never changes while streaming.
+2. CYCLES times in one process: build the system, load the program, run a few frames,
+   free. Pass: the live buffer count is 0 after every cycle, and RSS after the last cycle
+   is within --rss-slack MiB of RSS after the first few cycles.
+
+Live buffers are counted by wrapping cl.Buffer in the generated program's namespace:
+created minus released (explicitly, or when pyopencl frees them).
+
+    .venv/bin/python scripts/soak.py                        # 5,000 frames at 640x480
+    .venv/bin/python scripts/soak.py --width 320 --height 240
+
+Exit code 0 when both parts pass, 1 otherwise.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib.util
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+
+import pyopencl as cl  # noqa: E402
+
+from gpucompgen.build import compile_model, write  # noqa: E402
+from gpucompgen.runtime import Monitor  # noqa: E402
+
+
+def rss_mib() -> float:
+    with open("/proc/self/status", encoding="ascii") as f:
+        for line in f:
+            if line.startswith("VmRSS:"):
+                return int(line.split()[1]) / 1024
+    raise RuntimeError("no VmRSS in /proc/self/status")
+
+
+class BufferCounter:
+    """cl.Buffer as the generated program sees it, counting live buffers."""
+
+    def __init__(self):
+        self.live = 0
+        self.created = 0
+        counter = self
+
+        class CountedBuffer(cl.Buffer):
+            def __init__(self, *args, **kwargs):
+                super().__init__(*args, **kwargs)
+                counter.live += 1
+                counter.created += 1
+                self._counted = True
+
+            def release(self):
+                if getattr(self, "_counted", False):
+                    self._counted = False
+                    counter.live -= 1
+                super().release()
+
+            def __del__(self):
+                if getattr(self, "_counted", False):
+                    self._counted = False
+                    counter.live -= 1
+
+        self.Buffer = CountedBuffer
+
+
+class SamplingMonitor(Monitor):
+    def __init__(self, every: int, counter: BufferCounter):
+        super().__init__(progress=False, options={"quiet": True})
+        self.every, self.counter = every, counter
+        self.samples: list[tuple[int, float, int]] = []  # (frame, RSS MiB, live buffers)
+
+    def frame_done(self, frames: int) -> None:
+        super().frame_done(frames)
+        if frames % self.every == 0:
+            self.samples.append((frames, rss_mib(), self.counter.live))
+
+
+def model_text(width: int, height: int) -> str:
+    text = (ROOT / "models" / "vision_system.yaml").read_text(encoding="utf-8")
+    return text.replace("width: 640, height: 480", f"width: {width}, height: {height}")
+
+
+def load(program: Path, counter: BufferCounter):
+    name = "soak_vision_system"
+    spec = importlib.util.spec_from_file_location(name, program)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[name] = module
+    spec.loader.exec_module(module)
+    module.cl = _with_buffer(counter)
+    return module
+
+
+def _with_buffer(counter: BufferCounter):
+    """A stand-in for the pyopencl module whose Buffer is the counting one."""
+
+    class ClWithCountedBuffer:
+        Buffer = counter.Buffer
+
+        def __getattr__(self, name):
+            return getattr(cl, name)
+
+    return ClWithCountedBuffer()
+
+
+def stream(work: Path, args) -> bool:
+    model = work / "vision_system.yaml"
+    model.write_text(model_text(args.width, args.height), encoding="utf-8")
+    out = work / "out"
+    write(compile_model(model, out), out)
+    counter = BufferCounter()
+    module = load(out / "vision_system.py", counter)
+    monitor = SamplingMonitor(args.sample, counter)
+    start = time.perf_counter()
+    result = module.run(frames=args.frames, monitor=monitor)
+    seconds = time.perf_counter() - start
+    warm = [s for s in monitor.samples if s[0] >= args.frames // 10]
+    rss0 = warm[0][1]
+    worst = max(abs(s[1] - rss0) for s in warm)
+    buffers = {s[2] for s in monitor.samples}
+    print(f"stream: {result.frames} frames of 2 x {args.width}x{args.height} in "
+          f"{seconds:.0f} s ({result.frames / seconds:.1f} frames/s)")
+    print(f"  RSS after warm-up (frame {warm[0][0]}): {rss0:.1f} MiB; at the end "
+          f"(frame {warm[-1][0]}): {warm[-1][1]:.1f} MiB; largest change {worst:.1f} MiB")
+    print(f"  live OpenCL buffers while streaming: {sorted(buffers)}; after free: "
+          f"{counter.live} (created {counter.created})")
+    for frame, rss, live in monitor.samples[:: max(1, len(monitor.samples) // 10)]:
+        print(f"    frame {frame:6d}: RSS {rss:8.1f} MiB, live buffers {live}")
+    return worst <= args.rss_slack and len(buffers) == 1 and counter.live == 0
+
+
+def cycles(work: Path, args) -> bool:
+    model = work / "vision_system.yaml"
+    model.write_text(model_text(args.width, args.height), encoding="utf-8")
+    after = []
+    leaked = []
+    for i in range(args.cycles):
+        out = work / "cycles"
+        write(compile_model(model, out), out)
+        counter = BufferCounter()
+        module = load(out / "vision_system.py", counter)
+        result = module.run(frames=args.cycle_frames, monitor=Monitor(options={"quiet": True}))
+        assert result.frames == args.cycle_frames
+        del module, result
+        if counter.live:
+            leaked.append((i, counter.live))
+        after.append(rss_mib())
+    base = after[min(4, len(after) - 1)]
+    print(f"cycles: {args.cycles} x (build, load, run {args.cycle_frames} frames, free)")
+    print(f"  RSS after cycle 5: {base:.1f} MiB; after cycle {args.cycles}: {after[-1]:.1f} "
+          f"MiB; change {after[-1] - base:+.1f} MiB")
+    print(f"  cycles that left live buffers: {leaked or 'none'}")
+    return not leaked and after[-1] - base <= args.rss_slack
+
+
+def main() -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--frames", type=int, default=5000)
+    p.add_argument("--width", type=int, default=640)
+    p.add_argument("--height", type=int, default=480)
+    p.add_argument("--sample", type=int, default=100, help="sample every N frames")
+    p.add_argument("--cycles", type=int, default=50)
+    p.add_argument("--cycle-frames", type=int, default=5)
+    p.add_argument("--rss-slack", type=float, default=8.0, metavar="MIB")
+    args = p.parse_args()
+    with tempfile.TemporaryDirectory(prefix="gpucompgen-soak-") as tmp:
+        ok_stream = stream(Path(tmp), args)
+        ok_cycles = cycles(Path(tmp), args)
+    print("PASS" if ok_stream and ok_cycles else "FAIL")
+    return 0 if ok_stream and ok_cycles else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

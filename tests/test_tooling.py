@@ -1,0 +1,178 @@
+"""Everyday tooling: --check/--diff, ruff-clean output, graph, run options, help."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+
+import pytest
+
+from conftest import IN_CI, ROOT, require_opencl
+from gpucompgen.build import compile_model, write
+from gpucompgen.graph import dot_text, quote
+
+MODELS = sorted((ROOT / "models").glob("*.yaml"))
+VISION = ROOT / "models" / "vision_system.yaml"
+
+
+def gpucompgen(*args, cwd=ROOT, env=None) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "gpucompgen", *map(str, args)], cwd=cwd,
+                          capture_output=True, text=True, check=False, timeout=300,
+                          env=env or dict(os.environ))
+
+
+@pytest.mark.parametrize("model", MODELS, ids=lambda p: p.stem)
+def test_check_passes_on_the_repository(model):
+    proc = gpucompgen("build", model.relative_to(ROOT), "-o", "generated", "--check")
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    assert proc.stdout == "" and "up to date" in proc.stderr
+
+
+def test_check_fails_after_a_model_edit_and_diff_writes_nothing(tmp_path):
+    (tmp_path / "models").mkdir()
+    shutil.copytree(ROOT / "generated", tmp_path / "generated")
+    model = tmp_path / "models" / "vision_system.yaml"
+    model.write_text(VISION.read_text().replace("red_min: 150", "red_min: 140"))
+    before = (tmp_path / "generated" / "vision_system.py").read_bytes()
+
+    proc = gpucompgen("build", "models/vision_system.yaml", "--check", cwd=tmp_path)
+    assert proc.returncode == 1
+    assert "is stale" in proc.stderr
+    assert "--- a/vision_system.py\n+++ b/vision_system.py\n" in proc.stdout
+    assert "-    detector = ObjectDetector(context, queue, object_detector_program, " \
+           "red_min=150, margin=80)\n" in proc.stdout
+    assert "+    detector = ObjectDetector(context, queue, object_detector_program, " \
+           "red_min=140, margin=80)\n" in proc.stdout
+
+    proc = gpucompgen("build", "models/vision_system.yaml", "--diff", cwd=tmp_path)
+    assert proc.returncode == 0 and "red_min=140" in proc.stdout
+    assert (tmp_path / "generated" / "vision_system.py").read_bytes() == before
+
+    assert gpucompgen("build", "models/vision_system.yaml", cwd=tmp_path).returncode == 0
+    proc = gpucompgen("build", "models/vision_system.yaml", "--check", cwd=tmp_path)
+    assert proc.returncode == 0 and proc.stdout == ""
+
+
+def test_generated_code_passes_ruff(tmp_path):
+    out = tmp_path / "standard"
+    write(compile_model(VISION, out, "standard"), out)
+    for target in (ROOT / "generated", out):
+        # the project's ruff settings, plus pycodestyle warnings (trailing whitespace)
+        proc = subprocess.run([sys.executable, "-m", "ruff", "check", "--no-cache",
+                               "--extend-select", "W", str(target)], cwd=ROOT,
+                              capture_output=True, text=True, check=False)
+        assert proc.returncode == 0, proc.stdout + proc.stderr
+
+
+def test_graph_shows_the_three_generated_adapters_and_sizes():
+    system = compile_model(VISION, ROOT / "generated").system
+    text = dot_text(system)
+    for adapter in ("adapter1_cpu2gpu", "adapter2_cpu2gpu", "adapter3_gpu2cpu"):
+        assert f'"{adapter}" [label="{adapter}\\ngenerated adapter' in text
+    assert '"camera1" -> "adapter1_cpu2gpu" [label="480x640x3 uint8"' in text
+    assert '"adapter1_cpu2gpu" -> "merger" [label="480x640x3 uint8", headlabel="left [GPU]"]' \
+        in text
+    assert '"merger" -> "detector" [label="480x1280x3 uint8", taillabel="merged [GPU]", ' \
+           'headlabel="frame [GPU]"]' in text
+    assert '"merger" [label="merger\\nImageMerger\\nGPU-aware", peripheries=2' in text
+    assert text == dot_text(compile_model(VISION, ROOT / "generated").system)
+
+    standard = dot_text(compile_model(VISION, ROOT / "generated", "standard").system)
+    assert "adapter" not in standard and "[GPU]" not in standard
+    assert '"camera1" -> "merger" [label="480x640x3 uint8"' in standard
+
+
+def test_dot_names_are_quoted_and_escaped():
+    assert quote('a "b"\\c\nd') == '"a \\"b\\"\\\\c\\nd"'
+
+
+@pytest.mark.parametrize("suffix", [".dot", ".svg", ".png"])
+def test_graph_command_writes_each_format(tmp_path, suffix):
+    if suffix != ".dot" and shutil.which("dot") is None:
+        if IN_CI:
+            pytest.fail("CI=true but Graphviz's dot is missing: .ci/run installs graphviz")
+        pytest.skip("Graphviz's dot is not installed (apt-get install graphviz)")
+    target = tmp_path / f"vision{suffix}"
+    proc = gpucompgen("graph", VISION, "-o", target)
+    assert proc.returncode == 0, proc.stderr
+    data = target.read_bytes()
+    magic = {".dot": b'digraph "vision_system"', ".svg": b"<?xml", ".png": b"\x89PNG"}[suffix]
+    assert data.startswith(magic)
+    if suffix == ".svg":
+        assert b"adapter3_gpu2cpu" in data
+
+
+def test_graph_without_dot_says_what_to_install(tmp_path):
+    env = dict(os.environ, PATH=str(tmp_path))  # no dot here
+    proc = subprocess.run([sys.executable, "-m", "gpucompgen", "graph", str(VISION), "-o",
+                           str(tmp_path / "v.svg")], capture_output=True, text=True,
+                          check=False, env=env, cwd=ROOT)
+    assert proc.returncode == 2
+    assert "needs Graphviz's 'dot' program" in proc.stderr and "Traceback" not in proc.stderr
+    assert gpucompgen("graph", VISION, "-o", tmp_path / "v.txt").returncode == 2
+
+
+def test_stats_json_has_the_promised_fields(tmp_path):
+    require_opencl()
+    stats = tmp_path / "stats.json"
+    proc = subprocess.run([sys.executable, str(ROOT / "generated" / "vision_system.py"),
+                           "--frames", "3", "--quiet", "--stats-json", str(stats)],
+                          capture_output=True, text=True, check=False, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout == "" and proc.stderr == ""  # --quiet, and no terminal: no progress
+    doc = json.loads(stats.read_text())
+    assert doc["frames"] == 3
+    assert len(doc["frame_seconds"]) == 3 and all(t > 0 for t in doc["frame_seconds"])
+    assert doc["wall_seconds"] > 0 and doc["frames_per_second"] > 0
+    assert list(doc["components"]) == [
+        "camera1", "adapter1_cpu2gpu", "camera2", "adapter2_cpu2gpu", "merger", "detector",
+        "adapter3_gpu2cpu", "manager"]
+    for name, c in doc["components"].items():
+        assert set(c) == {"calls", "total_seconds", "mean_seconds", "max_seconds"}, name
+        assert c["calls"] == 3 and c["max_seconds"] <= c["total_seconds"], name
+
+
+def test_run_passes_the_program_options_through(tmp_path):
+    require_opencl()
+    proc = gpucompgen("run", VISION, "--frames", "2", "--quiet", "--decisions",
+                      tmp_path / "d.txt", "--save-images", tmp_path / "img",
+                      "--stats-json", tmp_path / "s.json", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout == ""
+    lines = (tmp_path / "d.txt").read_text().splitlines()
+    assert [line.split(":")[0] for line in lines] == ["frame 0", "frame 1"]
+    assert sorted(p.name for p in (tmp_path / "img").iterdir()) == [
+        "annotated_000000.png", "annotated_000001.png", "mask_000000.png", "mask_000001.png"]
+    assert json.loads((tmp_path / "s.json").read_text())["frames"] == 2
+
+
+def test_decisions_as_json_lines(tmp_path):
+    require_opencl()
+    target = tmp_path / "d.jsonl"
+    proc = subprocess.run([sys.executable, str(ROOT / "generated" / "vision_system.py"),
+                           "--frames", "2", "--decisions", str(target)],
+                          capture_output=True, text=True, check=False, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    rows = [json.loads(line) for line in target.read_text().splitlines()]
+    assert [r["frame"] for r in rows] == [0, 1]
+    assert rows[0]["action"] in ("forward", "turn_left", "turn_right", "stop", "search")
+    assert set(rows[0]["sightings"][0]) == {"x", "y", "area", "radius"}
+
+
+@pytest.mark.parametrize("command", [None, "build", "run", "check", "plan", "graph"])
+def test_help_reads_well(command):
+    proc = gpucompgen(*([command] if command else []), "--help")
+    assert proc.returncode == 0
+    assert proc.stdout.startswith("usage: gpucompgen")
+    if command is None:
+        assert "exit codes:" in proc.stdout and "examples:" in proc.stdout
+    else:
+        assert "MODEL" in proc.stdout
+
+
+def test_version():
+    proc = gpucompgen("--version")
+    assert proc.returncode == 0 and proc.stdout.startswith("gpucompgen ")
