@@ -19,7 +19,6 @@ from . import __version__
 from .errors import GpucompgenError
 from .passes import MODES
 
-
 EPILOG = """\
 exit codes: 0 ok; 1 problems in the model, stale output with --check, or a failed run;
 2 usage or internal error (and a missing Graphviz for graph).

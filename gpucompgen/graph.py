@@ -50,8 +50,8 @@ def dot_text(system: System) -> str:
         "  nodesep=0.5;",
         "  fontname=\"Helvetica\";",
         '  node [shape=box, style="rounded,filled", fillcolor="#f2f2f2", fontname="Helvetica"];',
-        '  edge [fontname="Helvetica", fontsize=10, labelfontsize=9, labeldistance=2.5, '
-        'labelangle=20];',
+        ('  edge [fontname="Helvetica", fontsize=10, labelfontsize=9, labeldistance=2.5, '
+         'labelangle=20];'),
     ]
     for name in system.order:
         t = system.components[name].type

@@ -27,13 +27,12 @@ import tempfile
 import time
 from pathlib import Path
 
+import pyopencl as cl
+
+from gpucompgen.build import compile_model, write
+from gpucompgen.runtime import Monitor
+
 ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT))
-
-import pyopencl as cl  # noqa: E402
-
-from gpucompgen.build import compile_model, write  # noqa: E402
-from gpucompgen.runtime import Monitor  # noqa: E402
 
 
 def rss_mib() -> float:
@@ -154,9 +153,10 @@ def cycles(work: Path, args) -> bool:
         if counter.live:
             leaked.append((i, counter.live))
         after.append(rss_mib())
-    base = after[min(4, len(after) - 1)]
+    warm = min(5, len(after))
+    base = after[warm - 1]
     print(f"cycles: {args.cycles} x (build, load, run {args.cycle_frames} frames, free)")
-    print(f"  RSS after cycle 5: {base:.1f} MiB; after cycle {args.cycles}: {after[-1]:.1f} "
+    print(f"  RSS after cycle {warm}: {base:.1f} MiB; after cycle {args.cycles}: {after[-1]:.1f} "
           f"MiB; change {after[-1] - base:+.1f} MiB")
     print(f"  cycles that left live buffers: {leaked or 'none'}")
     return not leaked and after[-1] - base <= args.rss_slack

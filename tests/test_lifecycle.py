@@ -15,8 +15,8 @@ from pathlib import Path
 from types import SimpleNamespace
 
 import pytest
-
 from conftest import ROOT, load_generated, require_opencl
+
 from gpucompgen.build import compile_model, write
 from gpucompgen.runtime import Monitor, PipelineError, check_device_memory, free_all
 
@@ -138,7 +138,7 @@ def test_signal_stops_a_running_pipeline_cleanly(signum, code):
         lines = [proc.stdout.readline() for _ in range(3)]
         assert all(line.startswith("frame ") for line in lines), lines
         proc.send_signal(signum)
-        out, err = proc.communicate(timeout=120)
+        _, err = proc.communicate(timeout=120)
     finally:
         if proc.poll() is None:
             proc.kill()

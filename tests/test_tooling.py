@@ -9,8 +9,8 @@ import subprocess
 import sys
 
 import pytest
-
 from conftest import IN_CI, ROOT, require_opencl
+
 from gpucompgen.build import compile_model, write
 from gpucompgen.graph import dot_text, quote
 
