@@ -45,6 +45,7 @@ class CpuToGpuAdapter:
         self.context = context
         self.queue = queue
         self.buffer = None
+        self.profile = None  # a runtime.Profile with --profile
 
     def initialize(self, size, dtype):
         self.nbytes = size.nbytes(dtype)
@@ -54,7 +55,9 @@ class CpuToGpuAdapter:
         if host.nbytes != self.nbytes:
             raise runtime.PipelineError(
                 f"frame of {host.nbytes} bytes where {self.nbytes} were expected")
-        cl.enqueue_copy(self.queue, self.buffer, np.ascontiguousarray(host))
+        event = cl.enqueue_copy(self.queue, self.buffer, np.ascontiguousarray(host))
+        if self.profile is not None:
+            self.profile.copy(self, "cpu2gpu", event, self.nbytes)
         return self.buffer
 
     def free_memory(self):
@@ -70,12 +73,15 @@ class GpuToCpuAdapter:
         self.context = context
         self.queue = queue
         self.host = None
+        self.profile = None  # a runtime.Profile with --profile
 
     def initialize(self, size, dtype):
         self.host = np.empty(size.shape, dtype)
 
     def transfer(self, buffer):
-        cl.enqueue_copy(self.queue, self.host, buffer)  # blocking: the host reads it next
+        event = cl.enqueue_copy(self.queue, self.host, buffer)  # blocking: the host reads it next
+        if self.profile is not None:
+            self.profile.copy(self, "gpu2cpu", event, self.host.nbytes)
         return self.host
 
     def free_memory(self):
@@ -94,6 +100,7 @@ class ImageMerger:
         self.context = context
         self.queue = queue
         self.kernel = cl.Kernel(program, 'image_merger')
+        self.profile = None  # a runtime.Profile with --profile
         self.merged = None
 
     def initialize(self, left, right):
@@ -127,7 +134,10 @@ class ImageMerger:
 
     def execute(self, left, right):
         self.kernel.set_args(left, right, self.merged, *self.scalar_args)
-        cl.enqueue_nd_range_kernel(self.queue, self.kernel, self.global_size, self.local_size)
+        ran = cl.enqueue_nd_range_kernel(self.queue, self.kernel, self.global_size,
+                                         self.local_size)
+        if self.profile is not None:
+            self.profile.kernel(self, ran)
         return self.merged
 
     def free_memory(self):
@@ -148,6 +158,7 @@ class ObjectDetector:
         self.context = context
         self.queue = queue
         self.kernel = cl.Kernel(program, 'object_detector')
+        self.profile = None  # a runtime.Profile with --profile
         self.red_min = red_min
         self.margin = margin
         self.mask = None
@@ -182,7 +193,10 @@ class ObjectDetector:
 
     def execute(self, frame):
         self.kernel.set_args(frame, self.mask, *self.scalar_args)
-        cl.enqueue_nd_range_kernel(self.queue, self.kernel, self.global_size, self.local_size)
+        ran = cl.enqueue_nd_range_kernel(self.queue, self.kernel, self.global_size,
+                                         self.local_size)
+        if self.profile is not None:
+            self.profile.kernel(self, ran)
         return self.mask
 
     def free_memory(self):
@@ -191,10 +205,14 @@ class ObjectDetector:
             self.mask = None
 
 
-def run(frames=None, context=None):
-    """Build the system, stream up to `frames` frames (default: until a source ends)."""
+def run(frames=None, context=None, profile=False):
+    """Build the system, stream up to `frames` frames (default: until a source ends).
+
+    With profile=True, OpenCL profiling events time every kernel and copy (see
+    runtime.Profile); the result's profile holds them.
+    """
     context = context or runtime.create_context()
-    queue = cl.CommandQueue(context)
+    queue = runtime.create_queue(context, profile)
     image_merger_program = runtime.build_program(
         context, LIB_DIR / 'image_merger.cl', 'ImageMerger')
     object_detector_program = runtime.build_program(
@@ -218,6 +236,7 @@ def run(frames=None, context=None):
         'adapter3_gpu2cpu': adapter3_gpu2cpu,
         'manager': manager,
     }
+    profiler = runtime.Profile(parts) if profile else None
 
     frame = 0
     try:
@@ -262,7 +281,7 @@ def run(frames=None, context=None):
         camera2.free_memory()
         adapter1_cpu2gpu.free_memory()
         camera1.free_memory()
-    return runtime.Result(frame, parts)
+    return runtime.Result(frame, parts, profiler)
 
 
 def main(argv=None):
