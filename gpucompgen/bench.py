@@ -9,12 +9,13 @@ to judge the result:
   stage, like the generated program), so generated / hand-written is the framework's cost;
 - bound: N times the time the device takes to read and write one frame, from its copy
   bandwidth measured with buffer-to-buffer ``cl.enqueue_copy`` along a ring of buffers
-  larger than the CPU's caches (the adapters' two copies are not counted: it is a bound
-  on the components alone);
+  larger than the CPU's caches, sampled in the same rounds as the pipelines (the
+  adapters' two copies are not counted: it is a bound on the components alone);
 - opencv-cpu and opencv-ocl: the same chain of ``cv2.flip(image, 0)`` on numpy arrays and
   on UMat (OpenCV's OpenCL path, on the device ``OPENCV_OPENCL_DEVICE`` selects), when
-  OpenCV is installed.  They run in a child process: a broken OpenCL setup in OpenCV can
-  crash the process that loads it.
+  OpenCV is installed.  opencv-cpu is interleaved with the generated programs; opencv-ocl
+  runs afterwards in a child process, because a broken OpenCL setup in OpenCV can crash
+  the process that loads it.
 
 Variants are interleaved: each runs its frames in rounds, round-robin with the others, so
 load from other programs on a shared machine spreads over all of them.  Every figure is a
@@ -183,31 +184,74 @@ class HandWritten:
             b.release()
 
 
-def copy_bandwidth(context, nbytes: int, samples: int = 7) -> list[float]:
-    """Device copy bandwidth in bytes/s (read + write), buffer to buffer, back to back.
+class OpenCvCpu:
+    """The chain as OpenCV on the CPU: cv2.flip into preallocated arrays."""
+
+    def __init__(self, n: int, image: np.ndarray):
+        import cv2
+
+        self.flip, self.image = cv2.flip, image
+        self.arrays = [np.empty_like(image) for _ in range(n)]
+
+    def run(self, frames: int) -> tuple[list[float], np.ndarray]:
+        arrivals = []
+        for _ in range(frames + 1):
+            src = self.image
+            for dst in self.arrays:
+                self.flip(src, 0, dst)
+                src = dst
+            arrivals.append(time.perf_counter())
+        return list(np.diff(arrivals)), src
+
+    def release(self) -> None:
+        self.arrays = []
+
+
+class CopyRing:
+    """The device's copy bandwidth, for the bound: buffer-to-buffer cl.enqueue_copy.
 
     The copies go along a ring of distinct buffers at least 64 MiB in all, as a chain of
     components goes through distinct buffers: two buffers copied back and forth would stay
-    in the CPU's cache and promise a bandwidth no long chain can reach.
+    in the CPU's cache and promise a bandwidth no long chain can reach.  Sampled in the
+    same rounds as the pipelines, so it sees the same load.
     """
-    import pyopencl as cl
 
-    queue = cl.CommandQueue(context)
-    count = max(8, -(-(64 << 20) // nbytes))
-    ring = [cl.Buffer(context, cl.mem_flags.READ_WRITE, nbytes) for _ in range(count)]
-    for b in ring:
-        cl.enqueue_fill_buffer(queue, b, np.uint8(7), 0, nbytes)
-    queue.finish()
-    result = []
-    for _ in range(samples):
-        t = time.perf_counter()
-        for i in range(count - 1):
-            cl.enqueue_copy(queue, ring[i + 1], ring[i])
-        queue.finish()
-        result.append(2 * nbytes * (count - 1) / (time.perf_counter() - t))
-    for b in ring:
-        b.release()
-    return result
+    def __init__(self, context, nbytes: int):
+        import pyopencl as cl
+
+        self.cl, self.nbytes = cl, nbytes
+        self.queue = cl.CommandQueue(context)
+        count = max(8, -(-(64 << 20) // nbytes))
+        self.ring = [cl.Buffer(context, cl.mem_flags.READ_WRITE, nbytes) for _ in range(count)]
+        for b in self.ring:
+            cl.enqueue_fill_buffer(self.queue, b, np.uint8(7), 0, nbytes)
+        self.queue.finish()
+
+    def seconds_per_frame_copy(self, samples: int) -> list[float]:
+        """Time to read and write one frame once, from `samples` runs along the ring."""
+        result = []
+        for _ in range(samples):
+            t = time.perf_counter()
+            for i in range(len(self.ring) - 1):
+                self.cl.enqueue_copy(self.queue, self.ring[i + 1], self.ring[i])
+            self.queue.finish()
+            result.append((time.perf_counter() - t) / (len(self.ring) - 1))
+        return result
+
+    def release(self) -> None:
+        for b in self.ring:
+            b.release()
+        self.ring = []
+
+
+class Bound:
+    """N components each reading and writing one frame once at the copy bandwidth."""
+
+    def __init__(self, n: int, ring: CopyRing):
+        self.n, self.ring = n, ring
+
+    def run(self, frames: int) -> tuple[list[float], None]:
+        return [self.n * s for s in self.ring.seconds_per_frame_copy(frames)], None
 
 
 # ------------------------------------------------------------------ OpenCV (child process)
@@ -229,9 +273,9 @@ def _opencv_env() -> dict[str, str]:
 
 
 def opencv_worker(spec: dict) -> dict:
-    """Run in the child: times per frame of cv2.flip chains, numpy and UMat, interleaved."""
-    import pyopencl  # noqa: F401  (lets the ICD loader find the PoCL shipped with pyopencl)
-
+    """Run in the child: times per frame of cv2.flip chains on UMat (OpenCL)."""
+    # pyopencl first: it tells the ICD loader where the PoCL shipped in its wheel is
+    import pyopencl  # noqa: F401, I001
     import cv2
 
     from .library.still_image import still_frame
@@ -243,49 +287,30 @@ def opencv_worker(spec: dict) -> dict:
         cv2.ocl.setUseOpenCL(True)
     out: dict = {"ocl": bool(ocl), "device": cv2.ocl.Device.getDefault().name() if ocl else "",
                  "times": {}}
+    if not ocl:
+        return out
     for n in spec["lengths"]:
-        cpu = [np.empty_like(image) for _ in range(n)]
-        times = {"opencv-cpu": [], "opencv-ocl": []}
-        umats = None
-        if ocl:
-            umats = [cv2.UMat(image) for _ in range(n + 1)]
-        frames, rounds = spec["frames"], spec["rounds"]
-        for r in range(rounds):
-            k = frames // rounds + (1 if r < frames % rounds else 0)
-            arrivals = []
-            for _ in range(k + 1):
-                src = image
-                for dst in cpu:
-                    cv2.flip(src, 0, dst)
-                    src = dst
-                arrivals.append(time.perf_counter())
-            times["opencv-cpu"] += list(np.diff(arrivals))
-            ok = np.array_equal(src, expected_output(image, n))
-            if umats is not None:
-                arrivals = []
-                host = np.empty_like(image)
-                for _ in range(k + 1):
-                    umats[0] = cv2.UMat(image)
-                    for i in range(n):
-                        cv2.flip(umats[i], 0, umats[i + 1])
-                    host = umats[n].get()
-                    arrivals.append(time.perf_counter())
-                times["opencv-ocl"] += list(np.diff(arrivals))
-                ok = ok and np.array_equal(host, expected_output(image, n))
-            if not ok:
-                raise RuntimeError(f"OpenCV chain of {n} flips gave a wrong image")
-        out["times"][str(n)] = {k: v for k, v in times.items() if v}
+        umats = [cv2.UMat(image) for _ in range(n + 1)]
+        arrivals = []
+        host = image
+        for _ in range(spec["frames"] + 1):
+            umats[0] = cv2.UMat(image)
+            for i in range(n):
+                cv2.flip(umats[i], 0, umats[i + 1])
+            host = umats[n].get()
+            arrivals.append(time.perf_counter())
+        if not np.array_equal(host, expected_output(image, n)):
+            raise RuntimeError(f"OpenCV chain of {n} flips on UMat gave a wrong image")
+        out["times"][str(n)] = {"opencv-ocl": list(np.diff(arrivals))}
     return out
 
 
-def opencv_references(size, lengths, frames, rounds) -> tuple[dict, str]:
+def opencv_ocl_reference(size, lengths, frames) -> tuple[dict, str]:
     """Times from the child process, or ({}, why not)."""
-    if importlib.util.find_spec("cv2") is None:
-        return {}, "OpenCV is not installed (pip install 'gpucompgen[video]')"
-    spec = json.dumps({"size": list(size), "lengths": list(lengths), "frames": frames,
-                       "rounds": rounds})
+    spec = json.dumps({"size": list(size), "lengths": list(lengths), "frames": frames})
     proc = subprocess.run([sys.executable, "-m", "gpucompgen.bench", "--opencv-worker", spec],
-                          capture_output=True, text=True, env=_opencv_env(), timeout=3600)
+                          capture_output=True, text=True, env=_opencv_env(), timeout=3600,
+                          check=False)
     if proc.returncode != 0:
         last = (proc.stderr.strip().splitlines() or [f"exit status {proc.returncode}"])[-1]
         return {}, f"OpenCV reference failed: {last}"
@@ -321,21 +346,26 @@ def run_bench(sizes, lengths, frames: int, out_dir: Path, opencv: bool = True,
     out_dir.mkdir(parents=True, exist_ok=True)
     figures: list[Figure] = []
     notes: list[str] = []
-    total = len(sizes) * (len(lengths) * 3 * rounds + 1 + (1 if opencv else 0))
+    if opencv and importlib.util.find_spec("cv2") is None:
+        opencv = False
+        notes.append("OpenCV is not installed (pip install 'gpucompgen[video]'): "
+                     "no OpenCV references")
+    per_round = 5 if opencv else 4
+    total = len(sizes) * (len(lengths) * per_round * rounds + 1 + (1 if opencv else 0))
     bar = tqdm(total=total, desc="bench", unit="run", disable=not sys.stderr.isatty(),
                file=sys.stderr)
     with tempfile.TemporaryDirectory(prefix="gpucompgen-bench-") as tmp:
         for size in sizes:
             image = still_frame(*size)
-            nbytes = image.nbytes
-            bandwidth = copy_bandwidth(context, nbytes)
+            ring = CopyRing(context, image.nbytes)
             bar.update(1)
-            per_component = [2 * nbytes / bw for bw in bandwidth]
             for n in lengths:
-                figures.append(Figure(size, n, "bound", [n * s for s in per_component]))
                 runners = {"standard": Generated(Path(tmp), n, size, "standard", context),
                            "gpu-aware": Generated(Path(tmp), n, size, "gpu-aware", context),
-                           "hand-written": HandWritten(n, image, context)}
+                           "hand-written": HandWritten(n, image, context),
+                           "bound": Bound(n, ring)}
+                if opencv:
+                    runners["opencv-cpu"] = OpenCvCpu(n, image)
                 samples: dict[str, list[float]] = {v: [] for v in runners}
                 want = expected_output(image, n)
                 for r in range(rounds):
@@ -343,17 +373,20 @@ def run_bench(sizes, lengths, frames: int, out_dir: Path, opencv: bool = True,
                     for variant, runner in runners.items():
                         bar.set_postfix_str(f"{size[0]}x{size[1]} N={n} {variant}")
                         times, last = runner.run(k)
-                        if not np.array_equal(last, want):
+                        if last is not None and not np.array_equal(last, want):
                             raise BenchError(f"{variant} chain of {n} at {size[0]}x{size[1]} "
                                              "gave a wrong image")
                         samples[variant] += times
                         bar.update(1)
-                runners["hand-written"].release()
+                for variant in ("hand-written", "opencv-cpu"):
+                    if variant in runners:
+                        runners[variant].release()
                 for variant, s in samples.items():
                     figures.append(Figure(size, n, variant, s))
+            ring.release()
             if opencv:
                 bar.set_postfix_str(f"{size[0]}x{size[1]} OpenCV")
-                data, note = opencv_references(size, lengths, frames, rounds)
+                data, note = opencv_ocl_reference(size, lengths, frames)
                 if note and note not in notes:
                     notes.append(note)
                 for n_text, by_variant in data.get("times", {}).items():
@@ -395,7 +428,7 @@ def table(figures: list[Figure], device: str, frames: int, notes: list[str]) -> 
     idx = _index(figures)
     variants = [v for v in VARIANTS if any(f.variant == v for f in figures)]
     lines = [f"gpucompgen bench on {device}: ms per frame, median [q1-q3], {frames} frames "
-             "per variant"]
+             + "per variant"]
     sizes = sorted({f.size for f in figures}, key=lambda s: s[0] * s[1])
     for size in sizes:
         lines.append("")
