@@ -409,6 +409,21 @@ def _key(f: Figure):
     return (f.size[1] * f.size[0], f.size, f.components, VARIANTS.index(f.variant))
 
 
+class CsvFigure:
+    """A row of bench.csv, read back (for plotting a saved run again)."""
+
+    def __init__(self, row: dict):
+        self.size = (int(row["width"]), int(row["height"]))
+        self.components, self.variant = int(row["components"]), row["variant"]
+        self.median, self.q1, self.q3 = (float(row[k]) / 1e3 for k in
+                                         ("median_ms", "q1_ms", "q3_ms"))
+
+
+def read_csv(path: Path) -> list[CsvFigure]:
+    with path.open(newline="", encoding="utf-8") as fh:
+        return [CsvFigure(row) for row in csv.DictReader(fh)]
+
+
 def write_csv(figures: list[Figure], path: Path, frames: int) -> None:
     with path.open("w", newline="", encoding="utf-8") as fh:
         w = csv.writer(fh)
@@ -493,10 +508,12 @@ def plot(figures: list[Figure], path: Path, device: str, frames: int) -> None:
                         capsize=3, label=variant)
         ax.set_title(f"{size[0]} x {size[1]} pixels")
         ax.set_xlabel("number of VerticalMirror components")
-        ax.set_ylabel("time per frame (ms), median and IQR")
+        ax.set_ylabel("time per frame (ms), median and IQR, log scale")
         ax.set_xticks(sorted({f.components for f in figures if f.size == size}))
-        ax.set_ylim(bottom=0)
-        ax.grid(True, alpha=0.3)
+        # log scale: equal ratios are equal distances, and OpenCV's OpenCL path, many
+        # times slower, does not flatten the other lines
+        ax.set_yscale("log")
+        ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=8)
     fig.suptitle(f"Standard vs GPU-aware components on {device}, {frames} frames each",
                  fontsize=10)
