@@ -343,7 +343,10 @@ def run_bench(sizes, lengths, frames: int, out_dir: Path, opencv: bool = True,
 
     context = create_context()
     device = context.devices[0]
-    out_dir.mkdir(parents=True, exist_ok=True)
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise BenchError(f"cannot create output folder {out_dir}: {exc.strerror}") from None
     figures: list[Figure] = []
     notes: list[str] = []
     if opencv and importlib.util.find_spec("cv2") is None:
@@ -397,8 +400,11 @@ def run_bench(sizes, lengths, frames: int, out_dir: Path, opencv: bool = True,
     device_name = f"{device.name.strip()} ({device.platform.name.strip()})"
     csv_path = out_dir / "bench.csv"
     png_path = out_dir / "bench.png"
-    write_csv(figures, csv_path, frames)
-    plot(figures, png_path, device_name, frames)
+    try:
+        write_csv(figures, csv_path, frames)
+        plot(figures, png_path, device_name, frames)
+    except OSError as exc:
+        raise BenchError(f"cannot write results into {out_dir}: {exc.strerror}") from None
     text = table(figures, device_name, frames, notes)
     print(text, file=stdout)
     print(f"wrote {csv_path}\nwrote {png_path}", file=stdout)

@@ -74,10 +74,11 @@ def test_chain_model_is_a_valid_system(tmp_path):
     (["--sizes", "1152by864"], "cannot read size '1152by864': write WIDTHxHEIGHT"),
     (["--lengths", "0,5"], "chain lengths must be 1 or more"),
     (["--frames", "0"], "--frames must be 1 or more"),
+    (["-o", "/dev/null/results"], "cannot create output folder /dev/null/results: Not a directory"),
 ])
 def test_bad_options_are_errors_without_traceback(tmp_path, args, message):
     proc = subprocess.run([sys.executable, "-m", "gpucompgen", "bench", "--lengths", "1",
-                           "--sizes", "16x16", "-o", str(tmp_path)] + args,
+                           "--sizes", "16x16", "--frames", "1", "-o", str(tmp_path)] + args,
                           capture_output=True, text=True, timeout=300, check=False)
     assert proc.returncode == 2
     assert f"gpucompgen bench: error: {message}" in proc.stderr
