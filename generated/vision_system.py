@@ -45,6 +45,7 @@ class CpuToGpuAdapter:
         self.context = context
         self.queue = queue
         self.buffer = None
+        self.profile = None  # a runtime.Profile with --profile
 
     def initialize(self, size, dtype):
         self.nbytes = size.nbytes(dtype)
@@ -54,7 +55,9 @@ class CpuToGpuAdapter:
         if host.nbytes != self.nbytes:
             raise runtime.PipelineError(
                 f"frame of {host.nbytes} bytes where {self.nbytes} were expected")
-        cl.enqueue_copy(self.queue, self.buffer, np.ascontiguousarray(host))
+        event = cl.enqueue_copy(self.queue, self.buffer, np.ascontiguousarray(host))
+        if self.profile is not None:
+            self.profile.copy(self, "cpu2gpu", event, self.nbytes)
         return self.buffer
 
     def free_memory(self):
@@ -70,12 +73,15 @@ class GpuToCpuAdapter:
         self.context = context
         self.queue = queue
         self.host = None
+        self.profile = None  # a runtime.Profile with --profile
 
     def initialize(self, size, dtype):
         self.host = np.empty(size.shape, dtype)
 
     def transfer(self, buffer):
-        cl.enqueue_copy(self.queue, self.host, buffer)  # blocking: the host reads it next
+        event = cl.enqueue_copy(self.queue, self.host, buffer)  # blocking: the host reads it next
+        if self.profile is not None:
+            self.profile.copy(self, "gpu2cpu", event, self.host.nbytes)
         return self.host
 
     def free_memory(self):
@@ -94,6 +100,7 @@ class ImageMerger:
         self.context = context
         self.queue = queue
         self.kernel = cl.Kernel(program, 'image_merger')
+        self.profile = None  # a runtime.Profile with --profile
         self.merged = None
 
     def initialize(self, left, right):
@@ -127,7 +134,10 @@ class ImageMerger:
 
     def execute(self, left, right):
         self.kernel.set_args(left, right, self.merged, *self.scalar_args)
-        cl.enqueue_nd_range_kernel(self.queue, self.kernel, self.global_size, self.local_size)
+        ran = cl.enqueue_nd_range_kernel(self.queue, self.kernel, self.global_size,
+                                         self.local_size)
+        if self.profile is not None:
+            self.profile.kernel(self, ran)
         return self.merged
 
     def free_memory(self):
@@ -148,6 +158,7 @@ class ObjectDetector:
         self.context = context
         self.queue = queue
         self.kernel = cl.Kernel(program, 'object_detector')
+        self.profile = None  # a runtime.Profile with --profile
         self.red_min = red_min
         self.margin = margin
         self.mask = None
@@ -182,7 +193,10 @@ class ObjectDetector:
 
     def execute(self, frame):
         self.kernel.set_args(frame, self.mask, *self.scalar_args)
-        cl.enqueue_nd_range_kernel(self.queue, self.kernel, self.global_size, self.local_size)
+        ran = cl.enqueue_nd_range_kernel(self.queue, self.kernel, self.global_size,
+                                         self.local_size)
+        if self.profile is not None:
+            self.profile.kernel(self, ran)
         return self.mask
 
     def free_memory(self):
@@ -191,15 +205,17 @@ class ObjectDetector:
             self.mask = None
 
 
-def run(frames=None, context=None, monitor=None):
+def run(frames=None, context=None, monitor=None, profile=False):
     """Build the system, stream up to `frames` frames (default: until a source ends).
 
     A runtime.Monitor shows progress, times the components when asked and hands them
     runtime options such as --decisions; main() makes one from the command line.
+    With profile=True, OpenCL profiling events time every kernel and copy (see
+    runtime.Profile); the result's profile holds them.
     """
     monitor = monitor or runtime.Monitor(progress=False)
     context = context or runtime.create_context()
-    queue = cl.CommandQueue(context)
+    queue = runtime.create_queue(context, profile)
     runtime.check_device_memory(queue.device, {
         'adapter1_cpu2gpu (camera1.image)': 921_600,
         'adapter2_cpu2gpu (camera2.image)': 921_600,
@@ -230,6 +246,7 @@ def run(frames=None, context=None, monitor=None):
         'manager': manager,
     }
     monitor.attach(parts)
+    profiler = runtime.Profile(parts) if profile else None
 
     frame = None  # while initializing
     try:
@@ -269,7 +286,7 @@ def run(frames=None, context=None, monitor=None):
     finally:
         runtime.free_all(parts)  # free_memory() on each, in reverse order
         monitor.close()
-    return runtime.Result(frame, parts)
+    return runtime.Result(frame, parts, profiler)
 
 
 def main(argv=None):

@@ -1,4 +1,4 @@
-"""gpucompgen's command line: build, run, check, plan, graph.
+"""gpucompgen's command line: build, run, check, plan, graph, bench.
 
 Exit codes as in black and datamodel-codegen: 0 ok, 1 problems found (or stale output with
 --check), 2 usage or internal error.  A user sees a traceback only with --debug.
@@ -91,6 +91,9 @@ def parser() -> argparse.ArgumentParser:
                    help="write the sinks' decisions: JSON lines for .jsonl/.json, else text")
     r.add_argument("--save-images", metavar="DIR",
                    help="write the sinks' images (masks, annotated frames) as PNG files")
+    r.add_argument("--profile", action="store_true",
+                   help="print each kernel's and copy's time and the bytes moved between CPU "
+                        "and GPU per frame")
 
     c = _sub(sub, "check", "run every check, generate nothing",
              "Check MODEL, print every problem, and a summary of the system.")
@@ -111,6 +114,22 @@ def parser() -> argparse.ArgumentParser:
     _common(g)
     g.add_argument("-o", "--output", type=Path, required=True, metavar="FILE",
                    help="where to write: FILE.dot, FILE.svg or FILE.png")
+
+    be = sub.add_parser(
+        "bench", help="standard vs GPU-aware chains of VerticalMirror (paper, Figures 9/10)",
+        description="Generate chains of N VerticalMirror components in both modes, run them "
+                    "on the OpenCL device (PYOPENCL_CTX), and compare with a hand-written "
+                    "pyopencl loop, the device's copy-bandwidth bound and OpenCV. Prints a "
+                    "table; writes bench.csv and bench.png into the output folder.")
+    be.add_argument("--sizes", default="1152x864,1152x1782", metavar="WxH,...",
+                    help="frame sizes, width x height (default: the paper's 1152x864,1152x1782)")
+    be.add_argument("--lengths", default="5,10,15,20,25", metavar="N,...",
+                    help="chain lengths (default: 5,10,15,20,25)")
+    be.add_argument("--frames", type=int, default=100, metavar="N",
+                    help="frames timed per variant and chain (default: 100)")
+    be.add_argument("-o", "--output", type=Path, default=Path("bench-out"),
+                    help="folder for bench.csv and bench.png (default: bench-out)")
+    be.add_argument("--no-opencv", action="store_true", help="leave out the OpenCV references")
     return top
 
 
@@ -191,6 +210,8 @@ def cmd_run(args) -> int:
             cmd.append("--quiet")
         if args.debug:
             cmd.append("--debug")
+        if args.profile:
+            cmd.append("--profile")
         # The program stops cleanly on SIGINT (which a terminal sends it too) and SIGTERM
         # (forwarded here); wait for it to free everything and take its exit code.
         with subprocess.Popen(cmd, env=dict(os.environ)) as proc:
@@ -245,5 +266,18 @@ def cmd_graph(args) -> int:
     return 0
 
 
+def cmd_bench(args) -> int:
+    from . import bench
+    from .runtime import PipelineError
+
+    try:
+        bench.run_bench(bench.parse_sizes(args.sizes), bench.parse_lengths(args.lengths),
+                        args.frames, args.output, opencv=not args.no_opencv)
+    except (bench.BenchError, PipelineError) as exc:
+        print(f"gpucompgen bench: error: {exc}", file=sys.stderr)
+        return 2
+    return 0
+
+
 COMMANDS = {"build": cmd_build, "run": cmd_run, "check": cmd_check, "plan": cmd_plan,
-            "graph": cmd_graph}
+            "graph": cmd_graph, "bench": cmd_bench}

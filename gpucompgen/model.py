@@ -31,6 +31,9 @@ MEMORIES = ("gpu", "cpu")
 PARAM_TYPES = {"int": int, "float": float, "bool": bool, "str": str}
 KINDS = ("standard", "gpu-aware")
 SETTING_KEYS = ("tile", "block_x", "block_y", "block_z")
+# How a kernel's work-groups cover its grid port: a tile x tile square of pixels each (the
+# paper's contract), or `tile` whole rows each (kernels that copy rows, e.g. VerticalMirror).
+COVERS = ("squares", "rows")
 LIBRARY_DIR = Path(__file__).resolve().parent / "library"
 
 
@@ -86,6 +89,7 @@ class ComponentType:
     kernel_file: Path | None = None
     kernel_function: str = ""
     grid: str = ""  # output port the kernel's work-items cover
+    cover: str = "squares"  # one of COVERS: what one work-group covers of the grid port
     python_file: Path | None = None
     python_class: str = ""
     gpu: GpuDecl = field(default_factory=GpuDecl)
@@ -423,7 +427,8 @@ def _load_kernel(doc, rep, base, ctype: ComponentType, spec) -> None:
     if not kspec:
         rep.error(ctype.pos, f"GPU-aware type '{ctype.name}' needs 'kernel: {{file, function}}'")
         return
-    _unknown_keys(doc, rep, base + ("kernel",), kspec, ("file", "function", "grid"), "kernel")
+    _unknown_keys(doc, rep, base + ("kernel",), kspec, ("file", "function", "grid", "cover"),
+                  "kernel")
     ctype.kernel_file = _resolve_file(doc, rep, base + ("kernel", "file"),
                                       ctype.decl_file.parent, kspec.get("file"), ".cl")
     function = kspec.get("function", ctype.snake)
@@ -445,6 +450,13 @@ def _load_kernel(doc, rep, base, ctype: ComponentType, spec) -> None:
                   did_you_mean(str(grid), ctype.outputs))
     else:
         ctype.grid = grid
+    cover = kspec.get("cover", "squares")
+    if cover not in COVERS:
+        rep.error(doc.pos(*base, "kernel", "cover"),
+                  f"kernel cover {cover!r} of '{ctype.name}' is not one of {list(COVERS)}",
+                  "'squares': a work-group covers tile x tile pixels; 'rows': tile whole rows")
+    else:
+        ctype.cover = cover
     gspec = _expect_map(doc, rep, base + ("gpu",), spec.get("gpu"), "gpu")
     _unknown_keys(doc, rep, base + ("gpu",), gspec, ("tiles", "block_z", "prefer"), "gpu")
     decl = GpuDecl()

@@ -353,7 +353,8 @@ class AllocateGpu(Pass):
                 bz = min(decl.block_z)
             source = "preferred" if system.mode == "gpu-aware" else "component's own"
             while bx * by * bz > dev.max_work_group_size or bx > dev.max_work_item_sizes[0] \
-                    or by > dev.max_work_item_sizes[1] or bx > tile or by > tile:
+                    or by > dev.max_work_item_sizes[1] or by > tile \
+                    or bx > tile and inst.type.cover == "squares":
                 if bx >= by and bx > 1:
                     bx //= 2
                 elif by > 1:
@@ -393,7 +394,9 @@ def resident_threads(system: System, name: str) -> int:
     grid = system.sizes.get(Endpoint(name, ctype.grid))
     if grid is None:
         return s.threads_per_group
-    groups = math.ceil(grid.width / s.tile) * math.ceil(grid.height / s.tile)
+    groups = math.ceil(grid.height / s.tile)
+    if ctype.cover == "squares":
+        groups *= math.ceil(grid.width / s.tile)
     return min(groups * s.threads_per_group, system.device.total_threads)
 
 

@@ -282,6 +282,7 @@ def gpu_class_view(t: ComponentType, mode: str) -> dict:
                      "height": size_expr(t.outputs[p].height, t),
                      "width": size_expr(t.outputs[p].width, t)} for p in outs],
         "grid": t.grid,
+        "rows": t.cover == "rows",
         "scalar_args": scalar_args,
         "standard": mode == "standard",
     }

@@ -55,6 +55,89 @@ def create_context():
             "'pip install pyopencl[pocl]' for a CPU device, or set PYOPENCL_CTX") from None
 
 
+def create_queue(context, profile: bool = False):
+    """The program's command queue; with profile, one that records OpenCL event times."""
+    import pyopencl as cl
+
+    properties = cl.command_queue_properties.PROFILING_ENABLE if profile else 0
+    return cl.CommandQueue(context, properties=properties)
+
+
+class Profile:
+    """Where the time goes: each kernel and copy of every component and adapter.
+
+    A generated program built with ``run(profile=True)`` (``--profile`` on its command
+    line) hands every part this object; parts report the OpenCL event of each kernel
+    launch and copy, and the bytes each copy moves between CPU and GPU.  Event times are
+    read in batches, so a long stream keeps little memory.  Without profiling a part's
+    ``profile`` is None and nothing here runs.
+    """
+
+    BATCH = 4096  # events kept before their times are read
+
+    def __init__(self, parts: dict[str, Any]):
+        self.names = {id(obj): name for name, obj in parts.items()}
+        self.order = list(parts)
+        self.pending: list[tuple[tuple[str, str], Any]] = []
+        self.seconds: dict[tuple[str, str], list[float]] = {}
+        self.copies = {"cpu2gpu": 0, "gpu2cpu": 0}  # number of copies
+        self.bytes = {"cpu2gpu": 0, "gpu2cpu": 0}
+        for obj in parts.values():
+            if hasattr(obj, "profile"):
+                obj.profile = self
+
+    def kernel(self, owner: Any, event: Any) -> None:
+        self._add((self.names.get(id(owner), "?"), "kernel"), event)
+
+    def copy(self, owner: Any, direction: str, event: Any, nbytes: int) -> None:
+        self.copies[direction] += 1
+        self.bytes[direction] += nbytes
+        self._add((self.names.get(id(owner), "?"), direction), event)
+
+    def _add(self, key: tuple[str, str], event: Any) -> None:
+        self.pending.append((key, event))
+        if len(self.pending) >= self.BATCH:
+            self.collect()
+
+    def collect(self) -> None:
+        """Wait for the pending events and keep their durations."""
+        for key, event in self.pending:
+            event.wait()
+            self.seconds.setdefault(key, []).append(
+                (event.profile.end - event.profile.start) * 1e-9)
+        self.pending = []
+
+    def per_frame(self, frames: int) -> dict[str, float]:
+        """Copies and bytes between CPU and GPU per frame, by direction."""
+        n = max(frames, 1)
+        return {f"{what}_{d}": count / n for what, table in (("copies", self.copies),
+                                                            ("bytes", self.bytes))
+                for d, count in table.items()}
+
+    def report(self, frames: int) -> str:
+        """A table: per part and kind, calls, median and total milliseconds."""
+        import statistics
+
+        self.collect()
+        rank = {name: i for i, name in enumerate(self.order)}
+        rows = [("part", "what", "calls", "median ms", "total ms")]
+        total = 0.0
+        for (name, what), secs in sorted(self.seconds.items(),
+                                         key=lambda kv: (rank.get(kv[0][0], -1), kv[0][1])):
+            total += sum(secs)
+            rows.append((name, what, str(len(secs)), f"{statistics.median(secs) * 1e3:.3f}",
+                         f"{sum(secs) * 1e3:.1f}"))
+        widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
+        lines = ["  ".join(c.rjust(w) if i >= 2 else c.ljust(w)
+                           for i, (c, w) in enumerate(zip(r, widths))).rstrip() for r in rows]
+        pf = self.per_frame(frames)
+        lines.append(f"device time {total * 1e3:.1f} ms over {frames} frame(s); per frame "
+                     f"CPU->GPU {pf['copies_cpu2gpu']:g} copies {pf['bytes_cpu2gpu']:,.0f} "
+                     f"bytes, GPU->CPU {pf['copies_gpu2cpu']:g} copies "
+                     f"{pf['bytes_gpu2cpu']:,.0f} bytes")
+        return "\n".join(lines)
+
+
 def build_program(context, path: Path, component: str, options: tuple[str, ...] = ()):
     """Build one kernel file once; a failure names the component, file and build log."""
     import pyopencl as cl
@@ -118,6 +201,7 @@ class Result(NamedTuple):
 
     frames: int
     components: dict[str, Any]
+    profile: Profile | None = None  # with run(profile=True)
 
 
 def failing_component(exc: BaseException, components: dict[str, Any]) -> str | None:
@@ -363,6 +447,9 @@ def main(run: Callable[..., Result], description: str, argv: list[str] | None = 
                              ".jsonl or .json, else one text line per frame")
     parser.add_argument("--save-images", metavar="DIR",
                         help="write the sinks' images (masks, annotated frames) as PNG to DIR")
+    parser.add_argument("--profile", action="store_true",
+                        help="time every kernel and copy with OpenCL profiling events and "
+                             "count the bytes moved between CPU and GPU (printed at the end)")
     parser.add_argument("--debug", action="store_true", help="show tracebacks on errors")
     args = parser.parse_args(argv)
     if args.frames is not None and args.frames < 0:
@@ -372,7 +459,7 @@ def main(run: Callable[..., Result], description: str, argv: list[str] | None = 
                                "quiet": args.quiet})
     restore = _stop_on_signals()
     try:
-        result = run(frames=args.frames, monitor=monitor)
+        result = run(frames=args.frames, monitor=monitor, profile=args.profile)
     except Stopped as exc:
         print(f"stopped by {exc} after {monitor.frames} frame(s); every component was freed",
               file=sys.stderr)
@@ -393,6 +480,8 @@ def main(run: Callable[..., Result], description: str, argv: list[str] | None = 
         return 1
     finally:
         restore()
+    if result.profile is not None:
+        print(result.profile.report(result.frames), file=sys.stderr)
     if not args.quiet:
         print(f"processed {result.frames} frame(s)", file=sys.stderr)
     return 0

@@ -1,0 +1,536 @@
+"""``gpucompgen bench``: the paper's evaluation (Section V, Figures 9 and 10), reproduced.
+
+Chains of N VerticalMirror components (StillImage -> N mirrors -> FrameSink) are generated
+in both modes, built and run on the OpenCL device; the time per frame is the time between
+consecutive frames arriving at the sink.  In the same run, the references a reader needs
+to judge the result:
+
+- hand-written: the same kernel in a plain pyopencl loop, no framework (one buffer per
+  stage, like the generated program), so generated / hand-written is the framework's cost;
+- bound: N times the time the device takes to read and write one frame, from its copy
+  bandwidth measured with buffer-to-buffer ``cl.enqueue_copy`` along a ring of buffers
+  larger than the CPU's caches, sampled in the same rounds as the pipelines (the
+  adapters' two copies are not counted: it is a bound on the components alone);
+- opencv-cpu and opencv-ocl: the same chain of ``cv2.flip(image, 0)`` on numpy arrays and
+  on UMat (OpenCV's OpenCL path, on the device ``OPENCV_OPENCL_DEVICE`` selects), when
+  OpenCV is installed.  opencv-cpu is interleaved with the generated programs; opencv-ocl
+  runs afterwards in a child process, because a broken OpenCL setup in OpenCV can crash
+  the process that loads it.
+
+Variants are interleaved: each runs its frames in rounds, round-robin with the others, so
+load from other programs on a shared machine spreads over all of them.  Every figure is a
+median with its interquartile range.
+"""
+
+from __future__ import annotations
+
+import csv
+import importlib.util
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+DEFAULT_SIZES = ((1152, 864), (1152, 1782))  # width x height, as in the paper
+DEFAULT_LENGTHS = (5, 10, 15, 20, 25)
+VARIANTS = ("standard", "gpu-aware", "hand-written", "bound", "opencv-cpu", "opencv-ocl")
+TARGETS = (  # (numerator, denominator, limit, "<=" or ">=")
+    ("gpu-aware", "hand-written", 1.10, "<="),
+    ("gpu-aware", "bound", 1.30, "<="),
+    ("standard", "gpu-aware", 3.0, ">="),
+    ("opencv-cpu", "gpu-aware", 1.0, ">="),
+    ("opencv-ocl", "gpu-aware", 1.0, ">="),
+)
+ROUNDS = 4
+LIBRARY = Path(__file__).resolve().parent / "library"
+
+
+class BenchError(Exception):
+    """A problem the user can act on (missing extra, bad option, no device)."""
+
+
+@dataclass
+class Figure:
+    size: tuple[int, int]  # width, height
+    components: int
+    variant: str
+    samples: list[float]  # seconds per frame
+
+    @property
+    def median(self) -> float:
+        return float(np.median(self.samples))
+
+    @property
+    def q1(self) -> float:
+        return float(np.percentile(self.samples, 25))
+
+    @property
+    def q3(self) -> float:
+        return float(np.percentile(self.samples, 75))
+
+
+def parse_sizes(text: str) -> list[tuple[int, int]]:
+    sizes = []
+    for part in text.split(","):
+        try:
+            w, h = (int(v) for v in part.lower().strip().split("x"))
+        except ValueError:
+            raise BenchError(f"cannot read size {part.strip()!r}: write WIDTHxHEIGHT, "
+                             "e.g. 1152x864") from None
+        if w < 1 or h < 1:
+            raise BenchError(f"size {part.strip()!r} must be positive")
+        sizes.append((w, h))
+    return sizes
+
+
+def parse_lengths(text: str) -> list[int]:
+    try:
+        lengths = sorted({int(v) for v in text.split(",")})
+    except ValueError:
+        raise BenchError(f"cannot read lengths {text!r}: write e.g. 5,10,15") from None
+    if not lengths or lengths[0] < 1:
+        raise BenchError("chain lengths must be 1 or more")
+    return lengths
+
+
+def chain_model(n: int, width: int, height: int) -> str:
+    """The YAML system model of a chain of n VerticalMirror components."""
+    lines = [f"system: mirror_chain_{n}",
+             f"description: StillImage -> {n} VerticalMirror -> FrameSink ({width}x{height})",
+             "components:",
+             f"  source: {{type: StillImage, params: {{width: {width}, height: {height}}}}}"]
+    lines += [f"  mirror{i}: {{type: VerticalMirror}}" for i in range(1, n + 1)]
+    lines += ["  sink: {type: FrameSink}", "connections:", "  - source.image -> mirror1.image"]
+    lines += [f"  - mirror{i}.mirrored -> mirror{i + 1}.image" for i in range(1, n)]
+    lines += [f"  - mirror{n}.mirrored -> sink.image"]
+    return "\n".join(lines) + "\n"
+
+
+def _load(path: Path, name: str):
+    spec = importlib.util.spec_from_file_location(name, path)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[name] = module
+    spec.loader.exec_module(module)
+    return module
+
+
+def expected_output(image: np.ndarray, n: int) -> np.ndarray:
+    return image[::-1] if n % 2 else image
+
+
+class Generated:
+    """One generated chain program, run in rounds."""
+
+    def __init__(self, folder: Path, n: int, size: tuple[int, int], mode: str, context):
+        from .build import compile_model, write
+
+        model = folder / f"chain_{n}_{size[0]}x{size[1]}.yaml"
+        model.write_text(chain_model(n, *size), encoding="utf-8")
+        out = folder / f"{mode}_{n}_{size[0]}x{size[1]}"
+        write(compile_model(model, out, mode), out)
+        self.module = _load(out / f"mirror_chain_{n}.py",
+                            f"gpucompgen_bench_{mode.replace('-', '_')}_{n}_{size[0]}x{size[1]}")
+        self.context, self.n = context, n
+
+    def run(self, frames: int) -> tuple[list[float], np.ndarray]:
+        result = self.module.run(frames=frames + 1, context=self.context)
+        sink = result.components["sink"]
+        return list(sink.frame_times()), sink.last
+
+
+class HandWritten:
+    """The same kernel in a plain pyopencl loop: what a programmer would write by hand."""
+
+    def __init__(self, n: int, image: np.ndarray, context):
+        import pyopencl as cl
+
+        from .model import library_types
+
+        self.cl, self.n, self.image = cl, n, image
+        self.context = context
+        self.queue = cl.CommandQueue(context)
+        program = cl.Program(context, (LIBRARY / "vertical_mirror.cl").read_text()).build()
+        self.kernel = cl.Kernel(program, "vertical_mirror")
+        h, w = image.shape[:2]
+        # the settings the generated program uses: the type's preference, rows of the output
+        tile, bx, by, bz = library_types()["VerticalMirror"].gpu.prefer
+        self.global_size = (bx, -(-h // tile) * by, bz)
+        self.local_size = (bx, by, bz)
+        self.args = [np.int32(h), np.int32(w), np.int32(h), np.int32(w), np.int32(tile)]
+        mf = cl.mem_flags
+        self.buffers = [cl.Buffer(context, mf.READ_WRITE, image.nbytes) for _ in range(n + 1)]
+        self.host = np.empty_like(image)
+
+    def run(self, frames: int) -> tuple[list[float], np.ndarray]:
+        cl, q, k = self.cl, self.queue, self.kernel
+        arrivals = []
+        for _ in range(frames + 1):
+            cl.enqueue_copy(q, self.buffers[0], self.image)
+            for i in range(self.n):
+                k(q, self.global_size, self.local_size, self.buffers[i], self.buffers[i + 1],
+                  *self.args)
+            cl.enqueue_copy(q, self.host, self.buffers[self.n])
+            arrivals.append(time.perf_counter())
+        return list(np.diff(arrivals)), self.host
+
+    def release(self) -> None:
+        for b in self.buffers:
+            b.release()
+
+
+class OpenCvCpu:
+    """The chain as OpenCV on the CPU: cv2.flip into preallocated arrays."""
+
+    def __init__(self, n: int, image: np.ndarray):
+        import cv2
+
+        self.flip, self.image = cv2.flip, image
+        self.arrays = [np.empty_like(image) for _ in range(n)]
+
+    def run(self, frames: int) -> tuple[list[float], np.ndarray]:
+        arrivals = []
+        for _ in range(frames + 1):
+            src = self.image
+            for dst in self.arrays:
+                self.flip(src, 0, dst)
+                src = dst
+            arrivals.append(time.perf_counter())
+        return list(np.diff(arrivals)), src
+
+    def release(self) -> None:
+        self.arrays = []
+
+
+class CopyRing:
+    """The device's copy bandwidth, for the bound: buffer-to-buffer cl.enqueue_copy.
+
+    The copies go along a ring of distinct buffers at least 64 MiB in all, as a chain of
+    components goes through distinct buffers: two buffers copied back and forth would stay
+    in the CPU's cache and promise a bandwidth no long chain can reach.  Sampled in the
+    same rounds as the pipelines, so it sees the same load.
+    """
+
+    def __init__(self, context, nbytes: int):
+        import pyopencl as cl
+
+        self.cl, self.nbytes = cl, nbytes
+        self.queue = cl.CommandQueue(context)
+        count = max(8, -(-(64 << 20) // nbytes))
+        self.ring = [cl.Buffer(context, cl.mem_flags.READ_WRITE, nbytes) for _ in range(count)]
+        for b in self.ring:
+            cl.enqueue_fill_buffer(self.queue, b, np.uint8(7), 0, nbytes)
+        self.queue.finish()
+
+    def seconds_per_frame_copy(self, samples: int) -> list[float]:
+        """Time to read and write one frame once, from `samples` runs along the ring."""
+        result = []
+        for _ in range(samples):
+            t = time.perf_counter()
+            for i in range(len(self.ring) - 1):
+                self.cl.enqueue_copy(self.queue, self.ring[i + 1], self.ring[i])
+            self.queue.finish()
+            result.append((time.perf_counter() - t) / (len(self.ring) - 1))
+        return result
+
+    def release(self) -> None:
+        for b in self.ring:
+            b.release()
+        self.ring = []
+
+
+class Bound:
+    """N components each reading and writing one frame once at the copy bandwidth."""
+
+    def __init__(self, n: int, ring: CopyRing):
+        self.n, self.ring = n, ring
+
+    def run(self, frames: int) -> tuple[list[float], None]:
+        return [self.n * s for s in self.ring.seconds_per_frame_copy(frames)], None
+
+
+# ------------------------------------------------------------------ OpenCV (child process)
+
+def _opencv_env() -> dict[str, str]:
+    """OpenCV's OpenCL on the device pyopencl uses (PoCL ships inside pyopencl's wheel)."""
+    env = dict(os.environ)
+    env.setdefault("OPENCV_OPENCL_DEVICE", ":CPU:")
+    if "OPENCV_OPENCL_RUNTIME" not in env:
+        try:
+            import pyopencl
+
+            libs = sorted((Path(pyopencl.__file__).parent / ".libs").glob("libOpenCL*.so*"))
+        except ImportError:
+            libs = []
+        if libs:
+            env["OPENCV_OPENCL_RUNTIME"] = str(libs[0])
+    return env
+
+
+def opencv_worker(spec: dict) -> dict:
+    """Run in the child: times per frame of cv2.flip chains on UMat (OpenCL)."""
+    # pyopencl first: it tells the ICD loader where the PoCL shipped in its wheel is
+    import pyopencl  # noqa: F401, I001
+    import cv2
+
+    from .library.still_image import still_frame
+
+    w, h = spec["size"]
+    image = still_frame(w, h)
+    ocl = cv2.ocl.haveOpenCL()
+    if ocl:
+        cv2.ocl.setUseOpenCL(True)
+    out: dict = {"ocl": bool(ocl), "device": cv2.ocl.Device.getDefault().name() if ocl else "",
+                 "times": {}}
+    if not ocl:
+        return out
+    for n in spec["lengths"]:
+        umats = [cv2.UMat(image) for _ in range(n + 1)]
+        arrivals = []
+        host = image
+        for _ in range(spec["frames"] + 1):
+            umats[0] = cv2.UMat(image)
+            for i in range(n):
+                cv2.flip(umats[i], 0, umats[i + 1])
+            host = umats[n].get()
+            arrivals.append(time.perf_counter())
+        if not np.array_equal(host, expected_output(image, n)):
+            raise RuntimeError(f"OpenCV chain of {n} flips on UMat gave a wrong image")
+        out["times"][str(n)] = {"opencv-ocl": list(np.diff(arrivals))}
+    return out
+
+
+def opencv_ocl_reference(size, lengths, frames) -> tuple[dict, str]:
+    """Times from the child process, or ({}, why not)."""
+    spec = json.dumps({"size": list(size), "lengths": list(lengths), "frames": frames})
+    proc = subprocess.run([sys.executable, "-m", "gpucompgen.bench", "--opencv-worker", spec],
+                          capture_output=True, text=True, env=_opencv_env(), timeout=3600,
+                          check=False)
+    if proc.returncode != 0:
+        last = (proc.stderr.strip().splitlines() or [f"exit status {proc.returncode}"])[-1]
+        return {}, f"OpenCV reference failed: {last}"
+    data = json.loads(proc.stdout)
+    note = "" if data["ocl"] else "OpenCV has no OpenCL device: opencv-ocl left out"
+    return data, note
+
+
+# ------------------------------------------------------------------ the benchmark
+
+def _need_extras():
+    missing = [m for m in ("matplotlib", "tqdm") if importlib.util.find_spec(m) is None]
+    if missing:
+        raise BenchError(f"gpucompgen bench needs {' and '.join(missing)}: "
+                         "pip install 'gpucompgen[bench]'")
+
+
+def run_bench(sizes, lengths, frames: int, out_dir: Path, opencv: bool = True,
+              rounds: int = ROUNDS, stdout=None) -> dict:
+    """Run everything, write bench.csv and bench.png into out_dir, print the table."""
+    _need_extras()
+    stdout = stdout or sys.stdout
+    if frames < 1:
+        raise BenchError("--frames must be 1 or more")
+    rounds = max(1, min(rounds, frames))
+    from tqdm import tqdm
+
+    from .library.still_image import still_frame
+    from .runtime import create_context
+
+    context = create_context()
+    device = context.devices[0]
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise BenchError(f"cannot create output folder {out_dir}: {exc.strerror}") from None
+    figures: list[Figure] = []
+    notes: list[str] = []
+    if opencv and importlib.util.find_spec("cv2") is None:
+        opencv = False
+        notes.append("OpenCV is not installed (pip install 'gpucompgen[video]'): "
+                     "no OpenCV references")
+    per_round = 5 if opencv else 4
+    total = len(sizes) * (len(lengths) * per_round * rounds + 1 + (1 if opencv else 0))
+    bar = tqdm(total=total, desc="bench", unit="run", disable=not sys.stderr.isatty(),
+               file=sys.stderr)
+    with tempfile.TemporaryDirectory(prefix="gpucompgen-bench-") as tmp:
+        for size in sizes:
+            image = still_frame(*size)
+            ring = CopyRing(context, image.nbytes)
+            bar.update(1)
+            for n in lengths:
+                runners = {"standard": Generated(Path(tmp), n, size, "standard", context),
+                           "gpu-aware": Generated(Path(tmp), n, size, "gpu-aware", context),
+                           "hand-written": HandWritten(n, image, context),
+                           "bound": Bound(n, ring)}
+                if opencv:
+                    runners["opencv-cpu"] = OpenCvCpu(n, image)
+                samples: dict[str, list[float]] = {v: [] for v in runners}
+                want = expected_output(image, n)
+                for r in range(rounds):
+                    k = frames // rounds + (1 if r < frames % rounds else 0)
+                    for variant, runner in runners.items():
+                        bar.set_postfix_str(f"{size[0]}x{size[1]} N={n} {variant}")
+                        times, last = runner.run(k)
+                        if last is not None and not np.array_equal(last, want):
+                            raise BenchError(f"{variant} chain of {n} at {size[0]}x{size[1]} "
+                                             "gave a wrong image")
+                        samples[variant] += times
+                        bar.update(1)
+                for variant in ("hand-written", "opencv-cpu"):
+                    if variant in runners:
+                        runners[variant].release()
+                for variant, s in samples.items():
+                    figures.append(Figure(size, n, variant, s))
+            ring.release()
+            if opencv:
+                bar.set_postfix_str(f"{size[0]}x{size[1]} OpenCV")
+                data, note = opencv_ocl_reference(size, lengths, frames)
+                if note and note not in notes:
+                    notes.append(note)
+                for n_text, by_variant in data.get("times", {}).items():
+                    for variant, s in by_variant.items():
+                        figures.append(Figure(size, int(n_text), variant, s))
+                bar.update(1)
+    bar.close()
+    device_name = f"{device.name.strip()} ({device.platform.name.strip()})"
+    csv_path = out_dir / "bench.csv"
+    png_path = out_dir / "bench.png"
+    try:
+        write_csv(figures, csv_path, frames)
+        plot(figures, png_path, device_name, frames)
+    except OSError as exc:
+        raise BenchError(f"cannot write results into {out_dir}: {exc.strerror}") from None
+    text = table(figures, device_name, frames, notes)
+    print(text, file=stdout)
+    print(f"wrote {csv_path}\nwrote {png_path}", file=stdout)
+    return {"figures": figures, "csv": csv_path, "png": png_path, "text": text}
+
+
+def _key(f: Figure):
+    return (f.size[1] * f.size[0], f.size, f.components, VARIANTS.index(f.variant))
+
+
+class CsvFigure:
+    """A row of bench.csv, read back (for plotting a saved run again)."""
+
+    def __init__(self, row: dict):
+        self.size = (int(row["width"]), int(row["height"]))
+        self.components, self.variant = int(row["components"]), row["variant"]
+        self.median, self.q1, self.q3 = (float(row[k]) / 1e3 for k in
+                                         ("median_ms", "q1_ms", "q3_ms"))
+
+
+def read_csv(path: Path) -> list[CsvFigure]:
+    with path.open(newline="", encoding="utf-8") as fh:
+        return [CsvFigure(row) for row in csv.DictReader(fh)]
+
+
+def write_csv(figures: list[Figure], path: Path, frames: int) -> None:
+    with path.open("w", newline="", encoding="utf-8") as fh:
+        w = csv.writer(fh)
+        w.writerow(["width", "height", "components", "variant", "samples", "median_ms",
+                    "q1_ms", "q3_ms"])
+        for f in sorted(figures, key=_key):
+            w.writerow([f.size[0], f.size[1], f.components, f.variant, len(f.samples),
+                        f"{f.median * 1e3:.4f}", f"{f.q1 * 1e3:.4f}", f"{f.q3 * 1e3:.4f}"])
+
+
+def _index(figures):
+    return {(f.size, f.components, f.variant): f for f in figures}
+
+
+def table(figures: list[Figure], device: str, frames: int, notes: list[str]) -> str:
+    """Time per frame (median [IQR]) per size and chain length, ratios, targets."""
+    idx = _index(figures)
+    variants = [v for v in VARIANTS if any(f.variant == v for f in figures)]
+    lines = [f"gpucompgen bench on {device}: ms per frame, median [q1-q3], {frames} frames "
+             + "per variant"]
+    sizes = sorted({f.size for f in figures}, key=lambda s: s[0] * s[1])
+    for size in sizes:
+        lines.append("")
+        lines.append(f"{size[0]}x{size[1]} pixels")
+        rows = [["N"] + variants + ["std/aware", "aware/hand", "aware/bound"]]
+        for n in sorted({f.components for f in figures if f.size == size}):
+            row = [str(n)]
+            for v in variants:
+                f = idx.get((size, n, v))
+                row.append(f"{f.median * 1e3:.2f} [{f.q1 * 1e3:.2f}-{f.q3 * 1e3:.2f}]"
+                           if f else "-")
+            for a, b in (("standard", "gpu-aware"), ("gpu-aware", "hand-written"),
+                         ("gpu-aware", "bound")):
+                fa, fb = idx.get((size, n, a)), idx.get((size, n, b))
+                row.append(f"{fa.median / fb.median:.2f}x" if fa and fb else "-")
+            rows.append(row)
+        widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
+        lines += ["  ".join(c.rjust(wd) for c, wd in zip(r, widths)) for r in rows]
+    lines.append("")
+    lines.append("targets, at the longest chain:")
+    for size in sizes:
+        n = max(f.components for f in figures if f.size == size)
+        for a, b, limit, op in TARGETS:
+            fa, fb = idx.get((size, n, a)), idx.get((size, n, b))
+            if not (fa and fb):
+                continue
+            ratio = fa.median / fb.median
+            met = ratio <= limit if op == "<=" else ratio >= limit
+            lines.append(f"  {size[0]}x{size[1]} N={n}: {a} / {b} = {ratio:.2f}x "
+                         f"(target {op} {limit:.2f}x): {'met' if met else 'NOT met'}")
+    for note in notes:
+        lines.append(f"note: {note}")
+    return "\n".join(lines)
+
+
+STYLE = {"standard": ("tab:blue", "o", "-"), "gpu-aware": ("tab:red", "s", "-"),
+         "hand-written": ("tab:green", "^", "--"), "bound": ("black", "", ":"),
+         "opencv-cpu": ("tab:purple", "v", "-."), "opencv-ocl": ("tab:orange", "D", "-.")}
+
+
+def plot(figures: list[Figure], path: Path, device: str, frames: int) -> None:
+    """Figures 9 and 10 of the paper: time per frame against chain length, a panel a size."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    sizes = sorted({f.size for f in figures}, key=lambda s: s[0] * s[1])
+    fig, axes = plt.subplots(1, len(sizes), figsize=(6 * len(sizes), 4.5), squeeze=False)
+    for ax, size in zip(axes[0], sizes):
+        for variant in VARIANTS:
+            fs = sorted((f for f in figures if f.size == size and f.variant == variant),
+                        key=lambda f: f.components)
+            if not fs:
+                continue
+            x = [f.components for f in fs]
+            y = np.array([f.median * 1e3 for f in fs])
+            err = np.array([[f.median * 1e3 - f.q1 * 1e3 for f in fs],
+                            [f.q3 * 1e3 - f.median * 1e3 for f in fs]])
+            color, marker, style = STYLE[variant]
+            ax.errorbar(x, y, yerr=err, color=color, marker=marker or None, linestyle=style,
+                        capsize=3, label=variant)
+        ax.set_title(f"{size[0]} x {size[1]} pixels")
+        ax.set_xlabel("number of VerticalMirror components")
+        ax.set_ylabel("time per frame (ms), median and IQR, log scale")
+        ax.set_xticks(sorted({f.components for f in figures if f.size == size}))
+        # log scale: equal ratios are equal distances, and OpenCV's OpenCL path, many
+        # times slower, does not flatten the other lines
+        ax.set_yscale("log")
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=8)
+    fig.suptitle(f"Standard vs GPU-aware components on {device}, {frames} frames each",
+                 fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+
+
+if __name__ == "__main__":
+    if len(sys.argv) == 3 and sys.argv[1] == "--opencv-worker":
+        print(json.dumps(opencv_worker(json.loads(sys.argv[2]))))
+        sys.exit(0)
+    print("usage: gpucompgen bench [options]", file=sys.stderr)
+    sys.exit(2)

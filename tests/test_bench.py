@@ -1,0 +1,93 @@
+"""`gpucompgen bench` with tiny settings: its table, CSV and PNG (never its timings)."""
+
+from __future__ import annotations
+
+import csv
+import importlib.util
+import subprocess
+import sys
+
+import pytest
+from conftest import require_opencl
+
+from gpucompgen import bench
+
+
+def test_bench_writes_table_csv_and_plot(tmp_path):
+    require_opencl()
+    out = tmp_path / "results"
+    proc = subprocess.run([sys.executable, "-m", "gpucompgen", "bench", "--sizes",
+                           "48x32,33x17", "--lengths", "1,2", "--frames", "3", "-o", str(out)],
+                          capture_output=True, text=True, timeout=600, cwd=tmp_path,
+                          check=False)
+    assert proc.returncode == 0, proc.stderr
+    assert "Traceback" not in proc.stderr
+    assert proc.stderr == "", "no progress bar when stderr is not a terminal"
+    has_cv2 = importlib.util.find_spec("cv2") is not None
+    with (out / "bench.csv").open(newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    assert list(rows[0]) == ["width", "height", "components", "variant", "samples",
+                             "median_ms", "q1_ms", "q3_ms"]
+    found = {(r["width"], r["height"], r["components"], r["variant"]) for r in rows}
+    for w, h in (("48", "32"), ("33", "17")):
+        for n in ("1", "2"):
+            for variant in ("standard", "gpu-aware", "hand-written", "bound"):
+                assert (w, h, n, variant) in found
+            if has_cv2:
+                assert (w, h, n, "opencv-cpu") in found
+    for r in rows:
+        assert r["variant"] in bench.VARIANTS
+        q1, med, q3 = float(r["q1_ms"]), float(r["median_ms"]), float(r["q3_ms"])
+        assert 0 <= q1 <= med <= q3
+        if r["variant"] in ("standard", "gpu-aware", "hand-written"):
+            assert int(r["samples"]) == 3  # 3 frames timed, in rounds
+    png = (out / "bench.png").read_bytes()
+    assert png.startswith(b"\x89PNG\r\n\x1a\n")
+    import matplotlib.image
+
+    height, width = matplotlib.image.imread(out / "bench.png").shape[:2]
+    assert (width, height) == (1200, 450)  # two panels, one per size
+    text = proc.stdout
+    assert "ms per frame, median [q1-q3], 3 frames per variant" in text
+    assert "\n33x17 pixels\n" in text and "\n48x32 pixels\n" in text
+    header = next(line for line in text.splitlines() if line.lstrip().startswith("N "))
+    assert header.split()[:5] == ["N", "standard", "gpu-aware", "hand-written", "bound"]
+    assert "std/aware" in header and "aware/hand" in header and "aware/bound" in header
+    assert "48x32 N=2: standard / gpu-aware = " in text
+    assert "(target >= 3.00x)" in text and "(target <= 1.10x)" in text
+    assert f"wrote {out / 'bench.csv'}" in text
+
+
+def test_chain_model_is_a_valid_system(tmp_path):
+    from gpucompgen.build import compile_model
+
+    model = tmp_path / "c.yaml"
+    model.write_text(bench.chain_model(3, 40, 30))
+    result = compile_model(model, tmp_path / "out")
+    assert result.system.order == ["source", "mirror1", "mirror2", "mirror3", "sink"]
+    assert [a.direction for a in result.system.adapters] == ["cpu2gpu", "gpu2cpu"]
+    standard = compile_model(model, tmp_path / "out", "standard")
+    assert standard.system.adapters == []
+
+
+@pytest.mark.parametrize("args,message", [
+    (["--sizes", "1152by864"], "cannot read size '1152by864': write WIDTHxHEIGHT"),
+    (["--lengths", "0,5"], "chain lengths must be 1 or more"),
+    (["--frames", "0"], "--frames must be 1 or more"),
+    (["-o", "/dev/null/results"], "cannot create output folder /dev/null/results: Not a directory"),
+])
+def test_bad_options_are_errors_without_traceback(tmp_path, args, message):
+    proc = subprocess.run([sys.executable, "-m", "gpucompgen", "bench", "--lengths", "1",
+                           "--sizes", "16x16", "--frames", "1", "-o", str(tmp_path)] + args,
+                          capture_output=True, text=True, timeout=300, check=False)
+    assert proc.returncode == 2
+    assert f"gpucompgen bench: error: {message}" in proc.stderr
+    assert "Traceback" not in proc.stderr
+
+
+def test_missing_extras_say_what_to_install(monkeypatch):
+    real = importlib.util.find_spec
+    monkeypatch.setattr(importlib.util, "find_spec",
+                        lambda name, *a: None if name == "tqdm" else real(name, *a))
+    with pytest.raises(bench.BenchError, match=r"needs tqdm: pip install 'gpucompgen\[bench\]'"):
+        bench.run_bench([(16, 16)], [1], 1, bench.Path("unused"))
