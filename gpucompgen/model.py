@@ -8,6 +8,7 @@ shows all problems at once.
 from __future__ import annotations
 
 import ast
+import math
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -258,13 +259,27 @@ def _load_type(doc: Document, rep: Reporter, path: Path, origin: str, tname: str
                       f"parameter '{pname}' of GPU-aware type '{tname}' is {ptype}: "
                       "kernel parameters must be int, float or bool")
             continue
+        bounds = {}
+        for key in ("min", "max"):
+            bound = pspec.get(key)
+            if bound is not None and (ptype not in ("int", "float") or not _value_fits(
+                    bound, "float") or not math.isfinite(bound)):
+                rep.error(doc.pos(*ppath, key),
+                          f"'{key}' of parameter '{pname}' must be a finite number"
+                          + ("" if ptype in ("int", "float") else f", and only for int or "
+                             f"float parameters, not {ptype}"),
+                          f"remove '{key}' or give a number such as {key}: 0")
+                bound = None
+            bounds[key] = bound
         default = pspec.get("default")
-        if default is not None and not _value_fits(default, ptype):
-            rep.error(doc.pos(*ppath, "default"),
-                      f"default of '{pname}' must be {ptype}, not {_kind(default)}")
+        problem = None if default is None else _param_value_problem(
+            default, ParamDecl(pname, ptype, minimum=bounds["min"], maximum=bounds["max"]),
+            kind == "gpu-aware")
+        if problem:
+            rep.error(doc.pos(*ppath, "default"), f"default of '{pname}' {problem}")
             default = None
         ctype.params[pname] = ParamDecl(pname, ptype, default, "default" not in pspec,
-                                        pspec.get("min"), pspec.get("max"),
+                                        bounds["min"], bounds["max"],
                                         _text(doc, rep, ppath + ("description",),
                                               pspec.get("description"), "description"))
     # ports
@@ -329,6 +344,24 @@ def gpu_kernel_param_problem(kind: str, ptype: str) -> bool:
 
 def _int_params(ctype: ComponentType) -> list[str]:
     return [p.name for p in ctype.params.values() if p.type == "int"]
+
+
+INT32 = (-(1 << 31), (1 << 31) - 1)
+
+
+def _param_value_problem(value: Any, decl: ParamDecl, kernel: bool) -> str | None:
+    """Why value cannot be given to parameter decl, or None when it can."""
+    if not _value_fits(value, decl.type):
+        return f"must be {decl.type}, not {_kind(value)} ({value!r})"
+    if decl.type in ("int", "float"):
+        if not math.isfinite(value):
+            return f"must be a finite number, not {value!r}"
+        if decl.minimum is not None and value < decl.minimum or \
+                decl.maximum is not None and value > decl.maximum:
+            return f"is {value!r}, outside [{decl.minimum}, {decl.maximum}]"
+        if kernel and decl.type == "int" and not INT32[0] <= value <= INT32[1]:
+            return f"is {value}, which does not fit the kernel's 32-bit int"
+    return None
 
 
 def _value_fits(value: Any, ptype: str) -> bool:
@@ -646,21 +679,16 @@ def _instance_params(doc, rep, cpath, ctype: ComponentType, given) -> dict[str, 
                       f"'{ctype.name}' has no parameter '{pname}'",
                       did_you_mean(pname, ctype.params) or f"'{ctype.name}' takes no parameters")
             continue
-        if not _value_fits(value, decl.type):
+        problem = _param_value_problem(value, decl, ctype.gpu_aware)
+        if problem:
             hint = ""
             if isinstance(value, bool) and decl.type == "str":
                 hint = "YAML 1.1 reads yes/no/on/off as booleans: quote the value"
+            elif decl.type in ("int", "float") and _value_fits(value, decl.type):
+                hint = "give a value within the parameter's range"
             rep.error(doc.pos(*cpath, "params", pname),
-                      f"parameter '{pname}' of '{ctype.name}' must be {decl.type}, "
-                      f"not {_kind(value)} ({value!r})", hint)
+                      f"parameter '{pname}' of '{ctype.name}' {problem}", hint)
             continue
-        if decl.type in ("int", "float"):
-            if decl.minimum is not None and value < decl.minimum or \
-                    decl.maximum is not None and value > decl.maximum:
-                rep.error(doc.pos(*cpath, "params", pname),
-                          f"parameter '{pname}' = {value} is outside "
-                          f"[{decl.minimum}, {decl.maximum}]")
-                continue
         if decl.type == "float":
             value = float(value)
         params[pname] = value

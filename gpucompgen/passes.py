@@ -112,6 +112,10 @@ class System:
 
 class Pass:
     name = "pass"
+    # A checking pass that still runs after an earlier pass found errors: it must cope with
+    # a partly checked system (inputs without writers, no order after a cycle, missing
+    # sizes), so one run reports as many independent problems as possible.
+    runs_after_errors = False
 
     def apply(self, system: System, rep: Reporter) -> System:
         raise NotImplementedError
@@ -121,6 +125,7 @@ class CheckConnections(Pass):
     """Who writes each input: one writer, required inputs fed, nothing left dangling."""
 
     name = "check-connections"
+    runs_after_errors = True
 
     def apply(self, system, rep):
         model = system.model
@@ -161,6 +166,7 @@ class CheckPortTypes(Pass):
     """Both ends of a connection carry the same element type and channels."""
 
     name = "check-port-types"
+    runs_after_errors = True
 
     def apply(self, system, rep):
         for conn in system.model.connections:
@@ -181,6 +187,7 @@ class Schedule(Pass):
     """A topological order; ties follow the order of components in the model."""
 
     name = "schedule"
+    runs_after_errors = True
 
     def apply(self, system, rep):
         comps = system.components
@@ -232,6 +239,7 @@ class PropagateSizes(Pass):
     """From the sources' parameters down the graph: every port gets a concrete size."""
 
     name = "propagate-sizes"
+    runs_after_errors = True
 
     def apply(self, system, rep):
         for name in system.order:
@@ -323,6 +331,7 @@ class AllocateGpu(Pass):
     """
 
     name = "allocate-gpu"
+    runs_after_errors = True
 
     def apply(self, system, rep):
         dev = system.device
@@ -464,16 +473,26 @@ PIPELINE: tuple[Pass, ...] = (CheckConnections(), CheckPortTypes(), Schedule(),
 
 def run_passes(model: SystemModel, device: DeviceFacts, mode: str = "gpu-aware",
                dump: Any = None) -> tuple[System, list]:
-    """Run every pass; stop after the first pass that found errors. Returns warnings too."""
+    """Run every pass and return the system and its warnings, or raise with every problem.
+
+    Once a pass has found errors, only the checking passes that cope with a partly checked
+    system still run (Pass.runs_after_errors); the others are skipped.
+    """
     system = System(model, device, mode)
     rep = Reporter()
     for p in PIPELINE:
+        if rep.has_errors and not p.runs_after_errors:
+            continue
         system = p.apply(system, rep)
         if dump is not None:
             dump(f"// after {p.name}\n{system.dump()}\n")
-        if rep.has_errors:
-            raise GpucompgenError(rep.diagnostics)
+    if rep.has_errors:
+        raise GpucompgenError(_unique(rep.diagnostics))
     return system, rep.warnings
+
+
+def _unique(diagnostics: list) -> list:
+    return sorted(set(diagnostics))
 
 
 def passes_names() -> Iterable[str]:
