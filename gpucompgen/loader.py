@@ -118,7 +118,8 @@ def load_file(path: Path, display: str | None = None) -> Document:
         size = path.stat().st_size
         if size > MAX_FILE_BYTES:
             raise _fail(shown, None, f"file is larger than {MAX_FILE_BYTES} bytes")
-        text = path.read_text(encoding="utf-8")
+        raw = path.read_bytes()
+        text = raw.decode("utf-8")
     except FileNotFoundError:
         raise GpucompgenError([Diagnostic(shown, 0, 0, "error", "file not found",
                                           "check the path")]) from None
@@ -126,9 +127,12 @@ def load_file(path: Path, display: str | None = None) -> Document:
         raise GpucompgenError([Diagnostic(shown, 0, 0, "error", "is a directory, not a file",
                                           "give the path of a .yaml file")]) from None
     except UnicodeDecodeError as exc:
-        raise GpucompgenError([Diagnostic(shown, 0, 0, "error",
-                                          f"file is not UTF-8 text ({exc.reason} at byte {exc.start})",
-                                          "save the model as UTF-8")]) from None
+        line = raw.count(b"\n", 0, exc.start) + 1
+        col = exc.start - (raw.rfind(b"\n", 0, exc.start) + 1) + 1
+        raise GpucompgenError([Diagnostic(
+            shown, line, col, "error",
+            f"file is not UTF-8 text: byte 0x{raw[exc.start]:02x} ({exc.reason})",
+            "save the file as UTF-8")]) from None
     except OSError as exc:
         raise GpucompgenError([Diagnostic(shown, 0, 0, "error",
                                           f"cannot read file: {exc.strerror}")]) from None

@@ -142,6 +142,8 @@ class SystemModel:
     gpu_overrides: dict[str, tuple[dict[str, int], Pos]]
     thread_budget: int | None
     types: dict[str, ComponentType]
+    # where each key and value of a mapping platform.device was written (for messages)
+    device_positions: dict[str, tuple[Pos, Pos]] = field(default_factory=dict)
 
 
 # --------------------------------------------------------------------------- helpers
@@ -153,6 +155,11 @@ def _expect_map(doc: Document, rep: Reporter, path: tuple, value: Any, what: str
         rep.error(doc.pos(*path), f"{what} must be a mapping, not {_kind(value)}")
         return {}
     return value
+
+
+def _named(value: Any, choices) -> bool:
+    """value is a string among choices (a YAML list or mapping is never a choice)."""
+    return isinstance(value, str) and value in choices
 
 
 def _kind(value: Any) -> str:
@@ -201,6 +208,9 @@ def load_types_file(path: Path, display: str, origin: str, rep: Reporter
                     ) -> dict[str, ComponentType]:
     """Load one file of component types: ``component_types: {Name: {...}, ...}``."""
     doc = load_file(path, display)
+    if doc.data is None:
+        rep.error(doc.pos(), "the component-type file is empty",
+                  "start it with 'component_types:' and one or more types")
     root = _expect_map(doc, rep, (), doc.data, "a component-type file")
     _unknown_keys(doc, rep, (), root, ("component_types",), "a component-type file")
     types_map = _expect_map(doc, rep, ("component_types",), root.get("component_types"),
@@ -250,7 +260,7 @@ def _load_type(doc: Document, rep: Reporter, path: Path, origin: str, tname: str
         pspec = _expect_map(doc, rep, ppath, pspec, f"parameter '{pname}'")
         _unknown_keys(doc, rep, ppath, pspec, PARAM_KEYS, f"parameter '{pname}'")
         ptype = pspec.get("type")
-        if ptype not in PARAM_TYPES:
+        if not _named(ptype, PARAM_TYPES):
             rep.error(doc.pos(*ppath, "type"), f"parameter '{pname}' has type {ptype!r}",
                       "use one of 'int', 'float', 'bool', 'str'")
             continue
@@ -276,7 +286,9 @@ def _load_type(doc: Document, rep: Reporter, path: Path, origin: str, tname: str
             default, ParamDecl(pname, ptype, minimum=bounds["min"], maximum=bounds["max"]),
             kind == "gpu-aware")
         if problem:
-            rep.error(doc.pos(*ppath, "default"), f"default of '{pname}' {problem}")
+            rep.error(doc.pos(*ppath, "default"), f"default of '{pname}' {problem}",
+                      f"give a {ptype} default within min and max, or none to make "
+                      "the parameter required")
             default = None
         ctype.params[pname] = ParamDecl(pname, ptype, default, "default" not in pspec,
                                         bounds["min"], bounds["max"],
@@ -284,11 +296,13 @@ def _load_type(doc: Document, rep: Reporter, path: Path, origin: str, tname: str
                                               pspec.get("description"), "description"))
     # ports
     seen_ports: dict[str, str] = {}
+    failed_inputs = 0
     for direction, key in (("in", "inputs"), ("out", "outputs")):
         ports = _expect_map(doc, rep, base + (key,), spec.get(key), key)
         for pname, pspec in ports.items():
             port = _load_port(doc, rep, base + (key, pname), ctype, direction, pname, pspec)
             if port is None:
+                failed_inputs += direction == "in"
                 continue
             if fold(pname) in seen_ports:
                 rep.error(doc.key_pos(*base, key, pname),
@@ -302,7 +316,8 @@ def _load_type(doc: Document, rep: Reporter, path: Path, origin: str, tname: str
                   "declare 'inputs:' and/or 'outputs:'")
     # output sizes need the input ports, so parse them after all ports are known
     for pname, port in list(ctype.outputs.items()):
-        ctype.outputs[pname] = _port_sizes(doc, rep, base + ("outputs", pname), ctype, port)
+        ctype.outputs[pname] = _port_sizes(doc, rep, base + ("outputs", pname), ctype, port,
+                                           quiet=failed_inputs > 0)
     # requirements between input sizes
     requires = spec.get("requires") or []
     if not isinstance(requires, list):
@@ -364,6 +379,13 @@ def _param_value_problem(value: Any, decl: ParamDecl, kernel: bool) -> str | Non
     return None
 
 
+def py_yaml(value: Any) -> str:
+    """A value as it would be written in YAML (for hints)."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    return repr(value) if isinstance(value, str) else str(value)
+
+
 def _value_fits(value: Any, ptype: str) -> bool:
     if ptype == "float":
         return isinstance(value, (int, float)) and not isinstance(value, bool)
@@ -396,7 +418,7 @@ def _load_port(doc, rep, path, ctype, direction, pname, pspec) -> PortDecl | Non
                   "adapters by declaring 'memory: gpu'")
         return None
     dtype = pspec.get("dtype", "uint8")
-    if dtype not in DTYPES:
+    if not _named(dtype, DTYPES):
         rep.error(doc.pos(*path, "dtype"), f"port '{pname}': unknown element type {dtype!r}",
                   did_you_mean(str(dtype), DTYPES))
         return None
@@ -411,7 +433,9 @@ def _load_port(doc, rep, path, ctype, direction, pname, pspec) -> PortDecl | Non
     return PortDecl(pname, direction, memory, dtype, channels, pos=doc.key_pos(*path))
 
 
-def _port_sizes(doc, rep, path, ctype, port: PortDecl) -> PortDecl:
+def _port_sizes(doc, rep, path, ctype, port: PortDecl, quiet: bool = False) -> PortDecl:
+    """Parse an output's size expressions; quiet: an input failed (already reported), so a
+    missing size that the input would have given is not reported again."""
     spec = doc.data
     for key in path:
         spec = spec.get(key, {}) if isinstance(spec, dict) else {}
@@ -421,6 +445,8 @@ def _port_sizes(doc, rep, path, ctype, port: PortDecl) -> PortDecl:
         if text is None:
             if len(ctype.inputs) == 1:  # default: same size as the only input
                 text = f"{next(iter(ctype.inputs))}.{dim}"
+            elif quiet:
+                continue
             else:
                 rep.error(port.pos, f"output '{port.name}' of '{ctype.name}' needs '{dim}:'",
                           f"give a size expression, e.g. '{dim}: 480' or "
@@ -472,7 +498,7 @@ def _load_kernel(doc, rep, base, ctype: ComponentType, spec) -> None:
                       f"kernel file {ctype.kernel_file.name} defines no "
                       f"'__kernel void {function}(...)'", "check the function name")
     grid = kspec.get("grid", next(iter(ctype.outputs), ""))
-    if grid not in ctype.outputs:
+    if not _named(grid, ctype.outputs):
         rep.error(doc.pos(*base, "kernel", "grid") if "grid" in kspec else ctype.pos,
                   f"kernel grid {grid!r} of '{ctype.name}' is not an output port",
                   did_you_mean(str(grid), ctype.outputs))
@@ -550,8 +576,14 @@ def load_system(path: Path, display: str | None = None) -> SystemModel:
     display = display or str(path)
     doc = load_file(path, display)
     rep = Reporter()
-    root = _expect_map(doc, rep, (), doc.data, "a system model")
+    if doc.data is None:
+        rep.error(doc.pos(), "the model is empty",
+                  "a model starts with 'system: <name>' and lists 'components:'")
+    elif not isinstance(doc.data, dict):
+        rep.error(doc.pos(), f"a system model must be a mapping, not {_kind(doc.data)}",
+                  "a model is a mapping of keys: 'system: <name>', 'components:', ...")
     rep.raise_if_errors()
+    root = doc.data
     _unknown_keys(doc, rep, (), root, SYSTEM_KEYS, "the system model")
     name = root.get("system")
     problem = name_problem(name, "system name", top_level=True)
@@ -633,7 +665,7 @@ def load_system(path: Path, display: str | None = None) -> SystemModel:
         cspec = _expect_map(doc, rep, cpath, cspec, f"component '{cname}'")
         _unknown_keys(doc, rep, cpath, cspec, INSTANCE_KEYS, f"component '{cname}'")
         tname = cspec.get("type")
-        if tname not in types:
+        if not _named(tname, types):
             rep.error(doc.pos(*cpath, "type") if "type" in cspec else doc.key_pos(*cpath),
                       f"unknown component type {tname!r} for '{cname}'",
                       did_you_mean(str(tname), types))
@@ -666,7 +698,11 @@ def load_system(path: Path, display: str | None = None) -> SystemModel:
                        text_sha256=hashlib.sha256(path.read_bytes()).hexdigest(),
                        components=components, connections=connections, device=device,
                        device_pos=doc.pos("platform", "device"), gpu_overrides=overrides,
-                       thread_budget=budget, types=types)
+                       thread_budget=budget, types=types,
+                       device_positions={k: (doc.key_pos("platform", "device", k),
+                                             doc.pos("platform", "device", k))
+                                         for k in (device if isinstance(device, dict) else {})
+                                         if isinstance(k, str)})
 
 
 def _instance_params(doc, rep, cpath, ctype: ComponentType, given) -> dict[str, Any]:
@@ -686,6 +722,12 @@ def _instance_params(doc, rep, cpath, ctype: ComponentType, given) -> dict[str, 
                 hint = "YAML 1.1 reads yes/no/on/off as booleans: quote the value"
             elif decl.type in ("int", "float") and _value_fits(value, decl.type):
                 hint = "give a value within the parameter's range"
+            else:
+                example = decl.default if decl.default not in (None, "") else \
+                    {"int": 1, "float": 1.0, "bool": True, "str": "text"}[decl.type]
+                wanted = {"int": "an integer", "float": "a number", "bool": "true or false",
+                          "str": "a string (quoted if it looks like a number or boolean)"}
+                hint = f"give {wanted[decl.type]}, e.g. '{pname}: {py_yaml(example)}'"
             rep.error(doc.pos(*cpath, "params", pname),
                       f"parameter '{pname}' of '{ctype.name}' {problem}", hint)
             continue

@@ -35,8 +35,13 @@ def name_problem(name: object, what: str, top_level: bool = False) -> str | None
     top_level names (components, systems) become variables of the generated run()
     function, so they must also avoid the names generated code itself uses.
     """
+    if name is None:
+        return f"{what} is missing"
     if not isinstance(name, str):
-        return f"{what} must be a name, not {type(name).__name__} {name!r}"
+        kind = {bool: "the boolean", int: "the integer", float: "the number"}.get(
+            type(name), type(name).__name__)
+        return (f"{what} must be a name, not {kind} {name!r} (YAML 1.1 reads no/yes/on/off "
+                "as booleans and 010 as the integer 8: quote it if it is meant as a name)")
     if not NAME_RE.match(name):
         return (f"invalid {what} {name!r}: use letters, digits and '_' only, "
                 "starting with a letter")

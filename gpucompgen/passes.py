@@ -347,10 +347,15 @@ class AllocateGpu(Pass):
                     ("tile", "block_x", "block_y", "block_z"), decl.prefer))
                 problems = limit_problems(tile, bx, by, bz, decl, dev)
                 for p in problems:
-                    rep.error(pos, f"gpu_settings of '{name}': {p}",
-                              f"device '{dev.name}' allows work-groups of at most "
-                              f"{dev.max_work_group_size} threads, "
-                              f"{list(dev.max_work_item_sizes)} per dimension")
+                    if "kernel accepts" in p:
+                        hint = (f"the kernel of '{inst.type.name}' accepts tile "
+                                f"{' or '.join(map(str, decl.tiles))} and block_z "
+                                f"{' or '.join(map(str, decl.block_z))}")
+                    else:
+                        hint = (f"device '{dev.name}' allows work-groups of at most "
+                                f"{dev.max_work_group_size} threads, "
+                                f"{list(dev.max_work_item_sizes)} per dimension")
+                    rep.error(pos, f"gpu_settings of '{name}': {p}", hint)
                 if problems:
                     continue
                 system.settings[name] = GpuSettings(tile, bx, by, bz, "model")

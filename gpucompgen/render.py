@@ -109,7 +109,8 @@ def render(system: System, source: str) -> list[OutputFile]:
     env = environment()
     model = system.model
     lib = lib_dir_name(system)
-    header = HEADER.format(source=source)
+    # the model path is the one piece of free text in headers: keep it on its comment line
+    header = HEADER.format(source=comment_text(source))
     sha = model.text_sha256
     used_types = sorted({system.components[n].type.name: system.components[n].type
                          for n in system.order}.items())
