@@ -615,10 +615,12 @@ def load_system(path: Path, display: str | None = None) -> SystemModel:
             rep.diagnostics.extend(exc.diagnostics)
             continue
         for tname, ctype in user.items():
-            if tname in types:
-                rep.error(ctype.pos, f"component type '{tname}' is already defined "
-                          f"({'by the library' if types[tname].origin == 'library' else 'elsewhere'})",
-                          "give your type another name")
+            clash = next((t for t in types if fold(t) == fold(tname)), None)
+            if clash is not None:
+                where = "by the library" if types[clash].origin == "library" else "elsewhere"
+                rep.error(ctype.pos, f"component type '{tname}' is already defined {where}"
+                          + ("" if clash == tname else f" as '{clash}'"),
+                          "give your type another name (case and underscores do not count)")
                 continue
             types[tname] = ctype
     # platform
@@ -671,6 +673,13 @@ def load_system(path: Path, display: str | None = None) -> SystemModel:
                       did_you_mean(str(tname), types))
             continue
         ctype = types[tname]
+        clash = cname if cname in types else None  # `Camera = Camera()` would shadow the class
+        if clash is not None:
+            rep.error(doc.key_pos(*cpath),
+                      f"component name '{cname}' collides with component type '{clash}'",
+                      "the generated program uses type names as class names: name the "
+                      f"component after its role, e.g. '{snake(clash)}1'")
+            continue
         params = _instance_params(doc, rep, cpath, ctype, cspec.get("params"))
         components[cname] = Instance(cname, ctype, params, doc.key_pos(*cpath), order)
     for cname, (_, pos) in overrides.items():

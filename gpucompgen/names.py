@@ -23,6 +23,8 @@ __read_write complex imaginary true false
 GENERATED_RESERVED = frozenset({
     "np", "cl", "runtime", "run", "main", "args", "argv", "frame", "frames", "context", "queue",
     "sys", "Size", "components", "result", "KERNEL_DIR", "Path",
+    # module level of the generated program (a local of the same name would shadow them)
+    "LIB_DIR", "DESCRIPTION", "CpuToGpuAdapter", "GpuToCpuAdapter", "parts", "exc",
 })
 
 _RESERVED = (frozenset(keyword.kwlist) | frozenset(keyword.softkwlist) | frozenset(dir(builtins))

@@ -314,8 +314,11 @@ class InsertAdapters(Pass):
                     continue
                 count += 1
                 direction = "cpu2gpu" if src_mem == "cpu" else "gpu2cpu"
+                name = f"adapter{count}_{direction}"
+                while name in system.components:  # a component may have taken the name
+                    name += "_"
                 system.adapters.append(Adapter(
-                    name=f"adapter{count}_{direction}", direction=direction, source=src,
+                    name=name, direction=direction, source=src,
                     consumers=crossing, size=system.sizes[src]))
         return system
 
@@ -437,10 +440,11 @@ class NameVariables(Pass):
             taken.add(adapter.name)
 
         def claim(wanted: str) -> str:
+            # the generated code also uses <name>_size: both must be free
             name, i = wanted, 2
-            while name in taken:
+            while name in taken or f"{name}_size" in taken:
                 name, i = f"{wanted}_{i}", i + 1
-            taken.add(name)
+            taken.update((name, f"{name}_size"))
             return name
 
         by_source = {a.source: a for a in system.adapters}
