@@ -362,6 +362,7 @@ def _int_params(ctype: ComponentType) -> list[str]:
 
 
 INT32 = (-(1 << 31), (1 << 31) - 1)
+FLOAT32_MAX = 3.4028234663852886e38
 
 
 def _param_value_problem(value: Any, decl: ParamDecl, kernel: bool) -> str | None:
@@ -376,6 +377,8 @@ def _param_value_problem(value: Any, decl: ParamDecl, kernel: bool) -> str | Non
             return f"is {value!r}, outside [{decl.minimum}, {decl.maximum}]"
         if kernel and decl.type == "int" and not INT32[0] <= value <= INT32[1]:
             return f"is {value}, which does not fit the kernel's 32-bit int"
+        if kernel and decl.type == "float" and abs(value) > FLOAT32_MAX:
+            return f"is {value!r}, which does not fit the kernel's 32-bit float"
     return None
 
 

@@ -20,7 +20,9 @@ from gpucompgen.schema import MODEL, TYPES, schema
 MODEL_FILES = sorted((ROOT / "models").glob("*.yaml")) + [
     ROOT / "tests" / "data" / "user_model" / "bright.yaml"]
 TYPE_FILES = sorted((ROOT / "gpucompgen" / "library").glob("*.yaml")) + [
-    ROOT / "tests" / "data" / "user_model" / "my_types.yaml"]
+    ROOT / "tests" / "data" / "user_model" / "my_types.yaml",
+    ROOT / "tests" / "bad_models" / "types" / "helpers.yaml",
+    ROOT / "tests" / "bad_models" / "types" / "clash.yaml"]
 
 
 def validator(name):
@@ -61,6 +63,11 @@ def test_schema_rejects_yaml_1_1_surprises_for_names():
     for value in (False, True, 8, 1.5, None, "x'); import os; ('", "a\nimport os"):
         assert _errors(MODEL, dict(base, system=value)), value
         assert _errors(MODEL, dict(base, components={"a": {"type": value}})), value
+
+
+def test_schema_rejects_the_bad_type_file_of_the_bad_models():
+    bad = ROOT / "tests" / "bad_models" / "types" / "bad_types.yaml"
+    assert len(_errors(TYPES, yaml.safe_load(bad.read_text(encoding="utf-8")))) >= 3
 
 
 def test_schema_rejects_bad_types():
