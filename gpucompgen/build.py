@@ -38,7 +38,8 @@ def compile_model(model_path: Path, out_dir: Path, mode: str = "gpu-aware",
     model = load_system(model_path, display)
     rep = Reporter()
     spec = device if device is not None else model.device
-    facts = device_mod.resolve(spec, model.device_pos, rep)
+    facts = device_mod.resolve(spec, model.device_pos, rep,
+                               model.device_positions if device is None else None)
     rep.raise_if_errors()
     system, warnings = run_passes(model, facts, mode, dump)
     files = render(system, source_path(model_path, out_dir))

@@ -1,4 +1,4 @@
-"""gpucompgen's command line: build, run, check, plan, graph, bench.
+"""gpucompgen's command line: build, run, check, plan, graph, bench, schema.
 
 Exit codes as in black and datamodel-codegen: 0 ok, 1 problems found (or stale output with
 --check), 2 usage or internal error.  A user sees a traceback only with --debug.
@@ -130,6 +130,11 @@ def parser() -> argparse.ArgumentParser:
     be.add_argument("-o", "--output", type=Path, default=Path("bench-out"),
                     help="folder for bench.csv and bench.png (default: bench-out)")
     be.add_argument("--no-opencv", action="store_true", help="leave out the OpenCV references")
+
+    sc = sub.add_parser("schema", help="print the JSON Schema of model files",
+                        description="Print the JSON Schema of system models (or, with "
+                                    "--types, of component-type files) for editors and tools.")
+    sc.add_argument("--types", action="store_true", help="the schema of component-type files")
     return top
 
 
@@ -138,12 +143,18 @@ def main(argv: list[str] | None = None) -> int:
     if getattr(args, "frames", None) is not None and args.frames < 0:
         parser().error("--frames must be 0 or more")
     try:
+        model = getattr(args, "model", None)
+        if model is not None and not model.is_file():
+            # The command line names no model file: a usage error, like argparse's own.
+            what = "is a directory, not a model file" if model.is_dir() else "no such file"
+            print(f"gpucompgen {args.command}: error: {model}: {what}", file=sys.stderr)
+            return 2
         return COMMANDS[args.command](args)
     except GpucompgenError as exc:
         for d in exc.diagnostics:
             print(d.format(), file=sys.stderr)
-        n = len(exc.errors)
-        print(f"{n} error{'s' if n != 1 else ''} found", file=sys.stderr)
+        print(_counts(len(exc.errors), len(exc.diagnostics) - len(exc.errors)),
+              file=sys.stderr)
         return 1
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
@@ -154,6 +165,13 @@ def main(argv: list[str] | None = None) -> int:
         print(f"gpucompgen: internal error: {type(exc).__name__}: {exc}\n"
               "  rerun with --debug for the traceback and please report it", file=sys.stderr)
         return 2
+
+
+def _counts(errors: int, warnings: int) -> str:
+    text = f"{errors} error{'s' if errors != 1 else ''} found"
+    if warnings:
+        text += f", {warnings} warning{'s' if warnings != 1 else ''}"
+    return text
 
 
 def _compile(args, out_dir: Path):
@@ -228,15 +246,19 @@ def cmd_run(args) -> int:
 
 
 def cmd_check(args) -> int:
-    result = _compile(args, Path("generated"))
-    from .render import plan_lines
+    """Every check, nothing written: all problems (main prints them) or a summary."""
+    from .render import summary_lines
 
-    print(f"{args.model}: ok: system '{result.system.model.name}'")
-    for line in plan_lines(result.system):
+    result = _compile(args, Path("generated"))
+    status = "ok" if not result.warnings else "ok with warnings"
+    print(f"{args.model}: {status}: system '{result.system.model.name}'")
+    for line in summary_lines(result.system):
         print(f"  {line}")
-    if args.strict and result.warnings:
-        print(f"{len(result.warnings)} warning(s) with --strict", file=sys.stderr)
-        return 1
+    if result.warnings:
+        print(_counts(0, len(result.warnings)) + (" (--strict: failing)" if args.strict else ""),
+              file=sys.stderr)
+        if args.strict:
+            return 1
     return 0
 
 
@@ -279,5 +301,12 @@ def cmd_bench(args) -> int:
     return 0
 
 
+def cmd_schema(args) -> int:
+    from .schema import MODEL, TYPES, schema_text
+
+    sys.stdout.write(schema_text(TYPES if args.types else MODEL))
+    return 0
+
+
 COMMANDS = {"build": cmd_build, "run": cmd_run, "check": cmd_check, "plan": cmd_plan,
-            "graph": cmd_graph, "bench": cmd_bench}
+            "graph": cmd_graph, "bench": cmd_bench, "schema": cmd_schema}

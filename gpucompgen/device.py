@@ -64,8 +64,11 @@ PROFILES: dict[str, DeviceFacts] = {
 FACT_KEYS = tuple(f.name for f in fields(DeviceFacts))
 
 
-def resolve(spec: Any, pos: Pos, rep: Reporter) -> DeviceFacts | None:
-    """Turn a model's ``platform.device`` into facts; report problems at pos."""
+def resolve(spec: Any, pos: Pos, rep: Reporter,
+            positions: dict[str, tuple[Pos, Pos]] | None = None) -> DeviceFacts | None:
+    """Turn a model's ``platform.device`` into facts; report problems at pos, or for a
+    mapping at the (key, value) positions of each fact where given."""
+    positions = positions or {}
     if spec is None:
         spec = "portable"
     if isinstance(spec, str):
@@ -80,33 +83,37 @@ def resolve(spec: Any, pos: Pos, rep: Reporter) -> DeviceFacts | None:
         rep.error(pos, "platform.device must be a profile name or a mapping of device facts")
         return None
     base_name = spec.get("profile", "portable")
-    if base_name not in PROFILES:
-        rep.error(pos, f"unknown device profile {base_name!r}", did_you_mean(str(base_name),
-                                                                               PROFILES))
+    if not isinstance(base_name, str) or base_name not in PROFILES:
+        rep.error(positions.get("profile", (pos, pos))[1],
+                  f"unknown device profile {base_name!r}", did_you_mean(str(base_name), PROFILES))
         return None
     changes: dict[str, Any] = {}
     for key, value in spec.items():
         if key == "profile":
             continue
+        key_pos, value_pos = positions.get(key, (pos, pos))
         if key not in FACT_KEYS:
-            rep.error(pos, f"unknown device fact '{key}'", did_you_mean(key, FACT_KEYS))
+            rep.error(key_pos, f"unknown device fact '{key}'",
+                      did_you_mean(str(key), FACT_KEYS + ("profile",)))
             continue
         if key == "name":
             if not isinstance(value, str):
-                rep.error(pos, "device name must be a string")
+                rep.error(value_pos, "device name must be a string")
                 continue
         elif key == "host_unified_memory":
             if not isinstance(value, bool):
-                rep.error(pos, "host_unified_memory must be true or false")
+                rep.error(value_pos, "host_unified_memory must be true or false")
                 continue
         elif key == "max_work_item_sizes":
             if not (isinstance(value, list) and len(value) == 3 and all(
                     isinstance(v, int) and not isinstance(v, bool) and v > 0 for v in value)):
-                rep.error(pos, "max_work_item_sizes must be a list of three positive integers")
+                rep.error(value_pos,
+                          "max_work_item_sizes must be a list of three positive integers")
                 continue
             value = tuple(value)
         elif isinstance(value, bool) or not isinstance(value, int) or value <= 0:
-            rep.error(pos, f"device fact '{key}' must be a positive integer, not {value!r}")
+            rep.error(value_pos,
+                      f"device fact '{key}' must be a positive integer, not {value!r}")
             continue
         changes[key] = value
     return replace(PROFILES[base_name], **changes)

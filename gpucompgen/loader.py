@@ -87,6 +87,14 @@ def load_text(text: str, file: str) -> Document:
         problem = exc.problem or exc.context or "invalid YAML"
         raise _fail(file, mark, f"invalid YAML: {problem}",
                     "check indentation, colons and quotes near this place") from None
+    except yaml.reader.ReaderError as exc:
+        # A character YAML does not allow (a control character, a lone surrogate...).
+        line = text.count("\n", 0, exc.position)
+        col = exc.position - (text.rfind("\n", 0, exc.position) + 1)
+        raise _fail(file, yaml.Mark(file, exc.position, line, col, None, None),
+                    f"invalid YAML: character {_char(exc.character)} is not allowed",
+                    "remove the character or write it as an escape in a double-quoted "
+                    "string") from None
     except yaml.YAMLError as exc:  # pragma: no cover - PyYAML raises marked errors in practice
         raise _fail(file, None, f"invalid YAML: {exc}") from None
     doc = Document(file, None)
@@ -98,6 +106,11 @@ def load_text(text: str, file: str) -> Document:
     return doc
 
 
+def _char(c: object) -> str:
+    code = c if isinstance(c, int) else ord(c) if isinstance(c, str) and len(c) == 1 else None
+    return f"U+{code:04X}" if code is not None else repr(c)
+
+
 def load_file(path: Path, display: str | None = None) -> Document:
     """Read and parse a YAML file; display is the name used in messages."""
     shown = display or str(path)
@@ -105,7 +118,8 @@ def load_file(path: Path, display: str | None = None) -> Document:
         size = path.stat().st_size
         if size > MAX_FILE_BYTES:
             raise _fail(shown, None, f"file is larger than {MAX_FILE_BYTES} bytes")
-        text = path.read_text(encoding="utf-8")
+        raw = path.read_bytes()
+        text = raw.decode("utf-8")
     except FileNotFoundError:
         raise GpucompgenError([Diagnostic(shown, 0, 0, "error", "file not found",
                                           "check the path")]) from None
@@ -113,9 +127,12 @@ def load_file(path: Path, display: str | None = None) -> Document:
         raise GpucompgenError([Diagnostic(shown, 0, 0, "error", "is a directory, not a file",
                                           "give the path of a .yaml file")]) from None
     except UnicodeDecodeError as exc:
-        raise GpucompgenError([Diagnostic(shown, 0, 0, "error",
-                                          f"file is not UTF-8 text ({exc.reason} at byte {exc.start})",
-                                          "save the model as UTF-8")]) from None
+        line = raw.count(b"\n", 0, exc.start) + 1
+        col = exc.start - (raw.rfind(b"\n", 0, exc.start) + 1) + 1
+        raise GpucompgenError([Diagnostic(
+            shown, line, col, "error",
+            f"file is not UTF-8 text: byte 0x{raw[exc.start]:02x} ({exc.reason})",
+            "save the file as UTF-8")]) from None
     except OSError as exc:
         raise GpucompgenError([Diagnostic(shown, 0, 0, "error",
                                           f"cannot read file: {exc.strerror}")]) from None
@@ -130,6 +147,9 @@ def _convert(node: yaml.Node, path: PathKey, doc: Document) -> Any:
             return constructor.construct_object(node, deep=True)
         except yaml.constructor.ConstructorError as exc:
             raise _fail(doc.file, node.start_mark, f"invalid value: {exc.problem}") from None
+        except (ValueError, OverflowError) as exc:  # e.g. a timestamp like 2001-13-45
+            raise _fail(doc.file, node.start_mark, f"invalid value {node.value!r}: {exc}",
+                        "quote it if it is meant as a string") from None
         finally:
             constructor.dispose()
     if isinstance(node, yaml.SequenceNode):

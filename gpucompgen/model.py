@@ -8,6 +8,7 @@ shows all problems at once.
 from __future__ import annotations
 
 import ast
+import math
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -145,6 +146,8 @@ class SystemModel:
     gpu_overrides: dict[str, tuple[dict[str, int], Pos]]
     thread_budget: int | None
     types: dict[str, ComponentType]
+    # where each key and value of a mapping platform.device was written (for messages)
+    device_positions: dict[str, tuple[Pos, Pos]] = field(default_factory=dict)
 
 
 # --------------------------------------------------------------------------- helpers
@@ -156,6 +159,11 @@ def _expect_map(doc: Document, rep: Reporter, path: tuple, value: Any, what: str
         rep.error(doc.pos(*path), f"{what} must be a mapping, not {_kind(value)}")
         return {}
     return value
+
+
+def _named(value: Any, choices) -> bool:
+    """value is a string among choices (a YAML list or mapping is never a choice)."""
+    return isinstance(value, str) and value in choices
 
 
 def _kind(value: Any) -> str:
@@ -204,6 +212,9 @@ def load_types_file(path: Path, display: str, origin: str, rep: Reporter
                     ) -> dict[str, ComponentType]:
     """Load one file of component types: ``component_types: {Name: {...}, ...}``."""
     doc = load_file(path, display)
+    if doc.data is None:
+        rep.error(doc.pos(), "the component-type file is empty",
+                  "start it with 'component_types:' and one or more types")
     root = _expect_map(doc, rep, (), doc.data, "a component-type file")
     _unknown_keys(doc, rep, (), root, ("component_types",), "a component-type file")
     types_map = _expect_map(doc, rep, ("component_types",), root.get("component_types"),
@@ -253,7 +264,7 @@ def _load_type(doc: Document, rep: Reporter, path: Path, origin: str, tname: str
         pspec = _expect_map(doc, rep, ppath, pspec, f"parameter '{pname}'")
         _unknown_keys(doc, rep, ppath, pspec, PARAM_KEYS, f"parameter '{pname}'")
         ptype = pspec.get("type")
-        if ptype not in PARAM_TYPES:
+        if not _named(ptype, PARAM_TYPES):
             rep.error(doc.pos(*ppath, "type"), f"parameter '{pname}' has type {ptype!r}",
                       "use one of 'int', 'float', 'bool', 'str'")
             continue
@@ -262,22 +273,40 @@ def _load_type(doc: Document, rep: Reporter, path: Path, origin: str, tname: str
                       f"parameter '{pname}' of GPU-aware type '{tname}' is {ptype}: "
                       "kernel parameters must be int, float or bool")
             continue
+        bounds = {}
+        for key in ("min", "max"):
+            bound = pspec.get(key)
+            if bound is not None and (ptype not in ("int", "float") or not _value_fits(
+                    bound, "float") or not math.isfinite(bound)):
+                rep.error(doc.pos(*ppath, key),
+                          f"'{key}' of parameter '{pname}' must be a finite number"
+                          + ("" if ptype in ("int", "float") else f", and only for int or "
+                             f"float parameters, not {ptype}"),
+                          f"remove '{key}' or give a number such as {key}: 0")
+                bound = None
+            bounds[key] = bound
         default = pspec.get("default")
-        if default is not None and not _value_fits(default, ptype):
-            rep.error(doc.pos(*ppath, "default"),
-                      f"default of '{pname}' must be {ptype}, not {_kind(default)}")
+        problem = None if default is None else _param_value_problem(
+            default, ParamDecl(pname, ptype, minimum=bounds["min"], maximum=bounds["max"]),
+            kind == "gpu-aware")
+        if problem:
+            rep.error(doc.pos(*ppath, "default"), f"default of '{pname}' {problem}",
+                      f"give a {ptype} default within min and max, or none to make "
+                      "the parameter required")
             default = None
         ctype.params[pname] = ParamDecl(pname, ptype, default, "default" not in pspec,
-                                        pspec.get("min"), pspec.get("max"),
+                                        bounds["min"], bounds["max"],
                                         _text(doc, rep, ppath + ("description",),
                                               pspec.get("description"), "description"))
     # ports
     seen_ports: dict[str, str] = {}
+    failed_inputs = 0
     for direction, key in (("in", "inputs"), ("out", "outputs")):
         ports = _expect_map(doc, rep, base + (key,), spec.get(key), key)
         for pname, pspec in ports.items():
             port = _load_port(doc, rep, base + (key, pname), ctype, direction, pname, pspec)
             if port is None:
+                failed_inputs += direction == "in"
                 continue
             if fold(pname) in seen_ports:
                 rep.error(doc.key_pos(*base, key, pname),
@@ -291,7 +320,8 @@ def _load_type(doc: Document, rep: Reporter, path: Path, origin: str, tname: str
                   "declare 'inputs:' and/or 'outputs:'")
     # output sizes need the input ports, so parse them after all ports are known
     for pname, port in list(ctype.outputs.items()):
-        ctype.outputs[pname] = _port_sizes(doc, rep, base + ("outputs", pname), ctype, port)
+        ctype.outputs[pname] = _port_sizes(doc, rep, base + ("outputs", pname), ctype, port,
+                                           quiet=failed_inputs > 0)
     # requirements between input sizes
     requires = spec.get("requires") or []
     if not isinstance(requires, list):
@@ -335,6 +365,34 @@ def _int_params(ctype: ComponentType) -> list[str]:
     return [p.name for p in ctype.params.values() if p.type == "int"]
 
 
+INT32 = (-(1 << 31), (1 << 31) - 1)
+FLOAT32_MAX = 3.4028234663852886e38
+
+
+def _param_value_problem(value: Any, decl: ParamDecl, kernel: bool) -> str | None:
+    """Why value cannot be given to parameter decl, or None when it can."""
+    if not _value_fits(value, decl.type):
+        return f"must be {decl.type}, not {_kind(value)} ({value!r})"
+    if decl.type in ("int", "float"):
+        if not math.isfinite(value):
+            return f"must be a finite number, not {value!r}"
+        if decl.minimum is not None and value < decl.minimum or \
+                decl.maximum is not None and value > decl.maximum:
+            return f"is {value!r}, outside [{decl.minimum}, {decl.maximum}]"
+        if kernel and decl.type == "int" and not INT32[0] <= value <= INT32[1]:
+            return f"is {value}, which does not fit the kernel's 32-bit int"
+        if kernel and decl.type == "float" and abs(value) > FLOAT32_MAX:
+            return f"is {value!r}, which does not fit the kernel's 32-bit float"
+    return None
+
+
+def py_yaml(value: Any) -> str:
+    """A value as it would be written in YAML (for hints)."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    return repr(value) if isinstance(value, str) else str(value)
+
+
 def _value_fits(value: Any, ptype: str) -> bool:
     if ptype == "float":
         return isinstance(value, (int, float)) and not isinstance(value, bool)
@@ -367,7 +425,7 @@ def _load_port(doc, rep, path, ctype, direction, pname, pspec) -> PortDecl | Non
                   "adapters by declaring 'memory: gpu'")
         return None
     dtype = pspec.get("dtype", "uint8")
-    if dtype not in DTYPES:
+    if not _named(dtype, DTYPES):
         rep.error(doc.pos(*path, "dtype"), f"port '{pname}': unknown element type {dtype!r}",
                   did_you_mean(str(dtype), DTYPES))
         return None
@@ -382,7 +440,9 @@ def _load_port(doc, rep, path, ctype, direction, pname, pspec) -> PortDecl | Non
     return PortDecl(pname, direction, memory, dtype, channels, pos=doc.key_pos(*path))
 
 
-def _port_sizes(doc, rep, path, ctype, port: PortDecl) -> PortDecl:
+def _port_sizes(doc, rep, path, ctype, port: PortDecl, quiet: bool = False) -> PortDecl:
+    """Parse an output's size expressions; quiet: an input failed (already reported), so a
+    missing size that the input would have given is not reported again."""
     spec = doc.data
     for key in path:
         spec = spec.get(key, {}) if isinstance(spec, dict) else {}
@@ -392,6 +452,8 @@ def _port_sizes(doc, rep, path, ctype, port: PortDecl) -> PortDecl:
         if text is None:
             if len(ctype.inputs) == 1:  # default: same size as the only input
                 text = f"{next(iter(ctype.inputs))}.{dim}"
+            elif quiet:
+                continue
             else:
                 rep.error(port.pos, f"output '{port.name}' of '{ctype.name}' needs '{dim}:'",
                           f"give a size expression, e.g. '{dim}: 480' or "
@@ -444,7 +506,7 @@ def _load_kernel(doc, rep, base, ctype: ComponentType, spec) -> None:
                       f"kernel file {ctype.kernel_file.name} defines no "
                       f"'__kernel void {function}(...)'", "check the function name")
     grid = kspec.get("grid", next(iter(ctype.outputs), ""))
-    if grid not in ctype.outputs:
+    if not _named(grid, ctype.outputs):
         rep.error(doc.pos(*base, "kernel", "grid") if "grid" in kspec else ctype.pos,
                   f"kernel grid {grid!r} of '{ctype.name}' is not an output port",
                   did_you_mean(str(grid), ctype.outputs))
@@ -529,8 +591,14 @@ def load_system(path: Path, display: str | None = None) -> SystemModel:
     display = display or str(path)
     doc = load_file(path, display)
     rep = Reporter()
-    root = _expect_map(doc, rep, (), doc.data, "a system model")
+    if doc.data is None:
+        rep.error(doc.pos(), "the model is empty",
+                  "a model starts with 'system: <name>' and lists 'components:'")
+    elif not isinstance(doc.data, dict):
+        rep.error(doc.pos(), f"a system model must be a mapping, not {_kind(doc.data)}",
+                  "a model is a mapping of keys: 'system: <name>', 'components:', ...")
     rep.raise_if_errors()
+    root = doc.data
     _unknown_keys(doc, rep, (), root, SYSTEM_KEYS, "the system model")
     name = root.get("system")
     problem = name_problem(name, "system name", top_level=True)
@@ -562,10 +630,12 @@ def load_system(path: Path, display: str | None = None) -> SystemModel:
             rep.diagnostics.extend(exc.diagnostics)
             continue
         for tname, ctype in user.items():
-            if tname in types:
-                rep.error(ctype.pos, f"component type '{tname}' is already defined "
-                          f"({'by the library' if types[tname].origin == 'library' else 'elsewhere'})",
-                          "give your type another name")
+            clash = next((t for t in types if fold(t) == fold(tname)), None)
+            if clash is not None:
+                where = "by the library" if types[clash].origin == "library" else "elsewhere"
+                rep.error(ctype.pos, f"component type '{tname}' is already defined {where}"
+                          + ("" if clash == tname else f" as '{clash}'"),
+                          "give your type another name (case and underscores do not count)")
                 continue
             types[tname] = ctype
     # platform
@@ -612,12 +682,19 @@ def load_system(path: Path, display: str | None = None) -> SystemModel:
         cspec = _expect_map(doc, rep, cpath, cspec, f"component '{cname}'")
         _unknown_keys(doc, rep, cpath, cspec, INSTANCE_KEYS, f"component '{cname}'")
         tname = cspec.get("type")
-        if tname not in types:
+        if not _named(tname, types):
             rep.error(doc.pos(*cpath, "type") if "type" in cspec else doc.key_pos(*cpath),
                       f"unknown component type {tname!r} for '{cname}'",
                       did_you_mean(str(tname), types))
             continue
         ctype = types[tname]
+        clash = cname if cname in types else None  # `Camera = Camera()` would shadow the class
+        if clash is not None:
+            rep.error(doc.key_pos(*cpath),
+                      f"component name '{cname}' collides with component type '{clash}'",
+                      "the generated program uses type names as class names: name the "
+                      f"component after its role, e.g. '{snake(clash)}1'")
+            continue
         params = _instance_params(doc, rep, cpath, ctype, cspec.get("params"))
         components[cname] = Instance(cname, ctype, params, doc.key_pos(*cpath), order)
     for cname, (_, pos) in overrides.items():
@@ -645,7 +722,11 @@ def load_system(path: Path, display: str | None = None) -> SystemModel:
                        text_sha256=hashlib.sha256(path.read_bytes()).hexdigest(),
                        components=components, connections=connections, device=device,
                        device_pos=doc.pos("platform", "device"), gpu_overrides=overrides,
-                       thread_budget=budget, types=types)
+                       thread_budget=budget, types=types,
+                       device_positions={k: (doc.key_pos("platform", "device", k),
+                                             doc.pos("platform", "device", k))
+                                         for k in (device if isinstance(device, dict) else {})
+                                         if isinstance(k, str)})
 
 
 def _instance_params(doc, rep, cpath, ctype: ComponentType, given) -> dict[str, Any]:
@@ -658,21 +739,22 @@ def _instance_params(doc, rep, cpath, ctype: ComponentType, given) -> dict[str, 
                       f"'{ctype.name}' has no parameter '{pname}'",
                       did_you_mean(pname, ctype.params) or f"'{ctype.name}' takes no parameters")
             continue
-        if not _value_fits(value, decl.type):
+        problem = _param_value_problem(value, decl, ctype.gpu_aware)
+        if problem:
             hint = ""
             if isinstance(value, bool) and decl.type == "str":
                 hint = "YAML 1.1 reads yes/no/on/off as booleans: quote the value"
+            elif decl.type in ("int", "float") and _value_fits(value, decl.type):
+                hint = "give a value within the parameter's range"
+            else:
+                example = decl.default if decl.default not in (None, "") else \
+                    {"int": 1, "float": 1.0, "bool": True, "str": "text"}[decl.type]
+                wanted = {"int": "an integer", "float": "a number", "bool": "true or false",
+                          "str": "a string (quoted if it looks like a number or boolean)"}
+                hint = f"give {wanted[decl.type]}, e.g. '{pname}: {py_yaml(example)}'"
             rep.error(doc.pos(*cpath, "params", pname),
-                      f"parameter '{pname}' of '{ctype.name}' must be {decl.type}, "
-                      f"not {_kind(value)} ({value!r})", hint)
+                      f"parameter '{pname}' of '{ctype.name}' {problem}", hint)
             continue
-        if decl.type in ("int", "float"):
-            if decl.minimum is not None and value < decl.minimum or \
-                    decl.maximum is not None and value > decl.maximum:
-                rep.error(doc.pos(*cpath, "params", pname),
-                          f"parameter '{pname}' = {value} is outside "
-                          f"[{decl.minimum}, {decl.maximum}]")
-                continue
         if decl.type == "float":
             value = float(value)
         params[pname] = value

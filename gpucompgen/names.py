@@ -23,6 +23,8 @@ __read_write complex imaginary true false
 GENERATED_RESERVED = frozenset({
     "np", "cl", "runtime", "run", "main", "args", "argv", "frame", "frames", "context", "queue",
     "sys", "Size", "components", "result", "KERNEL_DIR", "Path",
+    # module level of the generated program (a local of the same name would shadow them)
+    "LIB_DIR", "DESCRIPTION", "CpuToGpuAdapter", "GpuToCpuAdapter", "parts", "exc",
 })
 
 _RESERVED = (frozenset(keyword.kwlist) | frozenset(keyword.softkwlist) | frozenset(dir(builtins))
@@ -35,8 +37,13 @@ def name_problem(name: object, what: str, top_level: bool = False) -> str | None
     top_level names (components, systems) become variables of the generated run()
     function, so they must also avoid the names generated code itself uses.
     """
+    if name is None:
+        return f"{what} is missing"
     if not isinstance(name, str):
-        return f"{what} must be a name, not {type(name).__name__} {name!r}"
+        kind = {bool: "the boolean", int: "the integer", float: "the number"}.get(
+            type(name), type(name).__name__)
+        return (f"{what} must be a name, not {kind} {name!r} (YAML 1.1 reads no/yes/on/off "
+                "as booleans and 010 as the integer 8: quote it if it is meant as a name)")
     if not NAME_RE.match(name):
         return (f"invalid {what} {name!r}: use letters, digits and '_' only, "
                 "starting with a letter")

@@ -112,6 +112,10 @@ class System:
 
 class Pass:
     name = "pass"
+    # A checking pass that still runs after an earlier pass found errors: it must cope with
+    # a partly checked system (inputs without writers, no order after a cycle, missing
+    # sizes), so one run reports as many independent problems as possible.
+    runs_after_errors = False
 
     def apply(self, system: System, rep: Reporter) -> System:
         raise NotImplementedError
@@ -121,6 +125,7 @@ class CheckConnections(Pass):
     """Who writes each input: one writer, required inputs fed, nothing left dangling."""
 
     name = "check-connections"
+    runs_after_errors = True
 
     def apply(self, system, rep):
         model = system.model
@@ -161,6 +166,7 @@ class CheckPortTypes(Pass):
     """Both ends of a connection carry the same element type and channels."""
 
     name = "check-port-types"
+    runs_after_errors = True
 
     def apply(self, system, rep):
         for conn in system.model.connections:
@@ -181,6 +187,7 @@ class Schedule(Pass):
     """A topological order; ties follow the order of components in the model."""
 
     name = "schedule"
+    runs_after_errors = True
 
     def apply(self, system, rep):
         comps = system.components
@@ -232,6 +239,7 @@ class PropagateSizes(Pass):
     """From the sources' parameters down the graph: every port gets a concrete size."""
 
     name = "propagate-sizes"
+    runs_after_errors = True
 
     def apply(self, system, rep):
         for name in system.order:
@@ -306,8 +314,11 @@ class InsertAdapters(Pass):
                     continue
                 count += 1
                 direction = "cpu2gpu" if src_mem == "cpu" else "gpu2cpu"
+                name = f"adapter{count}_{direction}"
+                while name in system.components:  # a component may have taken the name
+                    name += "_"
                 system.adapters.append(Adapter(
-                    name=f"adapter{count}_{direction}", direction=direction, source=src,
+                    name=name, direction=direction, source=src,
                     consumers=crossing, size=system.sizes[src]))
         return system
 
@@ -323,6 +334,7 @@ class AllocateGpu(Pass):
     """
 
     name = "allocate-gpu"
+    runs_after_errors = True
 
     def apply(self, system, rep):
         dev = system.device
@@ -338,10 +350,15 @@ class AllocateGpu(Pass):
                     ("tile", "block_x", "block_y", "block_z"), decl.prefer))
                 problems = limit_problems(tile, bx, by, bz, decl, dev)
                 for p in problems:
-                    rep.error(pos, f"gpu_settings of '{name}': {p}",
-                              f"device '{dev.name}' allows work-groups of at most "
-                              f"{dev.max_work_group_size} threads, "
-                              f"{list(dev.max_work_item_sizes)} per dimension")
+                    if "kernel accepts" in p:
+                        hint = (f"the kernel of '{inst.type.name}' accepts tile "
+                                f"{' or '.join(map(str, decl.tiles))} and block_z "
+                                f"{' or '.join(map(str, decl.block_z))}")
+                    else:
+                        hint = (f"device '{dev.name}' allows work-groups of at most "
+                                f"{dev.max_work_group_size} threads, "
+                                f"{list(dev.max_work_item_sizes)} per dimension")
+                    rep.error(pos, f"gpu_settings of '{name}': {p}", hint)
                 if problems:
                     continue
                 system.settings[name] = GpuSettings(tile, bx, by, bz, "model")
@@ -426,10 +443,11 @@ class NameVariables(Pass):
             taken.add(adapter.name)
 
         def claim(wanted: str) -> str:
+            # the generated code also uses <name>_size: both must be free
             name, i = wanted, 2
-            while name in taken:
+            while name in taken or f"{name}_size" in taken:
                 name, i = f"{wanted}_{i}", i + 1
-            taken.add(name)
+            taken.update((name, f"{name}_size"))
             return name
 
         by_source = {a.source: a for a in system.adapters}
@@ -467,16 +485,26 @@ PIPELINE: tuple[Pass, ...] = (CheckConnections(), CheckPortTypes(), Schedule(),
 
 def run_passes(model: SystemModel, device: DeviceFacts, mode: str = "gpu-aware",
                dump: Any = None) -> tuple[System, list]:
-    """Run every pass; stop after the first pass that found errors. Returns warnings too."""
+    """Run every pass and return the system and its warnings, or raise with every problem.
+
+    Once a pass has found errors, only the checking passes that cope with a partly checked
+    system still run (Pass.runs_after_errors); the others are skipped.
+    """
     system = System(model, device, mode)
     rep = Reporter()
     for p in PIPELINE:
+        if rep.has_errors and not p.runs_after_errors:
+            continue
         system = p.apply(system, rep)
         if dump is not None:
             dump(f"// after {p.name}\n{system.dump()}\n")
-        if rep.has_errors:
-            raise GpucompgenError(rep.diagnostics)
+    if rep.has_errors:
+        raise GpucompgenError(_unique(rep.diagnostics))
     return system, rep.warnings
+
+
+def _unique(diagnostics: list) -> list:
+    return sorted(set(diagnostics))
 
 
 def passes_names() -> Iterable[str]:

@@ -118,7 +118,8 @@ def render(system: System, source: str) -> list[OutputFile]:
     env = environment()
     model = system.model
     lib = lib_dir_name(system)
-    header = HEADER.format(source=source)
+    # the model path is the one piece of free text in headers: keep it on its comment line
+    header = HEADER.format(source=comment_text(source))
     sha = model.text_sha256
     used_types = sorted({system.components[n].type.name: system.components[n].type
                          for n in system.order}.items())
@@ -322,6 +323,30 @@ def plan_lines(system: System) -> list[str]:
     lines.append("")
     lines.append(f"device: {system.device.name}; bytes between CPU and GPU per frame: "
                  f"{crossing:,}")
+    return lines
+
+
+def summary_lines(system: System) -> list[str]:
+    """What `gpucompgen check` prints about a checked system: components, adapters, sizes."""
+    comps = system.components
+    lines = [f"{len(comps)} component{'s' if len(comps) != 1 else ''}, in order: "
+             + ", ".join(f"{n} ({comps[n].type.name}, "
+                         f"{'GPU' if comps[n].type.gpu_aware else 'CPU'})" for n in system.order)]
+    n = len(system.adapters)
+    lines.append(f"{n} adapter{'s' if n != 1 else ''} will be inserted"
+                 + (":" if n else ""))
+    for a in system.adapters:
+        lines.append(f"  {a.name}: {a.source} -> {', '.join(map(str, a.consumers))} "
+                     f"({a.size}, {a.size.nbytes:,} bytes a frame)")
+    lines.append("sizes:")
+    for end, size in sorted(system.sizes.items(), key=lambda kv: (
+            comps[kv[0].component].order, kv[0].port)):
+        if comps[end.component].type.port(end.port).direction == "out":
+            lines.append(f"  {end}: {size}")
+    for name, s in sorted(system.settings.items(), key=lambda kv: comps[kv[0]].order):
+        lines.append(f"GPU settings of {name}: tile {s.tile}, block {s.block_x}x{s.block_y}x"
+                     f"{s.block_z} ({s.source})")
+    lines.append(f"device: {comment_text(system.device.name)}")
     return lines
 
 

@@ -1,0 +1,2 @@
+__kernel void join(__global const uchar *a, __global const uchar *b, __global uchar *o) {}
+__kernel void to_float(__global const uchar *image, __global float *values) {}

@@ -1,0 +1,3 @@
+class Level:
+    def __init__(self, level):
+        self.level = level

@@ -1,0 +1,118 @@
+"""The shipped JSON Schemas agree with the loader: checked-in files validate, YAML 1.1
+surprises fail, and the keys the schemas allow are the keys the loader allows."""
+
+from __future__ import annotations
+
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import jsonschema
+import pytest
+import yaml
+from conftest import ROOT
+
+from gpucompgen import model
+from gpucompgen.device import FACT_KEYS, PROFILES
+from gpucompgen.schema import MODEL, TYPES, schema
+
+MODEL_FILES = sorted((ROOT / "models").glob("*.yaml")) + [
+    ROOT / "tests" / "data" / "user_model" / "bright.yaml"]
+TYPE_FILES = sorted((ROOT / "gpucompgen" / "library").glob("*.yaml")) + [
+    ROOT / "tests" / "data" / "user_model" / "my_types.yaml",
+    ROOT / "tests" / "bad_models" / "types" / "helpers.yaml",
+    ROOT / "tests" / "bad_models" / "types" / "clash.yaml"]
+
+
+def validator(name):
+    s = schema(name)
+    jsonschema.Draft202012Validator.check_schema(s)
+    return jsonschema.Draft202012Validator(s)
+
+
+def _errors(name, data):
+    return sorted(e.message for e in validator(name).iter_errors(data))
+
+
+@pytest.mark.parametrize("path", MODEL_FILES + TYPE_FILES, ids=lambda p: p.name)
+def test_checked_in_files_validate_and_name_their_schema(path):
+    which = MODEL if path in MODEL_FILES else TYPES
+    first = path.read_text(encoding="utf-8").splitlines()[0]
+    m = re.fullmatch(r"# yaml-language-server: \$schema=(\S+)", first)
+    assert m, f"{path.name} does not start with the yaml-language-server modeline"
+    assert (path.parent / m[1]).resolve() == (ROOT / "gpucompgen" / "schema" / which).resolve()
+    assert _errors(which, yaml.safe_load(path.read_text(encoding="utf-8"))) == []
+
+
+@pytest.mark.parametrize("text", [
+    "system: no", "system: on", "system: 010", "system: 1.5", "system: 'a b'",
+    "system: class_ok\nextra: 1", "system: s\ncomponents: {'no': Camera}\nbad: 1", "system: s\ncomponents: {a: {type: Camera, parms: {}}}",
+    "system: s\ncomponents: {a: Camera}\nconnections: ['a.image => b.in']",
+    "system: s\ncomponents: {a: Camera}\nplatform: {device: portabel}",
+    "system: s\ncomponents: {a: Camera}\nplatform: {gpu_settings: {a: {tile: 0}}}",
+    "system: s\ncomponents: {'../x': Camera}",
+    "system: s\ncomponents: {a: 'yes'}\ndescription: no",
+])
+def test_schema_rejects_bad_models(text):
+    assert _errors(MODEL, yaml.safe_load(text)), text
+
+
+def test_schema_rejects_yaml_1_1_surprises_for_names():
+    base = {"system": "s", "components": {"a": {"type": "Camera"}}}
+    for value in (False, True, 8, 1.5, None, "x'); import os; ('", "a\nimport os"):
+        assert _errors(MODEL, dict(base, system=value)), value
+        assert _errors(MODEL, dict(base, components={"a": {"type": value}})), value
+
+
+def test_schema_rejects_the_bad_type_file_of_the_bad_models():
+    bad = ROOT / "tests" / "bad_models" / "types" / "bad_types.yaml"
+    assert len(_errors(TYPES, yaml.safe_load(bad.read_text(encoding="utf-8")))) >= 3
+
+
+def test_schema_rejects_bad_types():
+    good = yaml.safe_load((ROOT / "tests/data/user_model/my_types.yaml").read_text())
+    assert _errors(TYPES, good) == []
+    brighten = good["component_types"]["Brighten"]
+    for change in ({"kind": "gpu"}, {"python": {"file": "x.py"}},
+                   {"inputs": {"image": {"dtype": "float64"}}},
+                   {"outputs": {"o": {"channels": 0}}}, {"kernel": {"file": "k.c"}},
+                   {"params": {"gain": "integer"}}, {"gpu": {"tiles": []}}):
+        bad = {"component_types": {"Brighten": dict(brighten, **change)}}
+        assert _errors(TYPES, bad), change
+
+
+def test_schema_keys_agree_with_the_loader():
+    m = schema(MODEL)["properties"]
+    assert set(m) == set(model.SYSTEM_KEYS)
+    assert set(m["platform"]["properties"]) == set(model.PLATFORM_KEYS)
+    device = m["platform"]["properties"]["device"]["oneOf"]
+    assert set(device[0]["enum"]) == set(PROFILES) | {"auto"}
+    assert set(device[1]["properties"]) == set(FACT_KEYS) | {"profile"}
+    setting = m["platform"]["properties"]["gpu_settings"]["additionalProperties"]
+    assert tuple(setting["properties"]) == model.SETTING_KEYS
+    inst = m["components"]["additionalProperties"]["oneOf"][1]["properties"]
+    assert set(inst) == set(model.INSTANCE_KEYS)
+    t = schema(TYPES)["properties"]["component_types"]["additionalProperties"]
+    assert set(t["properties"]) == set(model.TYPE_KEYS)
+    assert set(t["properties"]["kind"]["enum"]) == set(model.KINDS)
+    out = t["properties"]["outputs"]["additionalProperties"]["properties"]
+    assert set(out) == set(model.PORT_KEYS)
+    assert set(out["dtype"]["enum"]) == set(model.DTYPES)
+    assert set(out["memory"]["enum"]) == set(model.MEMORIES)
+    param = t["properties"]["params"]["additionalProperties"]["oneOf"]
+    assert set(param[0]["enum"]) == set(model.PARAM_TYPES)
+    assert set(param[1]["properties"]) == set(model.PARAM_KEYS)
+    name = m["system"]
+    from gpucompgen.names import MAX_NAME, NAME_RE
+    assert name["maxLength"] == MAX_NAME
+    assert name["pattern"].strip("^$") == NAME_RE.pattern.removesuffix("\\Z")
+
+
+@pytest.mark.parametrize("args,which", [([], MODEL), (["--types"], TYPES)])
+def test_schema_command_prints_the_shipped_schema(args, which):
+    proc = subprocess.run([sys.executable, "-m", "gpucompgen", "schema", *args], check=False,
+                          capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout == (ROOT / "gpucompgen" / "schema" / which).read_text(encoding="utf-8")
+    assert Path(ROOT / "pyproject.toml").read_text().count('"gpucompgen.schema" = ["*.json"]') == 1
