@@ -9,18 +9,28 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 """
 
 # System plan:
-#   step  name                      runs  GPU settings                        output                             bytes
-#   1     source (StillImage)       CPU   -                                   image 864x1152x3 uint8             2,985,984
-#   2     adapter1_cpu2gpu          copy  -                                   source.image 864x1152x3 uint8      2,985,984
-#   3     mirror1 (VerticalMirror)  GPU   tile 32, block 8x8x1, 1728 threads  mirrored 864x1152x3 uint8          2,985,984
-#   4     mirror2 (VerticalMirror)  GPU   tile 32, block 8x8x1, 1728 threads  mirrored 864x1152x3 uint8          2,985,984
-#   5     mirror3 (VerticalMirror)  GPU   tile 32, block 8x8x1, 1728 threads  mirrored 864x1152x3 uint8          2,985,984
-#   6     mirror4 (VerticalMirror)  GPU   tile 32, block 8x8x1, 1728 threads  mirrored 864x1152x3 uint8          2,985,984
-#   7     mirror5 (VerticalMirror)  GPU   tile 32, block 8x8x1, 1728 threads  mirrored 864x1152x3 uint8          2,985,984
-#   8     adapter2_gpu2cpu          copy  -                                   mirror5.mirrored 864x1152x3 uint8  2,985,984
-#   9     sink (FrameSink)          CPU   -                                   -                                  -
+#   step  name                      stage  queue  runs  GPU settings          threads  buffers                                 bytes
+#   1     source (StillImage)       1      -      CPU   -                     -        image 864x1152x3 uint8                  2,985,984
+#   2     adapter1_cpu2gpu          1      -      copy  -                     -        device source.image 864x1152x3 uint8    2,985,984
+#   3     mirror1 (VerticalMirror)  2      -      GPU   tile 32, block 8x8x1  1,728    mirrored 864x1152x3 uint8               2,985,984
+#   4     mirror2 (VerticalMirror)  3      -      GPU   tile 32, block 8x8x1  1,728    mirrored 864x1152x3 uint8               2,985,984
+#   5     mirror3 (VerticalMirror)  4      -      GPU   tile 32, block 8x8x1  1,728    mirrored 864x1152x3 uint8               2,985,984
+#   6     mirror4 (VerticalMirror)  5      -      GPU   tile 32, block 8x8x1  1,728    mirrored 864x1152x3 uint8               2,985,984
+#   7     mirror5 (VerticalMirror)  6      -      GPU   tile 32, block 8x8x1  1,728    mirrored 864x1152x3 uint8               2,985,984
+#   8     adapter2_gpu2cpu          6      -      copy  -                     -        host mirror5.mirrored 864x1152x3 uint8  2,985,984
+#   9     sink (FrameSink)          7      -      CPU   -                     -        -                                       -
 #
-#   device: portable OpenCL 1.2 device; bytes between CPU and GPU per frame: 5,971,968
+#   device: portable OpenCL 1.2 device
+#   peak device memory: 17,915,904 bytes; peak host memory: 5,971,968 bytes (all allocated at start)
+#   bytes copied between CPU and GPU per frame: 5,971,968
+#   zero-copy adapters: off (auto: device has no unified host memory)
+#   execution: parallel, 1 queue
+#   thread budget: 16,384 (device total); GPU components that can run at the same time:
+#     mirror1: 1,728 threads
+#     mirror2: 1,728 threads
+#     mirror3: 1,728 threads
+#     mirror4: 1,728 threads
+#     mirror5: 1,728 threads
 
 from __future__ import annotations
 
@@ -47,18 +57,21 @@ class CpuToGpuAdapter:
         self.queue = queue
         self.buffer = None
         self.profile = None  # a runtime.Profile with --profile
+        self.event = None
 
     def initialize(self, size, dtype):
         self.nbytes = size.nbytes(dtype)
         self.buffer = cl.Buffer(self.context, cl.mem_flags.READ_ONLY, self.nbytes)
 
-    def transfer(self, host):
+    def transfer(self, host, wait_for=None):
         if host.nbytes != self.nbytes:
             raise runtime.PipelineError(
                 f"frame of {host.nbytes} bytes where {self.nbytes} were expected")
-        event = cl.enqueue_copy(self.queue, self.buffer, np.ascontiguousarray(host))
+        # not blocking: the copy's event keeps `host` alive until the device has read it
+        self.event = cl.enqueue_copy(self.queue, self.buffer, np.ascontiguousarray(host),
+                                     is_blocking=False, wait_for=wait_for)
         if self.profile is not None:
-            self.profile.copy(self, "cpu2gpu", event, self.nbytes)
+            self.profile.copy(self, "cpu2gpu", self.event, self.nbytes)
         return self.buffer
 
     def free_memory(self):
@@ -75,14 +88,16 @@ class GpuToCpuAdapter:
         self.queue = queue
         self.host = None
         self.profile = None  # a runtime.Profile with --profile
+        self.event = None
 
     def initialize(self, size, dtype):
         self.host = np.empty(size.shape, dtype)
 
-    def transfer(self, buffer):
-        event = cl.enqueue_copy(self.queue, self.host, buffer)  # blocking: the host reads it next
+    def transfer(self, buffer, wait_for=None):
+        # blocking: the host reads it next
+        self.event = cl.enqueue_copy(self.queue, self.host, buffer, wait_for=wait_for)
         if self.profile is not None:
-            self.profile.copy(self, "gpu2cpu", event, self.host.nbytes)
+            self.profile.copy(self, "gpu2cpu", self.event, self.host.nbytes)
         return self.host
 
     def free_memory(self):
@@ -102,6 +117,7 @@ class VerticalMirror:
         self.queue = queue
         self.kernel = cl.Kernel(program, 'vertical_mirror')
         self.profile = None  # a runtime.Profile with --profile
+        self.event = None  # of the last kernel enqueued
         self.mirrored = None
 
     def initialize(self, image):
@@ -130,12 +146,12 @@ class VerticalMirror:
             np.int32(tile),
         )
 
-    def execute(self, image):
+    def execute(self, image, wait_for=None):
         self.kernel.set_args(image, self.mirrored, *self.scalar_args)
-        ran = cl.enqueue_nd_range_kernel(self.queue, self.kernel, self.global_size,
-                                         self.local_size)
+        self.event = cl.enqueue_nd_range_kernel(self.queue, self.kernel, self.global_size,
+                                                self.local_size, wait_for=wait_for)
         if self.profile is not None:
-            self.profile.kernel(self, ran)
+            self.profile.kernel(self, self.event)
         return self.mirrored
 
     def free_memory(self):
@@ -154,8 +170,11 @@ def run(frames=None, context=None, monitor=None, profile=False):
     """
     monitor = monitor or runtime.Monitor(progress=False)
     context = context or runtime.create_context()
+    # Parallel execution: 1 in-order queue (lanes). Commands are enqueued
+    # without waiting; a command waits for another queue's event (wait_for=[...]) only
+    # where it reads that queue's data, and the host waits only where it reads a result.
     queue = runtime.create_queue(context, profile)
-    runtime.check_device_memory(queue.device, {
+    runtime.check_device_memory(context.devices[0], {
         'adapter1_cpu2gpu (source.image)': 2_985_984,
         'mirror1.mirrored': 2_985_984,
         'mirror2.mirrored': 2_985_984,
@@ -207,11 +226,11 @@ def run(frames=None, context=None, monitor=None, profile=False):
         adapter2_gpu2cpu.initialize(mirror5_mirrored_size, np.uint8)
         sink.initialize(mirror5_mirrored_size)
 
-        mirror1.config_gpu(tile=32, block_x=8, block_y=8, block_z=1)  # preferred
-        mirror2.config_gpu(tile=32, block_x=8, block_y=8, block_z=1)  # preferred
-        mirror3.config_gpu(tile=32, block_x=8, block_y=8, block_z=1)  # preferred
-        mirror4.config_gpu(tile=32, block_x=8, block_y=8, block_z=1)  # preferred
-        mirror5.config_gpu(tile=32, block_x=8, block_y=8, block_z=1)  # preferred
+        mirror1.config_gpu(tile=32, block_x=8, block_y=8, block_z=1)  # preferred, 1,728 threads
+        mirror2.config_gpu(tile=32, block_x=8, block_y=8, block_z=1)  # preferred, 1,728 threads
+        mirror3.config_gpu(tile=32, block_x=8, block_y=8, block_z=1)  # preferred, 1,728 threads
+        mirror4.config_gpu(tile=32, block_x=8, block_y=8, block_z=1)  # preferred, 1,728 threads
+        mirror5.config_gpu(tile=32, block_x=8, block_y=8, block_z=1)  # preferred, 1,728 threads
 
         frame = 0
         while frames is None or frame < frames:

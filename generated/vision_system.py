@@ -9,17 +9,24 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 """
 
 # System plan:
-#   step  name                       runs  GPU settings                           output                          bytes
-#   1     camera1 (Camera)           CPU   -                                      image 480x640x3 uint8           921,600
-#   2     camera2 (Camera)           CPU   -                                      image 480x640x3 uint8           921,600
-#   3     adapter1_cpu2gpu           copy  -                                      camera1.image 480x640x3 uint8   921,600
-#   4     adapter2_cpu2gpu           copy  -                                      camera2.image 480x640x3 uint8   921,600
-#   5     merger (ImageMerger)       GPU   tile 16, block 16x16x1, 16384 threads  merged 480x1280x3 uint8         1,843,200
-#   6     detector (ObjectDetector)  GPU   tile 32, block 16x16x1, 16384 threads  mask 480x1280x1 uint8           614,400
-#   7     adapter3_gpu2cpu           copy  -                                      detector.mask 480x1280x1 uint8  614,400
-#   8     manager (VisionManager)    CPU   -                                      -                               -
+#   step  name                       stage  queue  runs  GPU settings            threads  buffers                               bytes
+#   1     camera1 (Camera)           1      -      CPU   -                       -        image 480x640x3 uint8                 921,600
+#   2     camera2 (Camera)           1      -      CPU   -                       -        image 480x640x3 uint8                 921,600
+#   3     adapter1_cpu2gpu           1      0      copy  -                       -        device camera1.image 480x640x3 uint8  921,600
+#   4     adapter2_cpu2gpu           1      1      copy  -                       -        device camera2.image 480x640x3 uint8  921,600
+#   5     merger (ImageMerger)       2      0      GPU   tile 16, block 16x16x1  16,384   merged 480x1280x3 uint8               1,843,200
+#   6     detector (ObjectDetector)  3      0      GPU   tile 32, block 16x16x1  16,384   mask 480x1280x1 uint8                 614,400
+#   7     adapter3_gpu2cpu           3      0      copy  -                       -        host detector.mask 480x1280x1 uint8   614,400
+#   8     manager (VisionManager)    4      -      CPU   -                       -        -                                     -
 #
-#   device: portable OpenCL 1.2 device; bytes between CPU and GPU per frame: 2,457,600
+#   device: portable OpenCL 1.2 device
+#   peak device memory: 4,300,800 bytes; peak host memory: 2,457,600 bytes (all allocated at start)
+#   bytes copied between CPU and GPU per frame: 2,457,600
+#   zero-copy adapters: off (auto: device has no unified host memory)
+#   execution: parallel, 2 queues
+#   thread budget: 16,384 (device total); GPU components that can run at the same time:
+#     merger: 16,384 threads
+#     detector: 16,384 threads
 
 from __future__ import annotations
 
@@ -46,18 +53,21 @@ class CpuToGpuAdapter:
         self.queue = queue
         self.buffer = None
         self.profile = None  # a runtime.Profile with --profile
+        self.event = None
 
     def initialize(self, size, dtype):
         self.nbytes = size.nbytes(dtype)
         self.buffer = cl.Buffer(self.context, cl.mem_flags.READ_ONLY, self.nbytes)
 
-    def transfer(self, host):
+    def transfer(self, host, wait_for=None):
         if host.nbytes != self.nbytes:
             raise runtime.PipelineError(
                 f"frame of {host.nbytes} bytes where {self.nbytes} were expected")
-        event = cl.enqueue_copy(self.queue, self.buffer, np.ascontiguousarray(host))
+        # not blocking: the copy's event keeps `host` alive until the device has read it
+        self.event = cl.enqueue_copy(self.queue, self.buffer, np.ascontiguousarray(host),
+                                     is_blocking=False, wait_for=wait_for)
         if self.profile is not None:
-            self.profile.copy(self, "cpu2gpu", event, self.nbytes)
+            self.profile.copy(self, "cpu2gpu", self.event, self.nbytes)
         return self.buffer
 
     def free_memory(self):
@@ -74,14 +84,16 @@ class GpuToCpuAdapter:
         self.queue = queue
         self.host = None
         self.profile = None  # a runtime.Profile with --profile
+        self.event = None
 
     def initialize(self, size, dtype):
         self.host = np.empty(size.shape, dtype)
 
-    def transfer(self, buffer):
-        event = cl.enqueue_copy(self.queue, self.host, buffer)  # blocking: the host reads it next
+    def transfer(self, buffer, wait_for=None):
+        # blocking: the host reads it next
+        self.event = cl.enqueue_copy(self.queue, self.host, buffer, wait_for=wait_for)
         if self.profile is not None:
-            self.profile.copy(self, "gpu2cpu", event, self.host.nbytes)
+            self.profile.copy(self, "gpu2cpu", self.event, self.host.nbytes)
         return self.host
 
     def free_memory(self):
@@ -101,6 +113,7 @@ class ImageMerger:
         self.queue = queue
         self.kernel = cl.Kernel(program, 'image_merger')
         self.profile = None  # a runtime.Profile with --profile
+        self.event = None  # of the last kernel enqueued
         self.merged = None
 
     def initialize(self, left, right):
@@ -132,12 +145,12 @@ class ImageMerger:
             np.int32(tile),
         )
 
-    def execute(self, left, right):
+    def execute(self, left, right, wait_for=None):
         self.kernel.set_args(left, right, self.merged, *self.scalar_args)
-        ran = cl.enqueue_nd_range_kernel(self.queue, self.kernel, self.global_size,
-                                         self.local_size)
+        self.event = cl.enqueue_nd_range_kernel(self.queue, self.kernel, self.global_size,
+                                                self.local_size, wait_for=wait_for)
         if self.profile is not None:
-            self.profile.kernel(self, ran)
+            self.profile.kernel(self, self.event)
         return self.merged
 
     def free_memory(self):
@@ -159,6 +172,7 @@ class ObjectDetector:
         self.queue = queue
         self.kernel = cl.Kernel(program, 'object_detector')
         self.profile = None  # a runtime.Profile with --profile
+        self.event = None  # of the last kernel enqueued
         self.red_min = red_min
         self.margin = margin
         self.mask = None
@@ -191,12 +205,12 @@ class ObjectDetector:
             np.int32(tile),
         )
 
-    def execute(self, frame):
+    def execute(self, frame, wait_for=None):
         self.kernel.set_args(frame, self.mask, *self.scalar_args)
-        ran = cl.enqueue_nd_range_kernel(self.queue, self.kernel, self.global_size,
-                                         self.local_size)
+        self.event = cl.enqueue_nd_range_kernel(self.queue, self.kernel, self.global_size,
+                                                self.local_size, wait_for=wait_for)
         if self.profile is not None:
-            self.profile.kernel(self, ran)
+            self.profile.kernel(self, self.event)
         return self.mask
 
     def free_memory(self):
@@ -215,8 +229,12 @@ def run(frames=None, context=None, monitor=None, profile=False):
     """
     monitor = monitor or runtime.Monitor(progress=False)
     context = context or runtime.create_context()
-    queue = runtime.create_queue(context, profile)
-    runtime.check_device_memory(queue.device, {
+    # Parallel execution: 2 in-order queues (lanes). Commands are enqueued
+    # without waiting; a command waits for another queue's event (wait_for=[...]) only
+    # where it reads that queue's data, and the host waits only where it reads a result.
+    queue0 = runtime.create_queue(context, profile)
+    queue1 = runtime.create_queue(context, profile)
+    runtime.check_device_memory(context.devices[0], {
         'adapter1_cpu2gpu (camera1.image)': 921_600,
         'adapter2_cpu2gpu (camera2.image)': 921_600,
         'merger.merged': 1_843_200,
@@ -228,12 +246,12 @@ def run(frames=None, context=None, monitor=None, profile=False):
         context, LIB_DIR / 'object_detector.cl', 'ObjectDetector')
 
     camera1 = Camera(width=640, height=480, seed=1, buoys=2, frames=0, folder='', video='')
-    adapter1_cpu2gpu = CpuToGpuAdapter(context, queue)  # camera1.image -> merger.left
+    adapter1_cpu2gpu = CpuToGpuAdapter(context, queue0)  # camera1.image -> merger.left
     camera2 = Camera(width=640, height=480, seed=2, buoys=2, frames=0, folder='', video='')
-    adapter2_cpu2gpu = CpuToGpuAdapter(context, queue)  # camera2.image -> merger.right
-    merger = ImageMerger(context, queue, image_merger_program)
-    detector = ObjectDetector(context, queue, object_detector_program, red_min=150, margin=80)
-    adapter3_gpu2cpu = GpuToCpuAdapter(context, queue)  # detector.mask -> manager.mask
+    adapter2_cpu2gpu = CpuToGpuAdapter(context, queue1)  # camera2.image -> merger.right
+    merger = ImageMerger(context, queue0, image_merger_program)
+    detector = ObjectDetector(context, queue0, object_detector_program, red_min=150, margin=80)
+    adapter3_gpu2cpu = GpuToCpuAdapter(context, queue0)  # detector.mask -> manager.mask
     manager = VisionManager(min_area=30, stop_radius=60, print_decisions=True, decisions_file='')
     parts = {
         'camera1': camera1,
@@ -263,8 +281,8 @@ def run(frames=None, context=None, monitor=None, profile=False):
         adapter3_gpu2cpu.initialize(detector_mask_size, np.uint8)
         manager.initialize(detector_mask_size)
 
-        merger.config_gpu(tile=16, block_x=16, block_y=16, block_z=1)  # preferred
-        detector.config_gpu(tile=32, block_x=16, block_y=16, block_z=1)  # model
+        merger.config_gpu(tile=16, block_x=16, block_y=16, block_z=1)  # preferred, 16,384 threads
+        detector.config_gpu(tile=32, block_x=16, block_y=16, block_z=1)  # model, 16,384 threads
 
         frame = 0
         while frames is None or frame < frames:
@@ -274,13 +292,15 @@ def run(frames=None, context=None, monitor=None, profile=False):
                 break  # end of stream
             camera1_image_gpu = adapter1_cpu2gpu.transfer(camera1_image)
             camera2_image_gpu = adapter2_cpu2gpu.transfer(camera2_image)
-            merger_merged = merger.execute(camera1_image_gpu, camera2_image_gpu)
+            merger_merged = merger.execute(
+                camera1_image_gpu, camera2_image_gpu, wait_for=[adapter2_cpu2gpu.event])
             detector_mask = detector.execute(merger_merged)
             detector_mask_cpu = adapter3_gpu2cpu.transfer(detector_mask)
             manager.execute(detector_mask_cpu)
             frame += 1
             monitor.frame_done(frame)
-        queue.finish()
+        queue0.finish()
+        queue1.finish()
     except Exception as exc:
         raise runtime.component_failure(exc, frame, parts) from exc
     finally:

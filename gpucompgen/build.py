@@ -31,8 +31,13 @@ class BuildResult:
 
 def compile_model(model_path: Path, out_dir: Path, mode: str = "gpu-aware",
                   device: str | None = None, dump: Callable[[str], None] | None = None,
-                  display: str | None = None) -> BuildResult:
-    """Everything but writing: raises GpucompgenError with all problems found."""
+                  display: str | None = None, execution: str | None = None,
+                  zero_copy: str | None = None) -> BuildResult:
+    """Everything but writing: raises GpucompgenError with all problems found.
+
+    execution ("parallel" | "sequential") and zero_copy ("auto" | "on" | "off") override
+    the model's platform.execution and platform.zero_copy; None keeps the model's.
+    """
     if mode not in MODES:
         raise ValueError(mode)
     model = load_system(model_path, display)
@@ -41,7 +46,7 @@ def compile_model(model_path: Path, out_dir: Path, mode: str = "gpu-aware",
     facts = device_mod.resolve(spec, model.device_pos, rep,
                                model.device_positions if device is None else None)
     rep.raise_if_errors()
-    system, warnings = run_passes(model, facts, mode, dump)
+    system, warnings = run_passes(model, facts, mode, dump, execution, zero_copy)
     files = render(system, source_path(model_path, out_dir))
     return BuildResult(system, files, warnings)
 

@@ -17,6 +17,7 @@ from pathlib import Path
 
 from . import __version__
 from .errors import GpucompgenError
+from .model import EXECUTIONS, ZERO_COPY
 from .passes import MODES
 
 EPILOG = """\
@@ -40,6 +41,14 @@ def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--device", metavar="PROFILE",
                    help="device facts to plan for: a profile name, or 'auto' for the OpenCL "
                         "device PYOPENCL_CTX selects (default: the model's platform.device)")
+    p.add_argument("--execution", choices=EXECUTIONS,
+                   help="parallel: independent GPU work on separate queues, waiting only where "
+                        "the host reads a result; sequential: one queue, blocking copies "
+                        "(default: the model's platform.execution, else parallel)")
+    p.add_argument("--zero-copy", choices=ZERO_COPY, dest="zero_copy",
+                   help="zero-copy adapters (map host-visible memory instead of copying): auto "
+                        "follows the device's unified host memory (default: the model's "
+                        "platform.zero_copy, else auto)")
 
 
 def _sub(sub, name: str, summary: str, description: str) -> argparse.ArgumentParser:
@@ -181,7 +190,8 @@ def _compile(args, out_dir: Path):
     if getattr(args, "print_between_passes", False):
         def dump(text):
             print(text, file=sys.stderr)
-    result = compile_model(args.model, out_dir, args.mode, args.device, dump)
+    result = compile_model(args.model, out_dir, args.mode, args.device, dump,
+                           execution=args.execution, zero_copy=args.zero_copy)
     for w in result.warnings:
         print(w.format(), file=sys.stderr)
     return result

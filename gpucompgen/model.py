@@ -148,6 +148,11 @@ class SystemModel:
     types: dict[str, ComponentType]
     # where each key and value of a mapping platform.device was written (for messages)
     device_positions: dict[str, tuple[Pos, Pos]] = field(default_factory=dict)
+    # platform.execution: "parallel" (independent work on separate queues) | "sequential"
+    execution: str = "parallel"
+    # platform.zero_copy: "auto" (follow the device's unified memory) | "on" | "off"
+    zero_copy: str = "auto"
+    platform_pos: Pos = Pos("")
 
 
 # --------------------------------------------------------------------------- helpers
@@ -579,7 +584,9 @@ def library_types() -> dict[str, ComponentType]:
 # --------------------------------------------------------------------------- systems
 
 SYSTEM_KEYS = ("system", "description", "types", "platform", "components", "connections")
-PLATFORM_KEYS = ("device", "gpu_settings", "thread_budget")
+PLATFORM_KEYS = ("device", "gpu_settings", "thread_budget", "execution", "zero_copy")
+EXECUTIONS = ("parallel", "sequential")
+ZERO_COPY = ("auto", "on", "off")
 INSTANCE_KEYS = ("type", "params", "description")
 CONNECTION_RE = re.compile(r"^\s*([^\s.]+)\.([^\s.]+)\s*->\s*([^\s.]+)\.([^\s.]+)\s*$")
 
@@ -658,6 +665,18 @@ def load_system(path: Path, display: str | None = None) -> SystemModel:
         overrides[cname] = (values, doc.key_pos(*spath))
     budget = _positive_int(doc, rep, ("platform", "thread_budget"),
                            platform.get("thread_budget"), "thread_budget")
+    execution = platform.get("execution", "parallel")
+    if execution not in EXECUTIONS:
+        rep.error(doc.pos("platform", "execution"),
+                  f"platform.execution must be 'parallel' or 'sequential', not {execution!r}")
+        execution = "parallel"
+    zero_copy = platform.get("zero_copy", "auto")
+    if isinstance(zero_copy, bool):  # YAML 1.1 reads on/off as booleans
+        zero_copy = "on" if zero_copy else "off"
+    if zero_copy not in ZERO_COPY:
+        rep.error(doc.pos("platform", "zero_copy"),
+                  f"platform.zero_copy must be 'auto', 'on' or 'off', not {zero_copy!r}")
+        zero_copy = "auto"
     # components
     components: dict[str, Instance] = {}
     comps = _expect_map(doc, rep, ("components",), root.get("components"), "components")
@@ -722,7 +741,8 @@ def load_system(path: Path, display: str | None = None) -> SystemModel:
                        text_sha256=hashlib.sha256(path.read_bytes()).hexdigest(),
                        components=components, connections=connections, device=device,
                        device_pos=doc.pos("platform", "device"), gpu_overrides=overrides,
-                       thread_budget=budget, types=types,
+                       thread_budget=budget, types=types, execution=execution,
+                       zero_copy=zero_copy, platform_pos=doc.pos("platform"),
                        device_positions={k: (doc.key_pos("platform", "device", k),
                                              doc.pos("platform", "device", k))
                                          for k in (device if isinstance(device, dict) else {})

@@ -1,7 +1,7 @@
 """Passes: each has one job, takes the System and returns it, reporting problems.
 
     check-connections → check-port-types → schedule → propagate-sizes → insert-adapters
-    → allocate-gpu → name-variables
+    → allocate-gpu → name-variables → assign-queues
 
 ``gpucompgen build --print-between-passes`` dumps the System after each pass.
 """
@@ -16,7 +16,7 @@ from typing import Any, Iterable
 from . import sizeexpr
 from .device import DeviceFacts
 from .errors import GpucompgenError, Pos, Reporter
-from .model import DTYPES, Endpoint, Instance, SystemModel
+from .model import DTYPES, EXECUTIONS, ZERO_COPY, Endpoint, Instance, SystemModel
 
 MODES = ("gpu-aware", "standard")
 
@@ -57,6 +57,8 @@ class Adapter:
     consumers: list[Endpoint]
     size: Size
     output_var: str = ""
+    # zero-copy form (unified host memory): the device uses host memory, nothing is copied
+    zero_copy: bool = False
 
 
 @dataclass
@@ -72,6 +74,9 @@ class System:
     model: SystemModel
     device: DeviceFacts
     mode: str = "gpu-aware"
+    execution: str = "parallel"  # "parallel" | "sequential"
+    zero_copy: bool = False
+    zero_copy_reason: str = ""
     writers: dict[Endpoint, Endpoint] = field(default_factory=dict)  # input → producing output
     readers: dict[Endpoint, list[Endpoint]] = field(default_factory=dict)  # output → inputs
     order: list[str] = field(default_factory=list)
@@ -80,6 +85,18 @@ class System:
     settings: dict[str, GpuSettings] = field(default_factory=dict)
     stages: dict[str, int] = field(default_factory=dict)
     steps: list[Step] = field(default_factory=list)
+    # thread budget: the cap, and the groups of GPU-aware components that can run at the
+    # same time (maximal sets with no path between any two of them)
+    thread_budget: int = 0
+    concurrent: list[tuple[str, ...]] = field(default_factory=list)
+    # parallel execution: the in-order queue ("lane") of every GPU command (GPU-aware
+    # components and adapters), the other lanes' events each one waits for, and the lane
+    # ends the host waits for at the end of a frame (those no host read already covers)
+    lanes: dict[str, int] = field(default_factory=dict)
+    waits: dict[str, list[str]] = field(default_factory=dict)
+    frame_end_waits: list[str] = field(default_factory=list)
+    # zero-copy GPU-to-CPU adapters unmap after the last consumer that reads their view
+    unmap_after: dict[str, list[str]] = field(default_factory=dict)
     # where each consumer input reads its value from (a variable name in generated code)
     input_vars: dict[Endpoint, str] = field(default_factory=dict)
     output_vars: dict[Endpoint, str] = field(default_factory=dict)
@@ -101,12 +118,18 @@ class System:
             lines.append(f"  size {end}: {size}")
         for a in self.adapters:
             lines.append(f"  adapter {a.name}: {a.direction} {a.source} -> "
-                         + ", ".join(map(str, a.consumers)))
+                         + ", ".join(map(str, a.consumers))
+                         + (" [zero-copy]" if a.zero_copy else ""))
         for name, s in sorted(self.settings.items()):
             lines.append(f"  config_gpu {name}: tile={s.tile} block=({s.block_x}, "
                          f"{s.block_y}, {s.block_z}) [{s.source}]")
+        for group in self.concurrent:
+            lines.append(f"  can run together: {', '.join(group)}")
         for step in self.steps:
-            lines.append(f"  step {step.kind} {step.name}")
+            lane = self.lanes.get(step.name)
+            lines.append(f"  step {step.kind} {step.name}"
+                         + (f" [queue {lane}]" if lane is not None else "")
+                         + "".join(f" waits {w}" for w in self.waits.get(step.name, [])))
         return "\n".join(lines)
 
 
@@ -319,7 +342,7 @@ class InsertAdapters(Pass):
                     name += "_"
                 system.adapters.append(Adapter(
                     name=name, direction=direction, source=src,
-                    consumers=crossing, size=system.sizes[src]))
+                    consumers=crossing, size=system.sizes[src], zero_copy=system.zero_copy))
         return system
 
 
@@ -385,28 +408,119 @@ class AllocateGpu(Pass):
                           + "; ".join(problems), "choose a device profile with larger limits")
                 continue
             system.settings[name] = GpuSettings(tile, bx, by, bz, source)
-        self._check_budget(system, rep)
+        self._distribute(system, rep)
         return system
 
     @staticmethod
-    def _check_budget(system, rep):
+    def _distribute(system, rep):
+        """Shrink settings until every group that can run together fits the budget.
+
+        Each round takes the first group over budget and shrinks, among its components
+        whose settings the model does not fix, the one with the most resident threads: a
+        larger accepted tile first (fewer work-groups, same shape), else half its block
+        (largest dimension first).  When nothing in an over-budget group can shrink, the
+        budget is impossible: the error names the group.
+        """
         budget = system.model.thread_budget or system.device.total_threads
-        by_stage: dict[int, list[str]] = {}
-        for name, s in system.settings.items():
-            by_stage.setdefault(system.stages.get(name, 0), []).append(name)
-        for stage, names in sorted(by_stage.items()):
-            total = sum(resident_threads(system, n) for n in names)
-            if total > budget and len(names) > 1:
-                rep.error(system.components[sorted(names)[0]].pos,
-                          f"components {', '.join(sorted(names))} can run at the same time "
-                          f"and together need {total} resident threads, over the thread "
-                          f"budget of {budget}",
-                          "raise platform.thread_budget or set smaller gpu_settings")
+        system.thread_budget = budget
+        system.concurrent = concurrent_groups(system)
+        reported: set[tuple[str, ...]] = set()
+        while True:
+            over = [g for g in system.concurrent if g not in reported
+                    and sum(resident_threads(system, n) for n in g) > budget]
+            if not over:
+                return
+            group = over[0]
+            candidates = sorted((n for n in group if system.settings[n].source != "model"
+                                 and _smaller(system, n) is not None),
+                                key=lambda n: (-resident_threads(system, n), n))
+            if not candidates:
+                total = sum(resident_threads(system, n) for n in group)
+                fixed = [n for n in group if system.settings[n].source == "model"]
+                if len(group) > 1:
+                    what = (f"components {', '.join(group)} can run at the same time and "
+                            f"together need at least {total} resident threads")
+                else:
+                    what = f"component {group[0]} needs at least {total} resident threads"
+                rep.error(system.components[group[0]].pos,
+                          f"{what}, over the thread budget of {budget}"
+                          + (f" (settings fixed by the model: {', '.join(fixed)})"
+                             if fixed else ""),
+                          "raise platform.thread_budget, set smaller gpu_settings, or use "
+                          "a device with more threads")
+                reported.add(group)
+                continue
+            name = candidates[0]
+            system.settings[name] = _smaller(system, name)
+
+
+def _smaller(system: System, name: str) -> GpuSettings | None:
+    """The next smaller settings of a component (fewer resident threads), or None."""
+    s = system.settings[name]
+    decl = system.components[name].type.gpu
+    # compared uncapped, so that each step makes progress even above the device's total
+    now = _resident(system, name, s, capped=False)
+    source = "shrunk to share the thread budget"
+    for tile in (t for t in decl.tiles if t > s.tile):
+        cand = GpuSettings(tile, s.block_x, s.block_y, s.block_z, source)
+        if _resident(system, name, cand, capped=False) < now:
+            return cand
+    bx, by, bz = s.block_x, s.block_y, s.block_z
+    while bx * by > 1:
+        if bx >= by:
+            bx //= 2
+        else:
+            by //= 2
+        cand = GpuSettings(s.tile, bx, by, bz, source)
+        if _resident(system, name, cand, capped=False) < now:
+            return cand
+    return None
+
+
+def concurrent_groups(system: System) -> list[tuple[str, ...]]:
+    """Maximal groups of GPU-aware components with no path between any two of them.
+
+    These are the maximal cliques of the 'no path either way' graph (Bron-Kerbosch with
+    a pivot); pipelines are small, so enumerating them is cheap.
+    """
+    gpu = [n for n in system.order if n in system.settings]
+    below = descendants(system)
+    free = {n: {m for m in gpu if m != n and m not in below[n] and n not in below[m]}
+            for n in gpu}
+    groups: list[tuple[str, ...]] = []
+
+    def expand(clique: set[str], cands: set[str], done: set[str]) -> None:
+        if not cands and not done:
+            groups.append(tuple(sorted(clique, key=system.order.index)))
+            return
+        pivot = max(cands | done, key=lambda n: (len(free[n] & cands), n))
+        for n in sorted(cands - free[pivot]):
+            expand(clique | {n}, cands & free[n], done & free[n])
+            cands = cands - {n}
+            done = done | {n}
+
+    if gpu:
+        expand(set(), set(gpu), set())
+    return sorted(groups, key=lambda g: [system.order.index(n) for n in g])
+
+
+def descendants(system: System) -> dict[str, set[str]]:
+    """Every component reachable from each component along connections."""
+    succ: dict[str, set[str]] = {n: set() for n in system.components}
+    for target, source in system.writers.items():
+        succ[source.component].add(target.component)
+    below: dict[str, set[str]] = {}
+    for n in reversed(system.order):
+        below[n] = set().union(*([{m} | below[m] for m in succ[n]] or [set()]))
+    return below
 
 
 def resident_threads(system: System, name: str) -> int:
     """Threads a component keeps resident at once: its work-groups, capped by the device."""
-    s = system.settings[name]
+    return _resident(system, name, system.settings[name])
+
+
+def _resident(system: System, name: str, s: GpuSettings, capped: bool = True) -> int:
     ctype = system.components[name].type
     grid = system.sizes.get(Endpoint(name, ctype.grid))
     if grid is None:
@@ -414,7 +528,8 @@ def resident_threads(system: System, name: str) -> int:
     groups = math.ceil(grid.height / s.tile)
     if ctype.cover == "squares":
         groups *= math.ceil(grid.width / s.tile)
-    return min(groups * s.threads_per_group, system.device.total_threads)
+    threads = groups * s.threads_per_group
+    return min(threads, system.device.total_threads) if capped else threads
 
 
 def limit_problems(tile, bx, by, bz, decl, dev: DeviceFacts) -> list[str]:
@@ -479,18 +594,107 @@ class NameVariables(Pass):
         return system
 
 
+class AssignQueues(Pass):
+    """Which in-order queue ("lane") runs each GPU command, and what it must wait for.
+
+    parallel: a command continues the lane of its first GPU input whose lane it ends;
+    otherwise it takes a lane the host has already waited for, else a new lane.  It waits
+    for the events of inputs made on other lanes (unless the host already waited for
+    them).  The host waits where it reads a result (GPU-to-CPU adapters, which block) and,
+    at the end of a frame, for lane ends no host read covers, so a frame is complete before
+    the next one reuses any buffer.  sequential: one lane, every copy blocks.
+    """
+
+    name = "assign-queues"
+
+    def apply(self, system, rep):
+        adapters = {a.name: a for a in system.adapters}
+        by_source = {a.source: a for a in system.adapters}
+        producer: dict[str, list[str]] = {}  # GPU command -> GPU commands it reads from
+        for step in system.steps:
+            if step.kind == "adapter":
+                a = adapters[step.name]
+                producer[step.name] = [a.source.component] if a.direction == "gpu2cpu" else []
+            elif system.components[step.name].type.gpu_aware:
+                preds = []
+                for pname in system.components[step.name].type.inputs:
+                    src = system.writers[Endpoint(step.name, pname)]
+                    a = by_source.get(src)
+                    name = a.name if a is not None and Endpoint(step.name, pname) in \
+                        a.consumers else src.component
+                    if name in producer and name not in preds:  # a GPU command
+                        preds.append(name)
+                producer[step.name] = preds
+        # zero-copy GPU-to-CPU adapters unmap after the last step that reads their view
+        last_reader: dict[str, str] = {}
+        for step in system.steps:
+            if step.kind == "component":
+                for pname in system.components[step.name].type.inputs:
+                    a = by_source.get(system.writers[Endpoint(step.name, pname)])
+                    if a is not None and a.zero_copy and a.direction == "gpu2cpu" and \
+                            Endpoint(step.name, pname) in a.consumers:
+                        last_reader[a.name] = step.name
+        for a_name, reader in sorted(last_reader.items()):
+            system.unmap_after.setdefault(reader, []).append(a_name)
+        sequential = system.execution == "sequential"
+        tails: list[str] = []  # last command of each lane
+        synced: set[str] = set()  # commands the host knows to be complete
+        ancestors: dict[str, set[str]] = {}
+        for step in system.steps:
+            if step.name not in producer:
+                continue
+            name, preds = step.name, producer[step.name]
+            ancestors[name] = set(preds).union(*(ancestors[p] for p in preds))
+            lane = 0 if sequential and tails else next(
+                (system.lanes[p] for p in preds if tails[system.lanes[p]] == p), None)
+            if lane is None:
+                lane = next((i for i, t in enumerate(tails) if t in synced), len(tails))
+                if lane == len(tails):
+                    tails.append(name)
+            tails[lane] = name
+            system.lanes[name] = lane
+            system.waits[name] = [p for p in preds if system.lanes[p] != lane
+                                  and p not in synced]
+            a = adapters.get(name)
+            if system.mode == "standard" or (sequential and a is not None and not a.zero_copy):
+                # a blocking copy on the one in-order queue: everything before it is done
+                synced |= set(system.lanes)
+            elif a is not None and (a.direction == "gpu2cpu" or a.zero_copy):
+                # a host read blocks (and a zero-copy upload enqueues nothing)
+                synced |= {name} | (ancestors[name] if a.direction == "gpu2cpu" else set())
+        system.frame_end_waits = [t for t in tails if t not in synced]
+        return system
+
+
 PIPELINE: tuple[Pass, ...] = (CheckConnections(), CheckPortTypes(), Schedule(),
-                             PropagateSizes(), InsertAdapters(), AllocateGpu(), NameVariables())
+                             PropagateSizes(), InsertAdapters(), AllocateGpu(), NameVariables(),
+                             AssignQueues())
 
 
 def run_passes(model: SystemModel, device: DeviceFacts, mode: str = "gpu-aware",
-               dump: Any = None) -> tuple[System, list]:
+               dump: Any = None, execution: str | None = None,
+               zero_copy: str | None = None) -> tuple[System, list]:
     """Run every pass and return the system and its warnings, or raise with every problem.
 
     Once a pass has found errors, only the checking passes that cope with a partly checked
     system still run (Pass.runs_after_errors); the others are skipped.
+    execution ("parallel" | "sequential") and zero_copy ("auto" | "on" | "off") override
+    the model's platform settings (the command line's --execution and --zero-copy).
     """
-    system = System(model, device, mode)
+    execution = execution or model.execution
+    zero_copy = zero_copy or model.zero_copy
+    if execution not in EXECUTIONS or zero_copy not in ZERO_COPY:
+        raise ValueError(f"execution {execution!r}, zero_copy {zero_copy!r}")
+    system = System(model, device, mode, "sequential" if mode == "standard" else execution)
+    if mode == "standard":
+        system.zero_copy_reason = "standard mode: components copy their own data"
+    elif zero_copy == "auto":
+        system.zero_copy = device.host_unified_memory
+        system.zero_copy_reason = (f"auto: device {'has' if system.zero_copy else 'has no'} "
+                                   "unified host memory")
+    else:
+        system.zero_copy = zero_copy == "on"
+        system.zero_copy_reason = "forced by the model or the command line"
     rep = Reporter()
     for p in PIPELINE:
         if rep.has_errors and not p.runs_after_errors:

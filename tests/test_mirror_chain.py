@@ -161,7 +161,8 @@ def test_rows_cover_is_printed_and_planned(build):
     assert "covers tile whole rows of\n    'mirrored'" in text
     assert "self.global_size = (block_x,\n" in text
     # 864 rows / tile 32 = 27 groups of 64 threads
-    assert "tile 32, block 8x8x1, 1728 threads" in text
+    assert "config_gpu(tile=32, block_x=8, block_y=8, block_z=1)  # preferred, 1,728 threads" \
+        in text
 
 
 def test_bad_kernel_cover_is_a_positioned_error(tmp_path):

@@ -42,9 +42,9 @@ def test_check_fails_after_a_model_edit_and_diff_writes_nothing(tmp_path):
     assert proc.returncode == 1
     assert "is stale" in proc.stderr
     assert "--- a/vision_system.py\n+++ b/vision_system.py\n" in proc.stdout
-    assert "-    detector = ObjectDetector(context, queue, object_detector_program, " \
+    assert "-    detector = ObjectDetector(context, queue0, object_detector_program, " \
            "red_min=150, margin=80)\n" in proc.stdout
-    assert "+    detector = ObjectDetector(context, queue, object_detector_program, " \
+    assert "+    detector = ObjectDetector(context, queue0, object_detector_program, " \
            "red_min=140, margin=80)\n" in proc.stdout
 
     proc = gpucompgen("build", "models/vision_system.yaml", "--diff", cwd=tmp_path)

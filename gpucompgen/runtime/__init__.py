@@ -155,20 +155,65 @@ def build_program(context, path: Path, component: str, options: tuple[str, ...] 
                             f"{log}") from None
 
 
-def check_work_group(kernel, device, local_size: tuple[int, ...], component: str) -> None:
-    """The system chose local_size for a described device; check it fits the real one."""
+class DeviceLimits(NamedTuple):
+    """What the generated program needs to know about its OpenCL device, queried once."""
+
+    name: str
+    compute_units: int
+    max_work_group_size: int
+    max_work_item_sizes: tuple[int, ...]
+    local_mem_size: int
+    global_mem_size: int
+    max_mem_alloc_size: int
+    host_unified_memory: bool
+
+
+class KernelLimits(NamedTuple):
+    """Per kernel on a device: its work-group size limit and preferred multiple."""
+
+    work_group_size: int
+    preferred_multiple: int
+
+
+_DEVICE_LIMITS: dict[Any, DeviceLimits] = {}
+
+
+def device_limits(device) -> DeviceLimits:
+    """The device's limits, queried from OpenCL once per device and remembered."""
+    limits = _DEVICE_LIMITS.get(device.int_ptr)
+    if limits is None:
+        limits = DeviceLimits(
+            device.name.strip(), device.max_compute_units, device.max_work_group_size,
+            tuple(device.max_work_item_sizes), device.local_mem_size, device.global_mem_size,
+            device.max_mem_alloc_size, bool(getattr(device, "host_unified_memory", False)))
+        _DEVICE_LIMITS[device.int_ptr] = limits
+    return limits
+
+
+def kernel_limits(kernel, device) -> KernelLimits:
     import pyopencl as cl
 
+    info = cl.kernel_work_group_info
+    return KernelLimits(kernel.get_work_group_info(info.WORK_GROUP_SIZE, device),
+                        kernel.get_work_group_info(info.PREFERRED_WORK_GROUP_SIZE_MULTIPLE,
+                                                   device))
+
+
+def check_work_group(kernel, device, local_size: tuple[int, ...], component: str
+                     ) -> KernelLimits:
+    """The system chose local_size for a described device; check it fits the real one."""
     threads = 1
     for v in local_size:
         threads *= v
-    limit = kernel.get_work_group_info(cl.kernel_work_group_info.WORK_GROUP_SIZE, device)
-    dims = device.max_work_item_sizes
-    if threads > limit or any(v > d for v, d in zip(local_size, dims)):
+    limits = kernel_limits(kernel, device)
+    dims = device_limits(device).max_work_item_sizes
+    if threads > limits.work_group_size or any(v > d for v, d in zip(local_size, dims)):
         raise PipelineError(
             f"{component}: GPU settings {local_size} ({threads} threads) do not fit device "
-            f"'{device.name.strip()}' (kernel limit {limit}, per dimension {list(dims)}); "
+            f"'{device_limits(device).name}' (kernel limit {limits.work_group_size}, per "
+            f"dimension {list(dims)}, preferred multiple {limits.preferred_multiple}); "
             "rebuild for this device with 'gpucompgen build --device auto'")
+    return limits
 
 
 def expect_size(component: str, got: Any, expected: Size) -> Size:
@@ -338,12 +383,12 @@ class Monitor:
     def _timed(self, name: str, method: Callable) -> Callable:
         record = self.calls[name]
 
-        def timed(*args):
+        def timed(*args, **kwargs):
             start = time.perf_counter()
             if self._frame_start is None:
                 self._frame_start = start
             try:
-                return method(*args)
+                return method(*args, **kwargs)
             finally:
                 record.append(time.perf_counter() - start)
 

@@ -1,0 +1,263 @@
+"""The allocator: device limits and the thread budget hold on described and real devices.
+
+Random pipelines (hypothesis) are built from the library types on described devices; the
+checks below recompute reachability, groups that can run together and resident threads
+independently of the allocator's own code.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+import yaml
+from conftest import ROOT, require_opencl
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from gpucompgen.build import compile_model
+from gpucompgen.device import PROFILES
+from gpucompgen.errors import GpucompgenError
+from gpucompgen.model import library_types
+
+
+def _write(tmp: Path, name: str, model: dict) -> Path:
+    path = tmp / f"{name}.yaml"
+    path.write_text(yaml.safe_dump(model, sort_keys=False))
+    return path
+
+
+@st.composite
+def pipelines(draw):
+    """A random acyclic pipeline: cameras, then blurs and merges of earlier outputs."""
+    h = draw(st.sampled_from([16, 48, 480]))
+    cams = draw(st.integers(1, 3))
+    comps = {f"cam{i}": {"type": "Camera", "params": {"width": draw(st.sampled_from(
+        [16, 64, 640])), "height": h, "seed": i}} for i in range(cams)}
+    outputs = [f"cam{i}.image" for i in range(cams)]
+    conns = []
+    for i in range(draw(st.integers(1, 6))):
+        if len(outputs) >= 2 and draw(st.booleans()):
+            left, right = draw(st.permutations(outputs))[:2]
+            comps[f"m{i}"] = {"type": "ImageMerger"}
+            conns += [f"{left} -> m{i}.left", f"{right} -> m{i}.right"]
+            outputs.append(f"m{i}.merged")
+        else:
+            src = draw(st.sampled_from(outputs))
+            comps[f"b{i}"] = {"type": "BoxBlur"}
+            conns.append(f"{src} -> b{i}.image")
+            outputs.append(f"b{i}.smooth")
+    src = draw(st.sampled_from(outputs))
+    comps["det"] = {"type": "ObjectDetector"}
+    comps["vm"] = {"type": "VisionManager", "params": {"print_decisions": False}}
+    conns += [f"{src} -> det.frame", "det.mask -> vm.mask"]
+    return comps, conns
+
+
+devices = st.one_of(
+    st.sampled_from(sorted(PROFILES)),
+    st.fixed_dictionaries({
+        "profile": st.sampled_from(["portable", "mobile-gpu", "embedded-igpu"]),
+        "compute_units": st.integers(1, 16),
+        "max_work_group_size": st.sampled_from([16, 64, 100, 256, 1024]),
+        "threads_per_compute_unit": st.sampled_from([64, 384, 2048]),
+    }))
+
+
+def _reach(comps: dict, conns: list[str]) -> dict[str, set[str]]:
+    succ = {n: set() for n in comps}
+    for c in conns:
+        a, b = (s.strip().split(".")[0] for s in c.split("->"))
+        succ[a].add(b)
+    reach = {}
+    for n in comps:
+        seen, todo = set(), [n]
+        while todo:
+            for m in succ[todo.pop()]:
+                if m not in seen:
+                    seen.add(m)
+                    todo.append(m)
+        reach[n] = seen
+    return reach
+
+
+def _resident(system, name) -> int:
+    s = system.settings[name]
+    grid = system.sizes[next(e for e in system.sizes if e.component == name
+                             and e.port == system.components[name].type.grid)]
+    groups = math.ceil(grid.width / s.tile) * math.ceil(grid.height / s.tile)
+    return min(groups * s.block_x * s.block_y * s.block_z, system.device.total_threads)
+
+
+def _antichains(gpu: list[str], reach) -> list[tuple[str, ...]]:
+    """Every set of GPU components with no path between any two (brute force)."""
+    free = [g for r in range(1, len(gpu) + 1) for g in itertools.combinations(gpu, r)
+            if all(b not in reach[a] and a not in reach[b]
+                   for a, b in itertools.combinations(g, 2))]
+    return free
+
+
+def _check_system(system, comps, conns, budget):
+    dev = system.device
+    types = library_types()
+    gpu = sorted(n for n in comps if types[comps[n]["type"]].gpu_aware)
+    assert sorted(system.settings) == gpu
+    for n, s in system.settings.items():
+        decl = types[comps[n]["type"]].gpu
+        assert s.tile in decl.tiles and s.block_z in decl.block_z
+        assert s.block_x * s.block_y * s.block_z <= dev.max_work_group_size
+        for v, limit in zip((s.block_x, s.block_y, s.block_z), dev.max_work_item_sizes):
+            assert 1 <= v <= limit
+    cap = budget or dev.total_threads
+    for group in _antichains(gpu, _reach(comps, conns)):
+        assert sum(_resident(system, n) for n in group) <= cap, group
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(pipe=pipelines(), device=devices, budget=st.one_of(st.none(), st.integers(1, 40000)))
+def test_random_pipelines_stay_within_limits_and_budget(tmp_path_factory, pipe, device,
+                                                        budget):
+    comps, conns = pipe
+    platform = {"device": device}
+    if budget:
+        platform["thread_budget"] = budget
+    model = _write(tmp_path_factory.mktemp("m"), "rand",
+                   {"system": "rand", "platform": platform, "components": comps,
+                    "connections": conns})
+    try:
+        result = compile_model(model, model.parent / "out")
+    except GpucompgenError as exc:
+        # only an impossible budget may fail: the named group can run together, and even
+        # at their smallest settings (largest tile, one thread per work-group) its
+        # components need more threads than the budget
+        # (the device's total is the default budget, and small devices can miss it too)
+        messages = [d.message for d in exc.errors]
+        assert messages and all("over the thread budget" in m for m in messages), messages
+        model.write_text(yaml.safe_dump({"system": "rand", "platform": dict(
+            platform, thread_budget=10 ** 9), "components": comps, "connections": conns}))
+        system = compile_model(model, model.parent / "out").system  # for sizes
+        budget = budget or system.device.total_threads
+        reach = _reach(comps, conns)
+        types = library_types()
+        for m in messages:
+            head = m.split(" can run")[0].split(" needs")[0]
+            names = head.split(" ", 1)[1].split(", ")
+            assert set(names) in [set(g) for g in _antichains(sorted(names), reach)]
+            least = 0
+            for n in names:
+                grid = system.sizes[next(e for e in system.sizes if e.component == n
+                                         and e.port == system.components[n].type.grid)]
+                t = max(types[comps[n]["type"]].gpu.tiles)
+                least += min(math.ceil(grid.width / t) * math.ceil(grid.height / t),
+                             system.device.total_threads)
+            assert f"at least {least} resident threads" in m, (m, least)
+            assert least > budget
+        return
+    _check_system(result.system, comps, conns, budget)
+
+
+@pytest.mark.parametrize("profile", sorted(PROFILES))
+def test_parallel_branches_share_the_budget_on_every_profile(profile):
+    result = compile_model(ROOT / "models" / "parallel_branches.yaml", ROOT / "generated",
+                           device=profile)
+    system = result.system
+    assert ("blur1", "blur2") in system.concurrent
+    total = _resident(system, "blur1") + _resident(system, "blur2")
+    assert total <= system.device.total_threads
+    comps = yaml.safe_load((ROOT / "models" / "parallel_branches.yaml").read_text())
+    _check_system(system, comps["components"], comps["connections"], None)
+
+
+def test_allocator_shrinks_concurrent_components_it_would_not_shrink_alone(tmp_path):
+    """A blur alone keeps its preference; two that can run together are made to fit."""
+    base = yaml.safe_load((ROOT / "models" / "parallel_branches.yaml").read_text())
+    alone = compile_model(ROOT / "models" / "parallel_branches.yaml", tmp_path,
+                          device="portable").system
+    assert alone.settings["merger"].source == "preferred"
+    for name in ("blur1", "blur2"):
+        assert alone.settings[name].source == "shrunk to share the thread budget"
+    # the same blur with no sibling: the type's preference, capped by the device only
+    single = dict(base, components={k: v for k, v in base["components"].items()
+                                    if k != "blur2"},
+                  connections=[c for c in base["connections"] if "blur2" not in c]
+                  + ["camera2.image -> merger.right"])
+    s = compile_model(_write(tmp_path, "single", single), tmp_path / "o").system
+    assert s.settings["blur1"].source == "preferred"
+    assert (s.settings["blur1"].tile, s.settings["blur1"].block_x) == (16, 16)
+
+
+def test_real_device_allocation_fits_its_limits(tmp_path):
+    require_opencl()
+    result = compile_model(ROOT / "models" / "parallel_branches.yaml", tmp_path,
+                           device="auto")
+    base = yaml.safe_load((ROOT / "models" / "parallel_branches.yaml").read_text())
+    _check_system(result.system, base["components"], base["connections"], None)
+
+
+def _cli(tmp_path, text, *args):
+    model = tmp_path / "m.yaml"
+    model.write_text(text)
+    return subprocess.run([sys.executable, "-m", "gpucompgen", "plan", str(model), *args],
+                          capture_output=True, text=True)
+
+
+BRANCHES = (ROOT / "models" / "parallel_branches.yaml").read_text()
+
+
+def test_impossible_budget_is_an_error_naming_the_components(tmp_path):
+    text = BRANCHES.replace("  device: portable\n", "  device: portable\n  thread_budget: 100\n")
+    proc = _cli(tmp_path, text)
+    assert proc.returncode == 1, proc.stdout
+    assert "Traceback" not in proc.stderr
+    # 480x640 with the largest tile (64) is 8x10 work-groups of at least one thread each
+    assert "error: components blur1, blur2 can run at the same time and together need at " \
+           "least 160 resident threads, over the thread budget of 100" in proc.stderr, \
+        proc.stderr
+    assert "hint: raise platform.thread_budget" in proc.stderr
+
+
+def test_budget_the_model_fixes_is_reported_with_the_fixed_settings(tmp_path):
+    text = BRANCHES.replace("  device: portable\n", (
+        "  device: portable\n"
+        "  thread_budget: 20000\n"
+        "  gpu_settings:\n"
+        "    blur1: {tile: 8, block_x: 16, block_y: 16}\n"
+        "    blur2: {tile: 8, block_x: 16, block_y: 16}\n"))
+    proc = _cli(tmp_path, text)
+    assert proc.returncode == 1
+    assert "components blur1, blur2 can run at the same time" in proc.stderr
+    assert "(settings fixed by the model: blur1, blur2)" in proc.stderr
+
+
+@pytest.mark.parametrize("override,message", [
+    ("{tile: 16, block_x: 32, block_y: 32}", "block 32x32x1 = 1024 threads is over the "
+     "device's work-group limit of 256"),
+    ("{tile: 12}", "tile 12 is not one the kernel accepts [8, 16, 32, 64]"),
+    ("{block_z: 2}", "block_z 2 is not one the kernel accepts [1]"),
+    ("{block_x: 512, block_y: 1}", "block_x 512 is over the device's 256"),
+])
+def test_overrides_that_break_limits_are_errors(tmp_path, override, message):
+    text = BRANCHES.replace("  device: portable\n",
+                            f"  device: portable\n  gpu_settings:\n    blur1: {override}\n")
+    proc = _cli(tmp_path, text)
+    assert proc.returncode == 1
+    assert "Traceback" not in proc.stderr
+    assert f"error: gpu_settings of 'blur1': {message}" in proc.stderr, proc.stderr
+
+
+def test_valid_override_is_honoured_and_the_other_branch_makes_room(tmp_path):
+    text = BRANCHES.replace("  device: portable\n", (
+        "  device: portable\n"
+        "  gpu_settings:\n"
+        "    blur1: {tile: 64, block_x: 8, block_y: 8}\n"))
+    model = tmp_path / "m.yaml"
+    model.write_text(text)
+    system = compile_model(model, tmp_path / "o").system
+    s1, s2 = system.settings["blur1"], system.settings["blur2"]
+    assert (s1.tile, s1.block_x, s1.block_y, s1.source) == (64, 8, 8, "model")
+    assert s2.source == "shrunk to share the thread budget"
+    assert _resident(system, "blur1") + _resident(system, "blur2") <= 16384
