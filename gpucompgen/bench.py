@@ -151,11 +151,13 @@ class HandWritten:
         import pyopencl as cl
 
         from .model import library_types
+        from .runtime import quiet_compiler
 
         self.cl, self.n, self.image = cl, n, image
         self.context = context
         self.queue = cl.CommandQueue(context)
-        program = cl.Program(context, (LIBRARY / "vertical_mirror.cl").read_text()).build()
+        with quiet_compiler():
+            program = cl.Program(context, (LIBRARY / "vertical_mirror.cl").read_text()).build()
         self.kernel = cl.Kernel(program, "vertical_mirror")
         h, w = image.shape[:2]
         # the settings the generated program uses: the type's preference, rows of the output

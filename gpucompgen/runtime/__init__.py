@@ -8,12 +8,15 @@ generated program.  It imports pyopencl and numpy only.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib.util
 import json
+import os
 import signal
 import sys
 import time
 import traceback
+import warnings
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any, NamedTuple
@@ -138,6 +141,22 @@ class Profile:
         return "\n".join(lines)
 
 
+@contextlib.contextmanager
+def quiet_compiler():
+    """Keep a successful build's compiler chatter off the user's terminal.
+
+    NVIDIA's OpenCL compiler returns a non-empty log for kernels that build fine, which
+    pyopencl turns into a CompilerWarning on stderr every run. As in pyopencl, setting
+    PYOPENCL_COMPILER_OUTPUT=1 shows it; a failed build always shows its log.
+    """
+    import pyopencl as cl
+
+    with warnings.catch_warnings():
+        if os.environ.get("PYOPENCL_COMPILER_OUTPUT") != "1":
+            warnings.simplefilter("ignore", cl.CompilerWarning)
+        yield
+
+
 def build_program(context, path: Path, component: str, options: tuple[str, ...] = ()):
     """Build one kernel file once; a failure names the component, file and build log."""
     import pyopencl as cl
@@ -148,7 +167,8 @@ def build_program(context, path: Path, component: str, options: tuple[str, ...] 
         raise PipelineError(f"{component}: cannot read kernel file {path}: {exc.strerror}") \
             from None
     try:
-        return cl.Program(context, source).build(options=list(options))
+        with quiet_compiler():
+            return cl.Program(context, source).build(options=list(options))
     except cl.RuntimeError as exc:
         log = str(exc).strip()
         raise PipelineError(f"{component}: kernel file {Path(path).name} failed to build:\n"
