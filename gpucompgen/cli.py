@@ -88,8 +88,13 @@ def parser() -> argparse.ArgumentParser:
 
     r = _sub(sub, "run", "build into a temporary folder and run",
              "Build MODEL into a temporary folder and run the program; the options below\n"
-             "are the generated program's own and are passed to it.")
+             "are the generated program's own and are passed to it. The build is planned\n"
+             "for the OpenCL device it runs on (--device auto): on a device with unified\n"
+             "host memory, such as PoCL, adapters are zero-copy.")
     _common(r)
+    # A throwaway build for this machine: plan for the device it runs on, not the model's
+    # portable default that keeps checked-in output reproducible.
+    r.set_defaults(device="auto")
     r.add_argument("--frames", type=int, default=None, metavar="N",
                    help="stop after N frames (default: until a source ends its stream)")
     r.add_argument("-q", "--quiet", action="store_true",

@@ -103,3 +103,20 @@ def test_merged_mask_is_bit_exact_against_numpy(build):
         r, g, b = frame[..., 0], frame[..., 1], frame[..., 2]
         ref = np.where((r >= 150) & (r - g >= 80) & (r - b >= 80), 255, 0).astype(np.uint8)
         np.testing.assert_array_equal(mask, ref)
+
+
+def test_run_plans_for_the_device_it_runs_on():
+    """gpucompgen run builds for the real device: on a unified-memory device (PoCL) its
+    adapters are zero-copy and nothing is copied between CPU and GPU."""
+    require_opencl()
+    from gpucompgen.device import query_device
+
+    unified = query_device().host_unified_memory
+    proc = subprocess.run([sys.executable, "-m", "gpucompgen", "run", str(MODEL),
+                           "--frames", "2", "--quiet", "--profile"],
+                          capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    if unified:
+        assert "CPU->GPU 0 copies 0 bytes" in proc.stderr, proc.stderr
+    else:
+        assert "CPU->GPU 2 copies 1,843,200 bytes" in proc.stderr, proc.stderr
