@@ -35,24 +35,15 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 
-def load(path: Path, name: str):
-    import importlib.util
-
-    spec = importlib.util.spec_from_file_location(name, path)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[name] = module
-    spec.loader.exec_module(module)
-    return module
-
-
 def build(model: Path, out: Path, execution: str, zero_copy: str):
     from gpucompgen.build import compile_model, write
+    from gpucompgen.runtime import load_module
 
     folder = out / f"{execution}-{zero_copy}"
     result = compile_model(model, folder, execution=execution, zero_copy=zero_copy)
     write(result, folder)
-    return load(folder / f"{result.system.model.name}.py",
-                f"bench_{execution}_{zero_copy}")
+    return load_module(folder / f"{result.system.model.name}.py",
+                       f"bench_{execution}_{zero_copy}")
 
 
 def sink_class(module):

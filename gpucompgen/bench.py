@@ -37,6 +37,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .runtime import load_module
+
 DEFAULT_SIZES = ((1152, 864), (1152, 1782))  # width x height, as in the paper
 DEFAULT_LENGTHS = (5, 10, 15, 20, 25)
 VARIANTS = ("standard", "gpu-aware", "hand-written", "bound", "opencv-cpu", "opencv-ocl")
@@ -112,14 +114,6 @@ def chain_model(n: int, width: int, height: int) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _load(path: Path, name: str):
-    spec = importlib.util.spec_from_file_location(name, path)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[name] = module
-    spec.loader.exec_module(module)
-    return module
-
-
 def expected_output(image: np.ndarray, n: int) -> np.ndarray:
     return image[::-1] if n % 2 else image
 
@@ -134,8 +128,8 @@ class Generated:
         model.write_text(chain_model(n, *size), encoding="utf-8")
         out = folder / f"{mode}_{n}_{size[0]}x{size[1]}"
         write(compile_model(model, out, mode), out)
-        self.module = _load(out / f"mirror_chain_{n}.py",
-                            f"gpucompgen_bench_{mode.replace('-', '_')}_{n}_{size[0]}x{size[1]}")
+        self.module = load_module(out / f"mirror_chain_{n}.py",
+                                  f"gpucompgen_bench_{mode.replace('-', '_')}_{n}_{size[0]}x{size[1]}")
         self.context, self.n = context, n
 
     def run(self, frames: int) -> tuple[list[float], np.ndarray]:

@@ -19,6 +19,7 @@ from . import __version__
 from .errors import GpucompgenError
 from .model import EXECUTIONS, ZERO_COPY
 from .passes import MODES
+from .runtime import add_program_options
 
 EPILOG = """\
 exit codes: 0 ok; 1 problems in the model, stale output with --check, or a failed run;
@@ -95,19 +96,7 @@ def parser() -> argparse.ArgumentParser:
     # A throwaway build for this machine: plan for the device it runs on, not the model's
     # portable default that keeps checked-in output reproducible.
     r.set_defaults(device="auto")
-    r.add_argument("--frames", type=int, default=None, metavar="N",
-                   help="stop after N frames (default: until a source ends its stream)")
-    r.add_argument("-q", "--quiet", action="store_true",
-                   help="print nothing but errors (no progress, decisions or summary)")
-    r.add_argument("--stats-json", metavar="FILE",
-                   help="write frames processed, per-frame and per-component timings as JSON")
-    r.add_argument("--decisions", metavar="FILE",
-                   help="write the sinks' decisions: JSON lines for .jsonl/.json, else text")
-    r.add_argument("--save-images", metavar="DIR",
-                   help="write the sinks' images (masks, annotated frames) as PNG files")
-    r.add_argument("--profile", action="store_true",
-                   help="print each kernel's and copy's time and the bytes moved between CPU "
-                        "and GPU per frame")
+    add_program_options(r)
 
     c = _sub(sub, "check", "run every check, generate nothing",
              "Check MODEL, print every problem, and a summary of the system.")

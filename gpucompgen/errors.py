@@ -9,8 +9,8 @@ A diagnostic prints in the compiler style editors turn into links::
 from __future__ import annotations
 
 import difflib
+from collections.abc import Iterable
 from dataclasses import dataclass, field
-from typing import Iterable
 
 
 @dataclass(frozen=True, order=True)
@@ -48,10 +48,10 @@ class Reporter:
 
     diagnostics: list[Diagnostic] = field(default_factory=list)
 
-    def error(self, pos: "Pos", message: str, hint: str = "") -> None:
+    def error(self, pos: Pos, message: str, hint: str = "") -> None:
         self.diagnostics.append(Diagnostic(pos.file, pos.line, pos.col, "error", message, hint))
 
-    def warning(self, pos: "Pos", message: str, hint: str = "") -> None:
+    def warning(self, pos: Pos, message: str, hint: str = "") -> None:
         self.diagnostics.append(Diagnostic(pos.file, pos.line, pos.col, "warning", message, hint))
 
     @property

@@ -10,8 +10,9 @@ from __future__ import annotations
 
 import heapq
 import math
+from collections.abc import Iterable
 from dataclasses import dataclass, field
-from typing import Any, Iterable
+from typing import Any
 
 from . import sizeexpr
 from .device import DeviceFacts
@@ -308,10 +309,9 @@ class PropagateSizes(Pass):
                         continue
                     system.sizes[Endpoint(name, pname)] = Size(h, w, port.channels, port.dtype)
         for end, size in system.sizes.items():
-            if end in system.writers or system.components[end.component].type.port(
-                    end.port).direction == "out":
-                if size.nbytes > system.device.max_mem_alloc_size and \
-                        system.components[end.component].type.gpu_aware:
+            # every port of a GPU-aware component is a device buffer (its own or an adapter's)
+            if system.components[end.component].type.gpu_aware and \
+                    size.nbytes > system.device.max_mem_alloc_size:
                     rep.error(system.components[end.component].pos,
                               f"'{end}' needs {size.nbytes} bytes, more than the device's "
                               f"largest allocation ({system.device.max_mem_alloc_size} bytes)",

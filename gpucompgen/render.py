@@ -294,8 +294,8 @@ def queue_comment(system: System, n_lanes: int) -> list[str]:
     """Comment lines above the queues: how this program runs its GPU commands."""
     if system.execution == "sequential":
         return ["Sequential execution: one in-order queue; copies to the GPU block."]
-    return [f"Parallel execution: {n_lanes} in-order queue{'s' if n_lanes > 1 else ''} "
-            "(lanes). Commands are enqueued",
+    return [(f"Parallel execution: {n_lanes} in-order queue{'s' if n_lanes > 1 else ''} "
+             "(lanes). Commands are enqueued"),
             "without waiting; a command waits for another queue's event (wait_for=[...]) only",
             "where it reads that queue's data, and the host waits only where it reads a result."]
 

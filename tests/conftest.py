@@ -7,7 +7,6 @@ CI=true: CI installs PoCL, so a missing device there is a broken install, not a 
 from __future__ import annotations
 
 import os
-import sys
 from pathlib import Path
 
 import pytest
@@ -30,16 +29,13 @@ def _pin_device() -> str | None:
         platforms = cl.get_platforms()
     except Exception as exc:  # no ICD loader or no platform at all
         return f"no OpenCL platform: {exc}"
-    for i, p in enumerate(platforms):
-        if p.get_devices():
-            if "portable" in p.name.lower() or i == len(platforms) - 1:
-                os.environ["PYOPENCL_CTX"] = f"{i}:0"
-                return None
-    for i, p in enumerate(platforms):
-        if p.get_devices():
-            os.environ["PYOPENCL_CTX"] = f"{i}:0"
-            return None
-    return "no OpenCL device on any platform"
+    # PoCL ("Portable Computing Language") when present, else the first platform with a device
+    usable = [i for i, p in enumerate(platforms) if p.get_devices()]
+    if not usable:
+        return "no OpenCL device on any platform"
+    pocl = [i for i in usable if "portable" in platforms[i].name.lower()]
+    os.environ["PYOPENCL_CTX"] = f"{(pocl or usable)[0]}:0"
+    return None
 
 
 _NO_DEVICE = _pin_device()
@@ -69,13 +65,9 @@ def cl_queue(cl_context):
 
 def load_generated(path: Path, name: str):
     """Import a generated program as a module (a fresh one each time)."""
-    import importlib.util
+    from gpucompgen.runtime import load_module
 
-    spec = importlib.util.spec_from_file_location(name, path)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[name] = module
-    spec.loader.exec_module(module)
-    return module
+    return load_module(path, name)
 
 
 @pytest.fixture

@@ -10,8 +10,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 from conftest import ROOT, load_generated, require_opencl
+
 from gpucompgen.build import compile_model, diff
 from gpucompgen.library.camera import Camera
 

@@ -41,6 +41,7 @@ def _run_class(module, cls_name, ctx, queue, program, params, inputs, settings):
 @pytest.fixture(scope="module")
 def vision_module(tmp_path_factory, cl_context):
     from conftest import load_generated
+
     from gpucompgen.build import compile_model, write
 
     out = tmp_path_factory.mktemp("vision")

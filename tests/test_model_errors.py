@@ -5,11 +5,8 @@ from __future__ import annotations
 import subprocess
 import sys
 import textwrap
-from pathlib import Path
 
 import pytest
-
-from conftest import ROOT
 
 BASE = """\
 system: s

@@ -67,6 +67,12 @@ def test_generated_code_passes_ruff(tmp_path):
         assert proc.returncode == 0, proc.stdout + proc.stderr
 
 
+def test_the_whole_repository_passes_ruff():
+    proc = subprocess.run([sys.executable, "-m", "ruff", "check", "--no-cache", "."], cwd=ROOT,
+                          capture_output=True, text=True, check=False)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+
+
 def test_graph_shows_the_three_generated_adapters_and_sizes():
     system = compile_model(VISION, ROOT / "generated").system
     text = dot_text(system)

@@ -6,12 +6,11 @@ import math
 import os
 import subprocess
 import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
-
 from conftest import ROOT, load_generated, require_opencl
+
 from gpucompgen.library.camera import Camera
 
 MODEL = ROOT / "models" / "vision_system.yaml"

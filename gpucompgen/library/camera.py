@@ -109,7 +109,7 @@ class Camera:
             ymid = float(rng.uniform(ylo, yhi))
             yamp = min(ymid - ylo, yhi - ymid, self.height / 8)
             y = ymid + yamp * math.sin(2 * math.pi * frame / (period * 1.7) + phase)
-            result.append(Buoy(int(round(x)), int(round(y)), radius))
+            result.append(Buoy(round(x), round(y), radius))
         return result
 
     def render(self, frame: int) -> np.ndarray:

@@ -244,17 +244,26 @@ def expect_size(component: str, got: Any, expected: Size) -> Size:
     return Size(*got)
 
 
-def load_class(path: Path, name: str) -> type:
-    """Load a user's standard component class from a file copied beside the program."""
-    module_name = f"gpucompgen_user_{Path(path).stem}"
+def load_module(path: Path, module_name: str, fresh: bool = True):
+    """Import a Python file as a module: a generated program, or a user's component file.
+
+    With fresh=False a module already imported from the same file is reused.
+    """
+    module = sys.modules.get(module_name)
+    if not fresh and module is not None and getattr(module, "__file__", None) == str(path):
+        return module
     spec = importlib.util.spec_from_file_location(module_name, path)
     if spec is None or spec.loader is None:
-        raise PipelineError(f"cannot load component module {path}")
-    module = sys.modules.get(module_name)
-    if module is None or getattr(module, "__file__", None) != str(path):
-        module = importlib.util.module_from_spec(spec)
-        sys.modules[module_name] = module
-        spec.loader.exec_module(module)
+        raise PipelineError(f"cannot load module {path}")
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[module_name] = module
+    spec.loader.exec_module(module)
+    return module
+
+
+def load_class(path: Path, name: str) -> type:
+    """Load a user's standard component class from a file copied beside the program."""
+    module = load_module(path, f"gpucompgen_user_{Path(path).stem}", fresh=False)
     try:
         return getattr(module, name)
     except AttributeError:
@@ -490,16 +499,8 @@ def _stop_on_signals() -> Callable[[], None]:
     return restore
 
 
-def main(run: Callable[..., Result], description: str, argv: list[str] | None = None) -> int:
-    """Command line of a generated program: run it, print errors without tracebacks.
-
-    Exit codes: 0 done, 1 a component or the device failed, 2 usage, 130 SIGINT,
-    143 SIGTERM (128 + the signal's number).
-    """
-    parser = argparse.ArgumentParser(
-        description=description,
-        epilog="Exit codes: 0 done, 1 a component or the device failed, 2 usage, "
-               "130 on SIGINT, 143 on SIGTERM. Select the OpenCL device with PYOPENCL_CTX.")
+def add_program_options(parser: argparse.ArgumentParser) -> None:
+    """The generated program's options; 'gpucompgen run' offers the same and passes them on."""
     parser.add_argument("--frames", type=int, default=None, metavar="N",
                         help="stop after N frames (default: until a source ends its stream)")
     parser.add_argument("-q", "--quiet", action="store_true",
@@ -515,6 +516,19 @@ def main(run: Callable[..., Result], description: str, argv: list[str] | None = 
     parser.add_argument("--profile", action="store_true",
                         help="time every kernel and copy with OpenCL profiling events and "
                              "count the bytes moved between CPU and GPU (printed at the end)")
+
+
+def main(run: Callable[..., Result], description: str, argv: list[str] | None = None) -> int:
+    """Command line of a generated program: run it, print errors without tracebacks.
+
+    Exit codes: 0 done, 1 a component or the device failed, 2 usage, 130 SIGINT,
+    143 SIGTERM (128 + the signal's number).
+    """
+    parser = argparse.ArgumentParser(
+        description=description,
+        epilog="Exit codes: 0 done, 1 a component or the device failed, 2 usage, "
+               "130 on SIGINT, 143 on SIGTERM. Select the OpenCL device with PYOPENCL_CTX.")
+    add_program_options(parser)
     parser.add_argument("--debug", action="store_true", help="show tracebacks on errors")
     args = parser.parse_args(argv)
     if args.frames is not None and args.frames < 0:
