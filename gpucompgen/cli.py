@@ -1,4 +1,4 @@
-"""gpucompgen's command line: build, run, check, plan, graph, bench, schema.
+"""gpucompgen's command line: build, run, check, plan, graph, bench, devices, schema.
 
 Exit codes as in black and datamodel-codegen: 0 ok, 1 problems found (or stale output with
 --check), 2 usage or internal error.  A user sees a traceback only with --debug.
@@ -41,7 +41,8 @@ def _common(p: argparse.ArgumentParser) -> None:
                         "GPU-aware component copies its own data, as in the paper's Section II")
     p.add_argument("--device", metavar="PROFILE",
                    help="device facts to plan for: a profile name, or 'auto' for the OpenCL "
-                        "device PYOPENCL_CTX selects (default: the model's platform.device)")
+                        "device the runtime selects: PYOPENCL_CTX, else the first that compiles (default: "
+                        "the model's platform.device)")
     p.add_argument("--execution", choices=EXECUTIONS,
                    help="parallel: independent GPU work on separate queues, waiting only where "
                         "the host reads a result; sequential: one queue, blocking copies "
@@ -133,6 +134,15 @@ def parser() -> argparse.ArgumentParser:
     be.add_argument("-o", "--output", type=Path, default=Path("bench-out"),
                     help="folder for bench.csv and bench.png (default: bench-out)")
     be.add_argument("--no-opencv", action="store_true", help="leave out the OpenCV references")
+
+    dv = sub.add_parser(
+        "devices", help="list the OpenCL devices and which one a program would use",
+        description="List every OpenCL platform and device, whether each compiles OpenCL C "
+                    "(a trivial kernel is built on each), the PYOPENCL_CTX value that selects "
+                    "it, and the device generated programs use by default. Exit 1 when no "
+                    "device can compile kernels.")
+    dv.add_argument("-q", "--quiet", action="store_true",
+                    help="print nothing; only the exit code says whether a device is usable")
 
     sc = sub.add_parser("schema", help="print the JSON Schema of model files",
                         description="Print the JSON Schema of system models (or, with "
@@ -305,6 +315,34 @@ def cmd_bench(args) -> int:
     return 0
 
 
+def cmd_devices(args) -> int:
+    from .runtime import NO_DEVICE_HINT, PipelineError, select_device, survey_devices
+
+    statuses = survey_devices()
+    try:
+        chosen = select_device()
+        problem = next((s.problem for s in statuses if s.device == chosen), None)
+        if problem:
+            problem = (f"PYOPENCL_CTX={os.environ.get('PYOPENCL_CTX')} selects "
+                       f"'{chosen.name.strip()}', which cannot compile kernels: {problem}")
+    except PipelineError as exc:
+        chosen, problem = None, str(exc)
+    if not args.quiet:
+        for s in statuses:
+            state = "ok" if s.problem is None else f"cannot compile kernels: {s.problem}"
+            mark = "*" if s.device == chosen else " "
+            print(f"{mark} PYOPENCL_CTX={s.ctx:<5} {s.device.platform.name.strip()} / "
+                  f"{s.device.name.strip()}: {state}")
+        if problem:
+            print(f"gpucompgen devices: error: {problem}", file=sys.stderr)
+        elif chosen is not None:
+            how = "PYOPENCL_CTX" if os.environ.get("PYOPENCL_CTX") else "first usable device"
+            print(f"generated programs use '{chosen.name.strip()}' ({how}, marked *)")
+        if not statuses:
+            print(f"no OpenCL device found; {NO_DEVICE_HINT}", file=sys.stderr)
+    return 1 if problem else 0
+
+
 def cmd_schema(args) -> int:
     from .schema import MODEL, TYPES, schema_text
 
@@ -313,4 +351,4 @@ def cmd_schema(args) -> int:
 
 
 COMMANDS = {"build": cmd_build, "run": cmd_run, "check": cmd_check, "plan": cmd_plan,
-            "graph": cmd_graph, "bench": cmd_bench, "schema": cmd_schema}
+            "graph": cmd_graph, "bench": cmd_bench, "devices": cmd_devices, "schema": cmd_schema}

@@ -73,7 +73,14 @@ def resolve(spec: Any, pos: Pos, rep: Reporter,
         spec = "portable"
     if isinstance(spec, str):
         if spec == "auto":
-            return query_device()
+            from .runtime import PipelineError
+
+            try:
+                return query_device()
+            except PipelineError as exc:
+                rep.error(pos, f"device 'auto': {exc}",
+                          "name a device profile instead, or see 'gpucompgen devices'")
+                return None
         if spec not in PROFILES:
             rep.error(pos, f"unknown device profile {spec!r}",
                       did_you_mean(spec, list(PROFILES) + ["auto"]))
@@ -120,11 +127,13 @@ def resolve(spec: Any, pos: Pos, rep: Reporter,
 
 
 def query_device(device: Any = None) -> DeviceFacts:
-    """Facts of a real OpenCL device (the one PYOPENCL_CTX selects when device is None)."""
+    """Facts of a real OpenCL device (the one the runtime selects when device is None)."""
     import pyopencl as cl
 
+    from .runtime import select_device
+
     if device is None:
-        device = cl.create_some_context(interactive=False).devices[0]
+        device = select_device()
     sizes = tuple(device.max_work_item_sizes)[:3]
     sizes = tuple(sizes) + (1,) * (3 - len(sizes))
     return DeviceFacts(

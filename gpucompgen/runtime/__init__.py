@@ -46,16 +46,106 @@ class Size(NamedTuple):
         return (self.height, self.width, self.channels)
 
 
-def create_context():
-    """The OpenCL context PYOPENCL_CTX selects, else the first device found."""
+# A kernel every OpenCL C compiler must accept: whether a device can build it is whether
+# the device is usable at all.
+_PROBE_SOURCE = "__kernel void gpucompgen_probe(__global int *x) { x[0] = 1; }"
+
+
+class DeviceStatus(NamedTuple):
+    """One OpenCL device and whether it compiles OpenCL C (problem is None when it does)."""
+
+    platform_index: int
+    device_index: int
+    device: Any
+    problem: str | None
+
+    @property
+    def ctx(self) -> str:
+        """The PYOPENCL_CTX value that selects this device."""
+        return f"{self.platform_index}:{self.device_index}"
+
+
+def _build_problem(exc: BaseException) -> str:
+    """The line of a failed build a user can act on (the compiler's first error)."""
+    lines = [line.strip() for line in str(exc).splitlines() if line.strip()]
+    for line in lines:
+        if line.startswith("error:"):
+            return line
+    return lines[0] if lines else type(exc).__name__
+
+
+def probe_device(device) -> str | None:
+    """None if DEVICE builds a trivial kernel, else what went wrong."""
     import pyopencl as cl
 
     try:
-        return cl.create_some_context(interactive=False)
-    except (cl.Error, RuntimeError, ValueError, IndexError) as exc:
-        raise PipelineError(
-            f"no usable OpenCL device ({exc}); install one, e.g. "
-            "'pip install pyopencl[pocl]' for a CPU device, or set PYOPENCL_CTX") from None
+        context = cl.Context([device])
+        with quiet_compiler():
+            cl.Program(context, _PROBE_SOURCE).build()
+    except Exception as exc:  # any failure means: not usable
+        return _build_problem(exc)
+    return None
+
+
+def survey_devices(stop_at_first_usable: bool = False) -> list[DeviceStatus]:
+    """Every OpenCL device in platform order, each probed with a trivial kernel build."""
+    try:
+        import pyopencl as cl
+
+        platforms = cl.get_platforms()
+    except Exception:  # no pyopencl, no ICD loader, or no platform at all
+        return []
+    found = []
+    for p, platform in enumerate(platforms):
+        try:
+            devices = platform.get_devices()
+        except Exception:  # a platform with no devices raises DEVICE_NOT_FOUND
+            devices = []
+        for d, device in enumerate(devices):
+            status = DeviceStatus(p, d, device, probe_device(device))
+            found.append(status)
+            if stop_at_first_usable and status.problem is None:
+                return found
+    return found
+
+
+NO_DEVICE_HINT = (
+    "install an OpenCL driver for your GPU, or a CPU device: on Debian or Ubuntu "
+    "'apt-get install pocl-opencl-icd', elsewhere 'pip install pyopencl[pocl]' "
+    "(the PyPI PoCL cannot compile for CPUs its LLVM does not know: 'unknown target CPU')")
+
+
+def select_device():
+    """The device PYOPENCL_CTX selects, else the first device that compiles OpenCL C.
+
+    pyopencl's own default takes the first device, even one whose compiler cannot build
+    anything (a PoCL whose LLVM does not know the host CPU); skipping such a device keeps
+    ``python generated/x.py`` working wherever some OpenCL device works.
+    """
+    import pyopencl as cl
+
+    if os.environ.get("PYOPENCL_CTX"):
+        try:
+            return cl.create_some_context(interactive=False).devices[0]
+        except Exception as exc:
+            raise PipelineError(
+                f"PYOPENCL_CTX={os.environ['PYOPENCL_CTX']!r} selects no usable OpenCL "
+                f"device ({exc}); 'gpucompgen devices' lists the devices") from None
+    statuses = survey_devices(stop_at_first_usable=True)
+    for status in statuses:
+        if status.problem is None:
+            return status.device
+    if not statuses:
+        raise PipelineError(f"no OpenCL device found; {NO_DEVICE_HINT}")
+    tried = "; ".join(f"{s.ctx} {s.device.name.strip()}: {s.problem}" for s in statuses)
+    raise PipelineError(f"no OpenCL device can compile kernels ({tried}); {NO_DEVICE_HINT}")
+
+
+def create_context():
+    """A context on the device select_device() chooses (PYOPENCL_CTX, else the first usable)."""
+    import pyopencl as cl
+
+    return cl.Context([select_device()])
 
 
 def create_queue(context, profile: bool = False):
