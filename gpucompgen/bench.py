@@ -2,7 +2,10 @@
 
 Chains of N VerticalMirror components (StillImage -> N mirrors -> FrameSink) are generated
 in both modes, built and run on the OpenCL device; the time per frame is the time between
-consecutive frames arriving at the sink.  In the same run, the references a reader needs
+consecutive frames arriving at the sink.  The GPU-aware chain runs twice: with copying
+adapters (``gpu-aware``) and with zero-copy adapters forced on (``zero-copy``: the source's
+frame wrapped in a USE_HOST_PTR buffer, the last output mapped for the sink), so a user
+sees what zero-copy gains or loses on this device.  In the same run, the references a reader needs
 to judge the result:
 
 - hand-written: the same kernel in a plain pyopencl loop, no framework (one buffer per
@@ -41,7 +44,8 @@ from .runtime import load_module
 
 DEFAULT_SIZES = ((1152, 864), (1152, 1782))  # width x height, as in the paper
 DEFAULT_LENGTHS = (5, 10, 15, 20, 25)
-VARIANTS = ("standard", "gpu-aware", "hand-written", "bound", "opencv-cpu", "opencv-ocl")
+VARIANTS = ("standard", "gpu-aware", "zero-copy", "hand-written", "bound", "opencv-cpu",
+            "opencv-ocl")
 TARGETS = (  # (numerator, denominator, limit, "<=" or ">=")
     ("gpu-aware", "hand-written", 1.10, "<="),
     ("gpu-aware", "bound", 1.30, "<="),
@@ -121,15 +125,17 @@ def expected_output(image: np.ndarray, n: int) -> np.ndarray:
 class Generated:
     """One generated chain program, run in rounds."""
 
-    def __init__(self, folder: Path, n: int, size: tuple[int, int], mode: str, context):
+    def __init__(self, folder: Path, n: int, size: tuple[int, int], variant: str, context):
         from .build import compile_model, write
 
         model = folder / f"chain_{n}_{size[0]}x{size[1]}.yaml"
         model.write_text(chain_model(n, *size), encoding="utf-8")
-        out = folder / f"{mode}_{n}_{size[0]}x{size[1]}"
-        write(compile_model(model, out, mode), out)
-        self.module = load_module(out / f"mirror_chain_{n}.py",
-                                  f"gpucompgen_bench_{mode.replace('-', '_')}_{n}_{size[0]}x{size[1]}")
+        out = folder / f"{variant}_{n}_{size[0]}x{size[1]}"
+        mode = "standard" if variant == "standard" else "gpu-aware"
+        zero_copy = "on" if variant == "zero-copy" else "off"
+        write(compile_model(model, out, mode, zero_copy=zero_copy), out)
+        name = f"gpucompgen_bench_{variant.replace('-', '_')}_{n}_{size[0]}x{size[1]}"
+        self.module = load_module(out / f"mirror_chain_{n}.py", name)
         self.context, self.n = context, n
 
     def run(self, frames: int) -> tuple[list[float], np.ndarray]:
@@ -349,7 +355,7 @@ def run_bench(sizes, lengths, frames: int, out_dir: Path, opencv: bool = True,
         opencv = False
         notes.append("OpenCV is not installed (pip install 'gpucompgen[video]'): "
                      "no OpenCV references")
-    per_round = 5 if opencv else 4
+    per_round = 6 if opencv else 5
     total = len(sizes) * (len(lengths) * per_round * rounds + 1 + (1 if opencv else 0))
     bar = tqdm(total=total, desc="bench", unit="run", disable=not sys.stderr.isatty(),
                file=sys.stderr)
@@ -361,6 +367,7 @@ def run_bench(sizes, lengths, frames: int, out_dir: Path, opencv: bool = True,
             for n in lengths:
                 runners = {"standard": Generated(Path(tmp), n, size, "standard", context),
                            "gpu-aware": Generated(Path(tmp), n, size, "gpu-aware", context),
+                           "zero-copy": Generated(Path(tmp), n, size, "zero-copy", context),
                            "hand-written": HandWritten(n, image, context),
                            "bound": Bound(n, ring)}
                 if opencv:
@@ -450,15 +457,15 @@ def table(figures: list[Figure], device: str, frames: int, notes: list[str]) -> 
     for size in sizes:
         lines.append("")
         lines.append(f"{size[0]}x{size[1]} pixels")
-        rows = [["N"] + variants + ["std/aware", "aware/hand", "aware/bound"]]
+        rows = [["N"] + variants + ["std/aware", "aware/zero", "aware/hand", "aware/bound"]]
         for n in sorted({f.components for f in figures if f.size == size}):
             row = [str(n)]
             for v in variants:
                 f = idx.get((size, n, v))
                 row.append(f"{f.median * 1e3:.2f} [{f.q1 * 1e3:.2f}-{f.q3 * 1e3:.2f}]"
                            if f else "-")
-            for a, b in (("standard", "gpu-aware"), ("gpu-aware", "hand-written"),
-                         ("gpu-aware", "bound")):
+            for a, b in (("standard", "gpu-aware"), ("gpu-aware", "zero-copy"),
+                         ("gpu-aware", "hand-written"), ("gpu-aware", "bound")):
                 fa, fb = idx.get((size, n, a)), idx.get((size, n, b))
                 row.append(f"{fa.median / fb.median:.2f}x" if fa and fb else "-")
             rows.append(row)
@@ -482,6 +489,7 @@ def table(figures: list[Figure], device: str, frames: int, notes: list[str]) -> 
 
 
 STYLE = {"standard": ("tab:blue", "o", "-"), "gpu-aware": ("tab:red", "s", "-"),
+         "zero-copy": ("tab:brown", "x", "-"),
          "hand-written": ("tab:green", "^", "--"), "bound": ("black", "", ":"),
          "opencv-cpu": ("tab:purple", "v", "-."), "opencv-ocl": ("tab:orange", "D", "-.")}
 

@@ -31,7 +31,7 @@ def test_bench_writes_table_csv_and_plot(tmp_path):
     found = {(r["width"], r["height"], r["components"], r["variant"]) for r in rows}
     for w, h in (("48", "32"), ("33", "17")):
         for n in ("1", "2"):
-            for variant in ("standard", "gpu-aware", "hand-written", "bound"):
+            for variant in ("standard", "gpu-aware", "zero-copy", "hand-written", "bound"):
                 assert (w, h, n, variant) in found
             if has_cv2:
                 assert (w, h, n, "opencv-cpu") in found
@@ -39,7 +39,7 @@ def test_bench_writes_table_csv_and_plot(tmp_path):
         assert r["variant"] in bench.VARIANTS
         q1, med, q3 = float(r["q1_ms"]), float(r["median_ms"]), float(r["q3_ms"])
         assert 0 <= q1 <= med <= q3
-        if r["variant"] in ("standard", "gpu-aware", "hand-written"):
+        if r["variant"] in ("standard", "gpu-aware", "zero-copy", "hand-written"):
             assert int(r["samples"]) == 3  # 3 frames timed, in rounds
     png = (out / "bench.png").read_bytes()
     assert png.startswith(b"\x89PNG\r\n\x1a\n")
@@ -51,11 +51,29 @@ def test_bench_writes_table_csv_and_plot(tmp_path):
     assert "ms per frame, median [q1-q3], 3 frames per variant" in text
     assert "\n33x17 pixels\n" in text and "\n48x32 pixels\n" in text
     header = next(line for line in text.splitlines() if line.lstrip().startswith("N "))
-    assert header.split()[:5] == ["N", "standard", "gpu-aware", "hand-written", "bound"]
-    assert "std/aware" in header and "aware/hand" in header and "aware/bound" in header
+    assert header.split()[:6] == ["N", "standard", "gpu-aware", "zero-copy", "hand-written",
+                                  "bound"]
+    for ratio in ("std/aware", "aware/zero", "aware/hand", "aware/bound"):
+        assert ratio in header
     assert "48x32 N=2: standard / gpu-aware = " in text
     assert "(target >= 3.00x)" in text and "(target <= 1.10x)" in text
     assert f"wrote {out / 'bench.csv'}" in text
+
+
+@pytest.mark.parametrize("variant,adapters", [
+    ("standard", set()),
+    ("gpu-aware", {"CpuToGpuAdapter", "GpuToCpuAdapter"}),
+    ("zero-copy", {"ZeroCopyCpuToGpuAdapter", "ZeroCopyGpuToCpuAdapter"}),
+])
+def test_each_generated_variant_has_its_own_adapters(tmp_path, variant, adapters):
+    """The zero-copy line times zero-copy adapters and the gpu-aware line copying ones,
+    whatever the device planned for (the profile 'portable' has no unified memory)."""
+    import re
+
+    bench.Generated(tmp_path, 2, (40, 30), variant, context=None)
+    source = (tmp_path / f"{variant}_2_40x30" / "mirror_chain_2.py").read_text()
+    used = set(re.findall(r"= (\w*Adapter)\(context", source))
+    assert used == adapters
 
 
 def test_chain_model_is_a_valid_system(tmp_path):
