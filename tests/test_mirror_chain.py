@@ -132,6 +132,36 @@ def test_transfers_per_frame(chains, cl_context, monkeypatch, mode, per_frame):
         assert copiers == {"adapter1_cpu2gpu", "adapter2_gpu2cpu"}
 
 
+def test_zero_copy_chain_copies_nothing_and_profiles_its_maps(tmp_path, cl_context,
+                                                              monkeypatch):
+    """Zero-copy adapters: no cl.enqueue_copy at all, and --profile shows each map/unmap."""
+    import pyopencl as cl
+
+    from gpucompgen.build import compile_model, write
+
+    write(compile_model(MODEL, tmp_path, zero_copy="on"), tmp_path)
+    module = load_generated(tmp_path / "mirror_chain.py", "mirror_chain_zero_copy_profile")
+    copies = []
+    real_copy = cl.enqueue_copy
+    monkeypatch.setattr(cl, "enqueue_copy", lambda *a, **k: copies.append(a) or real_copy(*a, **k))
+    frames = 4
+    result = module.run(frames=frames, context=cl_context, profile=True)
+    monkeypatch.undo()
+    assert copies == []
+    profile = result.profile
+    assert profile.per_frame(frames) == {"copies_cpu2gpu": 0, "copies_gpu2cpu": 0,
+                                         "bytes_cpu2gpu": 0, "bytes_gpu2cpu": 0}
+    assert profile.maps == frames
+    report = profile.report(frames)
+    profile.collect()
+    assert {key: len(secs) for key, secs in profile.seconds.items() if key[1] != "kernel"} == {
+        ("adapter2_gpu2cpu", "map"): frames, ("adapter2_gpu2cpu", "unmap"): frames}
+    assert "; 1 zero-copy maps" in report
+    # the sink got every frame, mirrored an odd number of times
+    image = still_frame(1152, 864)
+    np.testing.assert_array_equal(result.components["sink"].last, image[::-1])
+
+
 def test_without_profile_parts_have_no_profile(chains, cl_context):
     result = chains["gpu-aware"].run(frames=1, context=cl_context)
     assert result.profile is None

@@ -161,7 +161,8 @@ class Profile:
 
     A generated program built with ``run(profile=True)`` (``--profile`` on its command
     line) hands every part this object; parts report the OpenCL event of each kernel
-    launch and copy, and the bytes each copy moves between CPU and GPU.  Event times are
+    launch and copy, and the bytes each copy moves between CPU and GPU; zero-copy
+    adapters report their map and unmap commands, which move no bytes.  Event times are
     read in batches, so a long stream keeps little memory.  Without profiling a part's
     ``profile`` is None and nothing here runs.
     """
@@ -175,6 +176,7 @@ class Profile:
         self.seconds: dict[tuple[str, str], list[float]] = {}
         self.copies = {"cpu2gpu": 0, "gpu2cpu": 0}  # number of copies
         self.bytes = {"cpu2gpu": 0, "gpu2cpu": 0}
+        self.maps = 0  # zero-copy maps of device buffers for the host
         for obj in parts.values():
             if hasattr(obj, "profile"):
                 obj.profile = self
@@ -186,6 +188,12 @@ class Profile:
         self.copies[direction] += 1
         self.bytes[direction] += nbytes
         self._add((self.names.get(id(owner), "?"), direction), event)
+
+    def mapping(self, owner: Any, what: str, event: Any) -> None:
+        """A zero-copy adapter's map or unmap: device time, but no bytes copied."""
+        if what == "map":
+            self.maps += 1
+        self._add((self.names.get(id(owner), "?"), what), event)
 
     def _add(self, key: tuple[str, str], event: Any) -> None:
         self.pending.append((key, event))
@@ -228,6 +236,8 @@ class Profile:
                      f"CPU->GPU {pf['copies_cpu2gpu']:g} copies {pf['bytes_cpu2gpu']:,.0f} "
                      f"bytes, GPU->CPU {pf['copies_gpu2cpu']:g} copies "
                      f"{pf['bytes_gpu2cpu']:,.0f} bytes")
+        if self.maps:
+            lines[-1] += f"; {self.maps / max(frames, 1):g} zero-copy maps"
         return "\n".join(lines)
 
 
