@@ -263,7 +263,8 @@ def render(system: System, source: str) -> list[OutputFile]:
 def device_buffer_sizes(system: System) -> list[tuple[str, int]]:
     """Every device buffer the program allocates, as (what, bytes), in run order.
 
-    gpu-aware mode: one per CPU-to-GPU adapter and per output of a GPU-aware component;
+    gpu-aware mode: one per copying CPU-to-GPU adapter and per output of a GPU-aware
+    component;
     standard mode: one per port of a GPU-aware component (it copies its own data).
     """
     by_source = {a.source: a for a in system.adapters}
@@ -280,7 +281,8 @@ def device_buffer_sizes(system: System) -> list[tuple[str, int]]:
                 result.append((f"{name}.{p}", size.nbytes))
         for p in t.outputs:
             a = by_source.get(Endpoint(name, p))
-            if a is not None and a.direction == "cpu2gpu":
+            # a zero-copy upload wraps the producer's host array: no device allocation
+            if a is not None and a.direction == "cpu2gpu" and not a.zero_copy:
                 result.append((f"{a.name} ({name}.{p})", a.size.nbytes))
     return result
 

@@ -129,6 +129,8 @@ def test_the_vision_system_is_identical_in_every_variant(tmp_path):
 def test_zero_copy_view_is_unmapped_before_the_device_writes_again(tmp_path):
     """The producer of a mapped buffer never runs while its view is still mapped."""
     require_opencl()
+    import pyopencl as cl
+
     _, module = _module(tmp_path, BRANCHES, "parallel", "on", tag="unmap")
     adapters = []
     init = module.ZeroCopyGpuToCpuAdapter.__init__
@@ -141,16 +143,24 @@ def test_zero_copy_view_is_unmapped_before_the_device_writes_again(tmp_path):
     produced = []
     original = module.ObjectDetector.execute
 
+    def map_count(buffer) -> int:
+        # OpenCL's own count of the buffer's live mappings: catches an unmap() that forgets
+        # to release the mapping, which the Python attribute alone would not show
+        return buffer.get_info(cl.mem_info.MAP_COUNT)
+
     def detector_execute(self, *args, **kwargs):
         assert adapters and all(a.view is None for a in adapters), \
             "the detector writes its mask while a zero-copy view of it is mapped"
-        produced.append(1)
+        if self.mask is not None:  # from the second frame on
+            assert map_count(self.mask) == 0, "the mask is still mapped on the device"
+        produced.append(self)
         return original(self, *args, **kwargs)
 
     module.ObjectDetector.execute = detector_execute
-    module.run(frames=5)
+    result = module.run(frames=5)
     assert len(produced) == 5
     assert all(a.view is None for a in adapters), "free_memory unmaps"
+    assert result.frames == 5
 
 
 SLOW_FILL = """
@@ -305,3 +315,21 @@ def test_runtime_reports_kernel_limits(cl_context):
     assert runtime.device_limits(device).max_work_group_size == device.max_work_group_size
     with pytest.raises(runtime.PipelineError, match="Probe: GPU settings"):
         runtime.check_work_group(kernel, device, (limits.work_group_size + 1, 1, 1), "Probe")
+
+
+@pytest.mark.parametrize("model", sorted((ROOT / "models").glob("*.yaml")), ids=lambda p: p.stem)
+@pytest.mark.parametrize("mode,zero_copy", [("gpu-aware", "off"), ("gpu-aware", "on"),
+                                            ("standard", "off")])
+def test_memory_check_counts_what_the_plan_says_is_on_the_device(tmp_path, model, mode,
+                                                                 zero_copy):
+    """A zero-copy upload wraps host memory: the check before the first frame must not
+    count it, or a system that fits would be refused."""
+    import re
+
+    from gpucompgen.build import compile_model
+    from gpucompgen.render import device_buffer_sizes, plan_lines
+
+    system = compile_model(model, tmp_path, mode, zero_copy=zero_copy).system
+    plan = "\n".join(plan_lines(system))
+    peak = int(re.search(r"peak device memory: ([\d,]+) bytes", plan).group(1).replace(",", ""))
+    assert sum(n for _, n in device_buffer_sizes(system)) == peak
