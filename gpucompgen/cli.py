@@ -34,15 +34,16 @@ examples:
 """
 
 
-def _common(p: argparse.ArgumentParser) -> None:
+def _common(p: argparse.ArgumentParser,
+            device_default: str = "the model's platform.device") -> None:
     p.add_argument("model", type=Path, metavar="MODEL", help="the system model (.yaml)")
     p.add_argument("--mode", choices=MODES, default="gpu-aware",
                    help="gpu-aware: GPU ports and generated adapters (default); standard: every "
                         "GPU-aware component copies its own data, as in the paper's Section II")
     p.add_argument("--device", metavar="PROFILE",
                    help="device facts to plan for: a profile name, or 'auto' for the OpenCL "
-                        "device the runtime selects: PYOPENCL_CTX, else the first that compiles (default: "
-                        "the model's platform.device)")
+                        "device programs use (PYOPENCL_CTX, else the first that compiles "
+                        f"kernels; see 'gpucompgen devices'); default: {device_default}")
     p.add_argument("--execution", choices=EXECUTIONS,
                    help="parallel: independent GPU work on separate queues, waiting only where "
                         "the host reads a result; sequential: one queue, blocking copies "
@@ -93,7 +94,7 @@ def parser() -> argparse.ArgumentParser:
              "are the generated program's own and are passed to it. The build is planned\n"
              "for the OpenCL device it runs on (--device auto): on a device with unified\n"
              "host memory, such as PoCL, adapters are zero-copy.")
-    _common(r)
+    _common(r, device_default="auto")
     # A throwaway build for this machine: plan for the device it runs on, not the model's
     # portable default that keeps checked-in output reproducible.
     r.set_defaults(device="auto")
