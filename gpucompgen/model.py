@@ -17,7 +17,7 @@ from typing import Any
 from . import sizeexpr
 from .errors import Pos, Reporter, did_you_mean
 from .loader import Document, load_file
-from .names import fold, name_problem, snake
+from .names import CLASS_RESERVED, MODULE_NAMES, fold, member_names, name_problem, snake
 
 DTYPES = {  # element type → (numpy name, OpenCL C type, bytes)
     "uint8": ("uint8", "uchar", 1),
@@ -238,7 +238,8 @@ def load_types_file(path: Path, display: str, origin: str, rep: Reporter
 def _load_type(doc: Document, rep: Reporter, path: Path, origin: str, tname: str,
                spec: Any) -> ComponentType | None:
     base = ("component_types", tname)
-    problem = name_problem(tname, "component type name")
+    # a GPU-aware type becomes a class of the generated program: a module-level name
+    problem = name_problem(tname, "component type name", top_level=True)
     if problem:
         rep.error(doc.key_pos(*base), problem, "use a CamelCase name such as 'ImageMerger'")
         return None
@@ -323,6 +324,8 @@ def _load_type(doc: Document, rep: Reporter, path: Path, origin: str, tname: str
     if not ctype.inputs and not ctype.outputs:
         rep.error(ctype.pos, f"component type '{tname}' has no ports",
                   "declare 'inputs:' and/or 'outputs:'")
+    if kind == "gpu-aware":
+        _check_class_members(doc, rep, base, ctype)
     # output sizes need the input ports, so parse them after all ports are known
     for pname, port in list(ctype.outputs.items()):
         ctype.outputs[pname] = _port_sizes(doc, rep, base + ("outputs", pname), ctype, port,
@@ -360,6 +363,35 @@ def _load_type(doc: Document, rep: Reporter, path: Path, origin: str, tname: str
                           f"'{key}' is only for GPU-aware types; '{tname}' is standard",
                           "set 'kind: gpu-aware' or remove the key")
     return ctype
+
+
+def _check_class_members(doc: Document, rep: Reporter, base: tuple,
+                         ctype: ComponentType) -> None:
+    """A GPU-aware type's parameters and ports become members and locals of one generated
+    class (self.<param>, self.<port>_size, ...): none may clash with another or with what
+    the class itself uses."""
+    owners: dict[str, tuple[str, str]] = {}  # member -> (what made it, the declared name)
+    declared = ([(p, "param", ("params", p)) for p in ctype.params]
+                + [(p, "in", ("inputs", p)) for p in ctype.inputs]
+                + [(p, "out", ("outputs", p)) for p in ctype.outputs])
+    what = {"param": "parameter", "in": "input port", "out": "output port"}
+    for pname, role, key in declared:
+        this = f"{what[role]} '{pname}'"
+        members = member_names(pname, role)
+        member = next((m for m in members if m in CLASS_RESERVED or m in owners), None)
+        if member is None:
+            owners.update(dict.fromkeys(members, (this, pname)))
+            continue
+        made = "" if member == pname else f" (it makes '{member}')"
+        if member in CLASS_RESERVED:
+            clash = f"'{member}', a name the generated component class uses itself"
+        else:
+            other, other_name = owners[member]
+            clash = other + ("" if member == other_name else f", which makes '{member}' too")
+        rep.error(doc.key_pos(*base, *key),
+                  f"{this} of '{ctype.name}'{made} clashes with {clash}",
+                  "rename it: parameters and ports of a GPU-aware type share the generated "
+                  "class's names")
 
 
 def gpu_kernel_param_problem(kind: str, ptype: str) -> bool:
@@ -552,7 +584,7 @@ def _load_python(doc, rep, base, ctype: ComponentType, spec) -> None:
     ctype.python_file = _resolve_file(doc, rep, base + ("python", "file"),
                                       ctype.decl_file.parent, pspec.get("file"), ".py")
     cls = pspec.get("class", ctype.name)
-    problem = name_problem(cls, "class name")
+    problem = name_problem(cls, "class name", top_level=True)  # imported at module level
     if problem:
         rep.error(doc.pos(*base, "python", "class"), problem)
     else:
@@ -609,6 +641,9 @@ def load_system(path: Path, display: str | None = None) -> SystemModel:
     _unknown_keys(doc, rep, (), root, SYSTEM_KEYS, "the system model")
     name = root.get("system")
     problem = name_problem(name, "system name", top_level=True)
+    if not problem and name in MODULE_NAMES:
+        problem = (f"system name '{name}' would make {name}.py, which hides the module "
+                   f"'{name}' that generated programs import")
     if problem:
         rep.error(doc.pos("system") if "system" in root else doc.pos(), problem,
                   "start the model with 'system: my_system'")
@@ -684,6 +719,10 @@ def load_system(path: Path, display: str | None = None) -> SystemModel:
         rep.error(doc.pos("components") if "components" in root else doc.pos(),
                   "the system has no components", "add 'components:' with named instances")
     folded: dict[str, str] = {}
+    # a component is a variable of run(): it must not hide a class the program defines or
+    # imports (a GPU-aware type's own class, or a standard type's Python class)
+    class_names = {t.python_class or t.name: t.name for t in types.values()}
+    class_names.update({t.name: t.name for t in types.values()})
     for order, (cname, cspec) in enumerate(comps.items()):
         cpath = ("components", cname)
         problem = name_problem(cname, "component name", top_level=True)
@@ -707,10 +746,12 @@ def load_system(path: Path, display: str | None = None) -> SystemModel:
                       did_you_mean(str(tname), types))
             continue
         ctype = types[tname]
-        clash = cname if cname in types else None  # `Camera = Camera()` would shadow the class
+        clash = class_names.get(cname)  # `Camera = Camera()` would shadow the class
         if clash is not None:
             rep.error(doc.key_pos(*cpath),
-                      f"component name '{cname}' collides with component type '{clash}'",
+                      f"component name '{cname}' collides with "
+                      + (f"component type '{clash}'" if clash == cname else
+                         f"the Python class of component type '{clash}'"),
                       "the generated program uses type names as class names: name the "
                       f"component after its role, e.g. '{snake(clash)}1'")
             continue

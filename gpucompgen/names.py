@@ -5,6 +5,7 @@ from __future__ import annotations
 import builtins
 import keyword
 import re
+import sys
 
 NAME_RE = re.compile(r"[A-Za-z][A-Za-z0-9_]*\Z")
 MAX_NAME = 48
@@ -14,10 +15,42 @@ OPENCL_RESERVED = frozenset(["auto", "break", "case", "char", "const", "continue
 # Names the generated program itself uses at module level or in run().
 GENERATED_RESERVED = frozenset({
     "np", "cl", "runtime", "run", "main", "args", "argv", "frame", "frames", "context", "queue",
-    "sys", "Size", "components", "result", "KERNEL_DIR", "Path",
+    "sys", "Size", "components", "result", "KERNEL_DIR", "Path", "monitor", "profile",
+    "profiler",
     # module level of the generated program (a local of the same name would shadow them)
-    "LIB_DIR", "DESCRIPTION", "CpuToGpuAdapter", "GpuToCpuAdapter", "parts", "exc",
+    "LIB_DIR", "DESCRIPTION", "CpuToGpuAdapter", "GpuToCpuAdapter", "ZeroCopyCpuToGpuAdapter",
+    "ZeroCopyGpuToCpuAdapter", "parts", "exc", "annotations",
 })
+# Families of names run() makes: its queues, built programs and adapters.
+GENERATED_PATTERN = re.compile(r"(queue[0-9]+|[A-Za-z0-9_]+_program|"
+                               r"adapter[0-9]+_(cpu2gpu|gpu2cpu))\Z")
+
+# Members and locals of a generated GPU-aware component class other than those its ports
+# and parameters make (see member_names).
+CLASS_RESERVED = frozenset({
+    "self", "context", "queue", "program", "kernel", "profile", "event", "local_size",
+    "global_size", "scalar_args", "initialize", "config_gpu", "execute", "free_memory",
+    "wait_for", "ran", "grid", "tile", "block_x", "block_y", "block_z",
+    "np", "cl", "runtime", "Size",
+})
+
+# A system's name becomes <system>.py, whose folder comes first on sys.path when it runs:
+# it must not hide a module that the program or its runtime imports.
+MODULE_NAMES = frozenset(sys.stdlib_module_names) | {
+    "numpy", "pyopencl", "gpucompgen", "scipy", "PIL", "cv2", "yaml", "jinja2", "pytools",
+    "platformdirs", "siphash24", "typing_extensions"}
+
+
+def member_names(name: str, role: str) -> list[str]:
+    """What a GPU-aware component class makes of one of its parameter or port names.
+
+    role: "param" (self.<p>), "in" (argument <i>, self.<i>_size, self.<i>_gpu and the
+    local <i>_copied in standard mode) or "out" (self.<o>, self.<o>_size, self.<o>_gpu,
+    <o>_copied).
+    """
+    if role == "param":
+        return [name]
+    return [name, f"{name}_size", f"{name}_gpu", f"{name}_copied"]
 
 _RESERVED = (frozenset(keyword.kwlist) | frozenset(keyword.softkwlist) | frozenset(dir(builtins))
              | OPENCL_RESERVED | {"self"})
@@ -42,7 +75,7 @@ def name_problem(name: object, what: str, top_level: bool = False) -> str | None
     if len(name) > MAX_NAME:
         return f"{what} {name!r} is longer than {MAX_NAME} characters"
     if name in _RESERVED or name.lower() in OPENCL_RESERVED or (
-            top_level and name in GENERATED_RESERVED):
+            top_level and (name in GENERATED_RESERVED or GENERATED_PATTERN.match(name))):
         return f"{what} {name!r} is a reserved word in Python, OpenCL or generated code"
     return None
 
