@@ -16,7 +16,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from . import device as device_mod
-from .errors import Diagnostic, GpucompgenError, Reporter
+from .errors import Diagnostic, GpucompgenError, OutputError, Reporter
 from .model import load_system
 from .passes import MODES, System, run_passes
 from .render import HEADER_PREFIX, OutputFile, lib_dir_name, render, source_path
@@ -48,7 +48,18 @@ def compile_model(model_path: Path, out_dir: Path, mode: str = "gpu-aware",
     rep.raise_if_errors()
     system, warnings = run_passes(model, facts, mode, dump, execution, zero_copy)
     files = render(system, source_path(model_path, out_dir))
+    _must_compile(files[0])
     return BuildResult(system, files, warnings)
+
+
+def _must_compile(program: OutputFile) -> None:
+    """The last line of defence of the name checks: a program Python cannot compile is a
+    bug in gpucompgen, reported before anything is written."""
+    try:
+        compile(program.text, str(program.path), "exec")
+    except SyntaxError as exc:
+        raise RuntimeError(f"the generated program does not compile: {exc.msg} at line "
+                           f"{exc.lineno}: {(exc.text or '').strip()!r}") from None
 
 
 def owned_paths(system_name: str, out_dir: Path) -> tuple[Path, Path]:
@@ -83,12 +94,21 @@ def _generated(path: Path) -> bool:
 
 
 def write(result: BuildResult, out_dir: Path) -> list[Path]:
-    """Write all files; the old program and lib folder are replaced only once all is ready."""
+    """Write all files, all or nothing: everything is staged first, then the lib folder and
+    the program replace the old ones; if that fails, the old lib folder is put back."""
     name = result.system.model.name
     program, lib = owned_paths(name, out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    staging = Path(tempfile.mkdtemp(prefix=f".{name}.", dir=out_dir))
-    written = []
+    if out_dir.exists() and not out_dir.is_dir():
+        raise OutputError(f"output folder {out_dir} is a file")
+    if program.is_dir():
+        raise OutputError(f"{program} is a folder, where the program would go")
+    if lib.exists() and not lib.is_dir():
+        raise OutputError(f"{lib} is a file, where the kernels folder would go")
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+        staging = Path(tempfile.mkdtemp(prefix=f".{name}.", dir=out_dir))
+    except OSError as exc:
+        raise OutputError(f"cannot create output folder {out_dir}: {exc.strerror}") from None
     try:
         for f in result.files:
             target = staging / f.path
@@ -96,15 +116,22 @@ def write(result: BuildResult, out_dir: Path) -> list[Path]:
             target.write_text(f.text, encoding="utf-8", newline="\n")
         staged_lib = staging / lib_dir_name(result.system)
         staged_lib.mkdir(exist_ok=True)
+        old = staging / "old_lib"
         if lib.exists():
-            old = staging / "old_lib"
             os.replace(lib, old)
-        os.replace(staged_lib, lib)
-        os.replace(staging / program.name, program)
-        written = [out_dir / f.path for f in result.files]
+        try:
+            os.replace(staged_lib, lib)
+            os.replace(staging / program.name, program)
+        except OSError:
+            if old.exists():
+                shutil.rmtree(lib, ignore_errors=True)
+                os.replace(old, lib)
+            raise
+    except OSError as exc:
+        raise OutputError(f"cannot write into {out_dir}: {exc.strerror}") from None
     finally:
         shutil.rmtree(staging, ignore_errors=True)
-    return written
+    return [out_dir / f.path for f in result.files]
 
 
 def diff(result: BuildResult, out_dir: Path) -> str:

@@ -16,7 +16,7 @@ import traceback
 from pathlib import Path
 
 from . import __version__
-from .errors import GpucompgenError
+from .errors import GpucompgenError, OutputError
 from .model import EXECUTIONS, ZERO_COPY
 from .passes import MODES
 from .runtime import add_program_options
@@ -164,6 +164,9 @@ def main(argv: list[str] | None = None) -> int:
             print(f"gpucompgen {args.command}: error: {model}: {what}", file=sys.stderr)
             return 2
         return COMMANDS[args.command](args)
+    except OutputError as exc:
+        print(f"gpucompgen {args.command}: error: {exc}", file=sys.stderr)
+        return 2
     except GpucompgenError as exc:
         for d in exc.diagnostics:
             print(d.format(), file=sys.stderr)

@@ -30,6 +30,10 @@ class Diagnostic:
         return text
 
 
+class OutputError(Exception):
+    """An output path that cannot take what gpucompgen writes (a usage error, exit 2)."""
+
+
 class GpucompgenError(Exception):
     """The project's one error type: carries one or more diagnostics."""
 

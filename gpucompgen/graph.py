@@ -15,6 +15,7 @@ import shutil
 import subprocess
 from pathlib import Path
 
+from .errors import OutputError
 from .model import Endpoint
 from .passes import System
 
@@ -100,8 +101,13 @@ def write_graph(system: System, path: Path) -> None:
     if suffix not in FORMATS:
         raise ValueError(f"unknown graph format '{path.suffix}'; use one of {', '.join(FORMATS)}")
     text = dot_text(system)
+    if not path.parent.is_dir():
+        raise OutputError(f"cannot write {path}: folder {path.parent} does not exist")
     if suffix == ".dot":
-        path.write_text(text, encoding="utf-8")
+        try:
+            path.write_text(text, encoding="utf-8")
+        except OSError as exc:
+            raise OutputError(f"cannot write {path}: {exc.strerror}") from None
         return
     dot = shutil.which("dot")
     if dot is None:
@@ -111,4 +117,5 @@ def write_graph(system: System, path: Path) -> None:
     proc = subprocess.run([dot, f"-T{suffix[1:]}", "-o", str(path)], input=text.encode(),
                           capture_output=True, check=False)
     if proc.returncode != 0:
-        raise RuntimeError(f"dot failed: {proc.stderr.decode(errors='replace').strip()}")
+        raise OutputError(f"Graphviz's dot could not write {path}: "
+                          f"{proc.stderr.decode(errors='replace').strip()}")

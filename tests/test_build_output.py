@@ -53,7 +53,7 @@ def test_a_failed_write_keeps_the_old_output_and_leaves_no_staging(tmp_path, mon
         return real(self, *args, **kwargs)
 
     monkeypatch.setattr(Path, "write_text", failing)
-    with pytest.raises(OSError):
+    with pytest.raises(build_mod.OutputError, match="No space left on device"):
         build_mod.write(result, out)
     monkeypatch.undo()
     assert _snapshot(out) == before
@@ -93,3 +93,80 @@ def test_check_writes_nothing_and_exits_by_severity(tmp_path):
         proc = _gpucompgen(*args)
         assert proc.returncode == 2, (args, proc.stderr)
         assert "Traceback" not in proc.stderr
+
+
+@pytest.mark.parametrize("case,message", [
+    ("output-is-a-file", "gpucompgen build: error: output folder {out} is a file"),
+    ("program-is-a-folder", "gpucompgen build: error: {out}/vision_system.py is a folder, "
+                            "where the program would go"),
+    ("lib-is-a-file", "gpucompgen build: error: {out}/vision_system_lib is a file, where the "
+                      "kernels folder would go"),
+])
+def test_an_output_path_that_cannot_be_written_is_a_usage_error(tmp_path, case, message):
+    out = tmp_path / "gen"
+    if case == "output-is-a-file":
+        out.write_text("mine")
+    else:
+        out.mkdir()
+        if case == "program-is-a-folder":
+            (out / "vision_system.py").mkdir()
+        else:
+            (out / "vision_system_lib").write_text("mine")
+    before = _snapshot(tmp_path)
+    proc = _gpucompgen("build", MODEL, "-o", out, "--overwrite")
+    assert proc.returncode == 2
+    assert message.format(out=out) in proc.stderr
+    assert "Traceback" not in proc.stderr and "internal error" not in proc.stderr
+    assert _snapshot(tmp_path) == before
+    assert sorted(p.name for p in tmp_path.rglob("*")) == sorted(
+        p.name for p in tmp_path.rglob("*") if not p.name.startswith("."))  # no staging left
+
+
+def test_a_failing_final_rename_puts_the_old_output_back(tmp_path, monkeypatch):
+    """The lib folder is replaced first; if the program cannot follow, the old lib returns."""
+    out = tmp_path / "gen"
+    write(compile_model(MODEL, out), out)
+    before = _snapshot(out)
+    result = compile_model(MODEL, out)
+    kernel = result.files[1]  # a kernel file: the lib folder differs
+    result.files[1] = type(kernel)(kernel.path, kernel.text + "// changed\n")
+    real_replace = build_mod.os.replace
+
+    def failing_replace(src, dst):
+        if Path(dst).name == "vision_system.py":
+            raise PermissionError(13, "Permission denied")
+        return real_replace(src, dst)
+
+    monkeypatch.setattr(build_mod.os, "replace", failing_replace)
+    with pytest.raises(build_mod.OutputError, match="cannot write into .*: Permission denied"):
+        write(result, out)
+    assert _snapshot(out) == before
+    assert [p.name for p in out.iterdir() if p.name.startswith(".")] == []
+
+
+@pytest.mark.parametrize("target", ["missing/x.dot", "missing/x.svg"])
+def test_graph_into_a_missing_folder_is_a_usage_error(tmp_path, target):
+    proc = _gpucompgen("graph", MODEL, "-o", tmp_path / target)
+    assert proc.returncode == 2
+    assert f"cannot write {tmp_path / target}: folder {tmp_path / 'missing'} does not exist" \
+        in proc.stderr
+    assert "Traceback" not in proc.stderr
+
+
+def test_a_generated_program_that_would_not_compile_is_refused_before_writing(tmp_path,
+                                                                           monkeypatch):
+    """The names checks are the first defence; compiling the program is the last."""
+    real_render = build_mod.render
+
+    def broken_render(system, source):
+        files = real_render(system, source)
+        program = files[0]
+        files[0] = type(program)(program.path,
+                                 program.text.replace("def run(", "def run(frames, frames, ", 1))
+        return files
+
+    monkeypatch.setattr(build_mod, "render", broken_render)
+    with pytest.raises(RuntimeError, match="generated program does not compile: duplicate "
+                                           "argument 'frames'"):
+        compile_model(MODEL, tmp_path / "gen")
+    assert not (tmp_path / "gen").exists()
