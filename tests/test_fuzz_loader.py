@@ -23,7 +23,9 @@ TOKENS = ["{", "}", "[", "]", ":", ": ", "- ", "&a ", "*a", "<<: ", "!!python/na
           "9" * 30, "-1", "0", "type", "params", "components", "connections", "platform",
           "device", "gpu_settings", "{tile: 0}", "[1, 2]", "x'); import os; ('", "\x07", "é",
           "\ufeff", "\u2028", "->", ".", "camera1.image", "ImageMerger", "types: [x.yaml]",
-          "types: [../../etc/passwd]", "device: {profile: [1]}", "type: [a]"]
+          "types: [../../etc/passwd]", "device: {profile: [1]}", "type: [a]",
+          # escapes in double-quoted strings that decode to characters YAML forbids raw
+          '"\\x07"', '"\\e"', '"\\0"', '"\\ud800"', '"a\\x85b"', "1:00", "0b101", "1_000"]
 
 @st.composite
 def mutated(draw) -> str:
@@ -70,6 +72,8 @@ FUZZ = settings(max_examples=150, deadline=None,
 @example("")
 @example("[" * 100)
 @example("a: &x 1\nb: *x\n")
+@example('description: "a\\x07b\\e\\0"\n')  # once an internal error: ReaderError
+@example('a: "\\ud800"\n')
 @example("system: s\ncomponents: {a: {type: [1]}}\n")
 def test_load_text_returns_a_document_or_our_error(text):
     try:
