@@ -152,6 +152,7 @@ class SystemModel:
     execution: str = "parallel"
     # platform.zero_copy: "auto" (follow the device's unified memory) | "on" | "off"
     zero_copy: str = "auto"
+    thread_budget_pos: Pos | None = None
     platform_pos: Pos = Pos("")
 
 
@@ -782,7 +783,8 @@ def load_system(path: Path, display: str | None = None) -> SystemModel:
                        text_sha256=hashlib.sha256(path.read_bytes()).hexdigest(),
                        components=components, connections=connections, device=device,
                        device_pos=doc.pos("platform", "device"), gpu_overrides=overrides,
-                       thread_budget=budget, types=types, execution=execution,
+                       thread_budget=budget,
+                       thread_budget_pos=doc.pos("platform", "thread_budget"), types=types, execution=execution,
                        zero_copy=zero_copy, platform_pos=doc.pos("platform"),
                        device_positions={k: (doc.key_pos("platform", "device", k),
                                              doc.pos("platform", "device", k))

@@ -421,7 +421,16 @@ class AllocateGpu(Pass):
         (largest dimension first).  When nothing in an over-budget group can shrink, the
         budget is impossible: the error names the group.
         """
-        budget = system.model.thread_budget or system.device.total_threads
+        total = system.device.total_threads
+        asked = system.model.thread_budget
+        # the model's budget caps the device's total; it cannot raise it
+        budget = min(asked, total) if asked else total
+        if asked and asked > total:
+            rep.warning(system.model.thread_budget_pos,
+                        f"platform.thread_budget {asked:,} is more than device "
+                        f"'{system.device.name}' can hold resident ({total:,} threads); "
+                        f"using {total:,}", "lower thread_budget, or leave it out to use the "
+                        "device's total")
         system.thread_budget = budget
         system.concurrent = concurrent_groups(system)
         reported: set[tuple[str, ...]] = set()

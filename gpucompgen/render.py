@@ -408,7 +408,10 @@ def plan_lines(system: System) -> list[str]:
         f", {n_lanes} queue{'s' if n_lanes != 1 else ''}" if system.execution == "parallel"
         and system.lanes else ""))
     if system.concurrent:
-        source = "platform.thread_budget" if system.model.thread_budget else "device total"
+        asked = system.model.thread_budget
+        source = ("platform.thread_budget" if asked and asked <= system.thread_budget else
+                  "device total" if not asked else
+                  f"device total; platform.thread_budget {asked:,} is more")
         lines.append(f"thread budget: {system.thread_budget:,} ({source}); "
                      "GPU components that can run at the same time:")
         for group in system.concurrent:

@@ -20,8 +20,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from gpucompgen.build import compile_model
-from gpucompgen.device import PROFILES
-from gpucompgen.errors import GpucompgenError
+from gpucompgen.device import PROFILES, resolve
+from gpucompgen.errors import GpucompgenError, Reporter
 from gpucompgen.model import library_types
 
 
@@ -112,7 +112,9 @@ def _check_system(system, comps, conns, budget):
         assert s.block_x * s.block_y * s.block_z <= dev.max_work_group_size
         for v, limit in zip((s.block_x, s.block_y, s.block_z), dev.max_work_item_sizes):
             assert 1 <= v <= limit
-    cap = budget or dev.total_threads
+    # the model's budget caps the device's total, never raises it
+    cap = min(budget, dev.total_threads) if budget else dev.total_threads
+    assert system.thread_budget == cap
     for group in _antichains(gpu, _reach(comps, conns)):
         assert sum(_resident(system, n) for n in group) <= cap, group
 
@@ -137,10 +139,16 @@ def test_random_pipelines_stay_within_limits_and_budget(tmp_path_factory, pipe, 
         # (the device's total is the default budget, and small devices can miss it too)
         messages = [d.message for d in exc.errors]
         assert messages and all("over the thread budget" in m for m in messages), messages
-        model.write_text(yaml.safe_dump({"system": "rand", "platform": dict(
-            platform, thread_budget=10 ** 9), "components": comps, "connections": conns}))
+        facts = PROFILES[device] if isinstance(device, str) else resolve(
+            device, None, Reporter())
+        budget = min(budget, facts.total_threads) if budget else facts.total_threads
+        # sizes and GPU-setting limits do not depend on the budget: a device with room for
+        # every thread gives a system to read them from
+        roomy = {"profile": device if isinstance(device, str) else device["profile"],
+                 **({} if isinstance(device, str) else device), "compute_units": 10 ** 6}
+        model.write_text(yaml.safe_dump({"system": "rand", "platform": {"device": roomy},
+                                         "components": comps, "connections": conns}))
         system = compile_model(model, model.parent / "out").system  # for sizes
-        budget = budget or system.device.total_threads
         reach = _reach(comps, conns)
         types = library_types()
         for m in messages:
@@ -153,7 +161,7 @@ def test_random_pipelines_stay_within_limits_and_budget(tmp_path_factory, pipe, 
                                          and e.port == system.components[n].type.grid)]
                 t = max(types[comps[n]["type"]].gpu.tiles)
                 least += min(math.ceil(grid.width / t) * math.ceil(grid.height / t),
-                             system.device.total_threads)
+                             facts.total_threads)
             assert f"at least {least} resident threads" in m, (m, least)
             assert least > budget
         return
@@ -261,3 +269,18 @@ def test_valid_override_is_honoured_and_the_other_branch_makes_room(tmp_path):
     assert (s1.tile, s1.block_x, s1.block_y, s1.source) == (64, 8, 8, "model")
     assert s2.source == "shrunk to share the thread budget"
     assert _resident(system, "blur1") + _resident(system, "blur2") <= 16384
+
+
+def test_a_budget_above_the_device_total_is_capped_with_a_warning(tmp_path):
+    model = tmp_path / "big_budget.yaml"
+    model.write_text(BRANCHES.replace("  device: portable\n",
+                                      "  device: portable\n  thread_budget: 1000000\n"))
+    result = compile_model(model, tmp_path / "out")
+    total = PROFILES["portable"].total_threads
+    assert result.system.thread_budget == total
+    (warning,) = [w for w in result.warnings if "thread_budget" in w.message]
+    assert warning.message == (f"platform.thread_budget 1,000,000 is more than device "
+                               f"'{PROFILES['portable'].name}' can hold resident "
+                               f"({total:,} threads); using {total:,}")
+    assert (warning.line, warning.col) == (BRANCHES.splitlines().index("  device: portable")
+                                           + 2, 18)
