@@ -141,6 +141,54 @@ def test_stats_json_has_the_promised_fields(tmp_path):
         assert c["calls"] == 3 and c["max_seconds"] <= c["total_seconds"], name
 
 
+def _on_a_terminal(cmd: list[str], timeout: float = 300) -> tuple[int, str]:
+    """Run cmd with stdout and stderr on a pseudo-terminal; (exit code, all it wrote)."""
+    import pty
+    import select
+
+    master, slave = pty.openpty()
+    proc = subprocess.Popen(cmd, stdout=slave, stderr=slave, stdin=subprocess.DEVNULL,
+                            close_fds=True)
+    os.close(slave)
+    chunks = []
+    try:
+        while True:
+            ready, _, _ = select.select([master], [], [], timeout)
+            if not ready:
+                proc.kill()
+                raise AssertionError(f"no output for {timeout} s")
+            try:
+                data = os.read(master, 65536)
+            except OSError:  # EIO: the program closed the terminal
+                break
+            if not data:
+                break
+            chunks.append(data)
+    finally:
+        os.close(master)
+    return proc.wait(timeout=timeout), b"".join(chunks).decode("utf-8", "replace")
+
+
+def _screen_lines(output: str) -> list[str]:
+    """What each line shows: a carriage return starts the line over, ESC[K clears it."""
+    return [line.replace("\r\n", "").split("\r")[-1].replace("\x1b[K", "")
+            for line in output.replace("\r\n", "\n").split("\n")]
+
+
+def test_progress_on_a_terminal_never_shares_a_line_with_decisions():
+    """The progress line (stderr) is cleared before a component prints (stdout)."""
+    require_opencl()
+    code, output = _on_a_terminal([sys.executable, str(ROOT / "generated" / "vision_system.py"),
+                                   "--frames", "6"])
+    assert code == 0, output
+    assert "frames/s" in output, "a terminal shows progress"
+    shown = [line for line in _screen_lines(output) if line.strip()]
+    decisions = [line for line in shown if line.startswith("frame ")]
+    assert [d.split(":")[0] for d in decisions] == [f"frame {i}" for i in range(6)]
+    assert not [line for line in shown if "frames/s" in line and "frame " in
+                line.replace("frames", "")], shown
+
+
 def test_run_passes_the_program_options_through(tmp_path):
     require_opencl()
     proc = gpucompgen("run", VISION, "--frames", "2", "--quiet", "--decisions",

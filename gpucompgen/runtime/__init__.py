@@ -457,10 +457,26 @@ class Stopped(BaseException):
         self.signum = signum
 
 
+class _ClearsProgress:
+    """sys.stdout while a progress line is shown: whatever a component prints first clears
+    the line (it is redrawn with the next frame), so the two never share a line."""
+
+    def __init__(self, stdout, monitor: Monitor):
+        self._stdout, self._monitor = stdout, monitor
+
+    def write(self, text: str) -> int:
+        self._monitor.clear_progress()
+        return self._stdout.write(text)
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._stdout, name)
+
+
 class Monitor:
     """What a run reports besides the components' own output, and the runtime options.
 
-    - progress: frames and frames/s on one redrawn stderr line, only on a terminal;
+    - progress: frames and frames/s on one redrawn stderr line, only on a terminal (lines
+      the components print to stdout clear it first);
     - stats: with stats_path, host wall time around every execute() and transfer(),
       written as JSON when the run ends (fields: see write_stats); without it the
       components are not wrapped and the stream loop pays one call per frame;
@@ -482,12 +498,17 @@ class Monitor:
         self.frame_seconds: list[float] = []
         self._started = time.perf_counter()
         self._frame_start: float | None = None
-        self._drawn = 0.0
+        self._drawn = 0.0  # when the progress line was last drawn
+        self._shown = False  # whether it is on the screen now
+        self._stdout = None  # the real sys.stdout while _ClearsProgress stands in
 
     def attach(self, parts: dict[str, Any]) -> None:
         """Called by run() once every component and adapter is constructed."""
         self.parts = parts
         self._give_options(parts)
+        if self.progress and self._stdout is None:
+            self._stdout = sys.stdout
+            sys.stdout = _ClearsProgress(sys.stdout, self)
         if self.stats_path is not None:
             self.calls = {name: [] for name in parts}
             for name, obj in parts.items():
@@ -534,14 +555,25 @@ class Monitor:
             if self.progress and now - self._drawn >= 0.5:
                 self._drawn = now
                 rate = frames / max(now - self._started, 1e-9)
-                self.stream.write(f"\r{frames} frames, {rate:.1f} frames/s ")
+                if self._stdout is not None:
+                    self._stdout.flush()  # what components printed comes first
+                self.stream.write(f"\r{frames} frames, {rate:.1f} frames/s \033[K")
                 self.stream.flush()
+                self._shown = True
+
+    def clear_progress(self) -> None:
+        """Take the progress line off the screen (it returns with the next frame)."""
+        if self._shown:
+            self._shown = False
+            self._drawn = 0.0  # redraw at the next frame
+            self.stream.write("\r\033[K")
+            self.stream.flush()
 
     def close(self) -> None:
         """Called by run() after everything is freed, whether or not it failed."""
-        if self.progress and self._drawn:
-            self.stream.write("\r\033[K")
-            self.stream.flush()
+        if self._stdout is not None:
+            sys.stdout, self._stdout = self._stdout, None
+        self.clear_progress()
         if self.stats_path is not None:
             self.write_stats(self.stats_path)
 
