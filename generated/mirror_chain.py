@@ -183,33 +183,36 @@ def run(frames=None, context=None, monitor=None, profile=False):
         'mirror5.mirrored': 2_985_984,
     })
     vertical_mirror_program = runtime.build_program(
-        context, LIB_DIR / 'vertical_mirror.cl', 'VerticalMirror')
+        context, LIB_DIR / 'vertical_mirror.cl', 'mirror1, mirror2, mirror3, mirror4, mirror5 (VerticalMirror)')
 
-    source = StillImage(width=1152, height=864, seed=1, frames=0)
-    adapter1_cpu2gpu = CpuToGpuAdapter(context, queue)  # source.image -> mirror1.image
-    mirror1 = VerticalMirror(context, queue, vertical_mirror_program)
-    mirror2 = VerticalMirror(context, queue, vertical_mirror_program)
-    mirror3 = VerticalMirror(context, queue, vertical_mirror_program)
-    mirror4 = VerticalMirror(context, queue, vertical_mirror_program)
-    mirror5 = VerticalMirror(context, queue, vertical_mirror_program)
-    adapter2_gpu2cpu = GpuToCpuAdapter(context, queue)  # mirror5.mirrored -> sink.image
-    sink = FrameSink()
-    parts = {
-        'source': source,
-        'adapter1_cpu2gpu': adapter1_cpu2gpu,
-        'mirror1': mirror1,
-        'mirror2': mirror2,
-        'mirror3': mirror3,
-        'mirror4': mirror4,
-        'mirror5': mirror5,
-        'adapter2_gpu2cpu': adapter2_gpu2cpu,
-        'sink': sink,
-    }
-    monitor.attach(parts)
-    profiler = runtime.Profile(parts) if profile else None
-
-    frame = None  # while initializing
+    # every component and adapter, filled in as it is constructed; freed in reverse order
+    parts = dict.fromkeys([
+        'source',
+        'adapter1_cpu2gpu',
+        'mirror1',
+        'mirror2',
+        'mirror3',
+        'mirror4',
+        'mirror5',
+        'adapter2_gpu2cpu',
+        'sink',
+    ])
+    frame = None  # while constructing and initializing
     try:
+        source = parts['source'] = StillImage(width=1152, height=864, seed=1, frames=0)
+        # source.image -> mirror1.image
+        adapter1_cpu2gpu = parts['adapter1_cpu2gpu'] = CpuToGpuAdapter(context, queue)
+        mirror1 = parts['mirror1'] = VerticalMirror(context, queue, vertical_mirror_program)
+        mirror2 = parts['mirror2'] = VerticalMirror(context, queue, vertical_mirror_program)
+        mirror3 = parts['mirror3'] = VerticalMirror(context, queue, vertical_mirror_program)
+        mirror4 = parts['mirror4'] = VerticalMirror(context, queue, vertical_mirror_program)
+        mirror5 = parts['mirror5'] = VerticalMirror(context, queue, vertical_mirror_program)
+        # mirror5.mirrored -> sink.image
+        adapter2_gpu2cpu = parts['adapter2_gpu2cpu'] = GpuToCpuAdapter(context, queue)
+        sink = parts['sink'] = FrameSink()
+        monitor.attach(parts)
+        profiler = runtime.Profile(parts) if profile else None
+
         source_image_size = source.initialize()
         runtime.expect_size("source.image", source_image_size, Size(864, 1152, 3))
         adapter1_cpu2gpu.initialize(source_image_size, np.uint8)

@@ -241,33 +241,41 @@ def run(frames=None, context=None, monitor=None, profile=False):
         'detector.mask': 614_400,
     })
     image_merger_program = runtime.build_program(
-        context, LIB_DIR / 'image_merger.cl', 'ImageMerger')
+        context, LIB_DIR / 'image_merger.cl', 'merger (ImageMerger)')
     object_detector_program = runtime.build_program(
-        context, LIB_DIR / 'object_detector.cl', 'ObjectDetector')
+        context, LIB_DIR / 'object_detector.cl', 'detector (ObjectDetector)')
 
-    camera1 = Camera(width=640, height=480, seed=1, buoys=2, frames=0, folder='', video='')
-    adapter1_cpu2gpu = CpuToGpuAdapter(context, queue0)  # camera1.image -> merger.left
-    camera2 = Camera(width=640, height=480, seed=2, buoys=2, frames=0, folder='', video='')
-    adapter2_cpu2gpu = CpuToGpuAdapter(context, queue1)  # camera2.image -> merger.right
-    merger = ImageMerger(context, queue0, image_merger_program)
-    detector = ObjectDetector(context, queue0, object_detector_program, red_min=150, margin=80)
-    adapter3_gpu2cpu = GpuToCpuAdapter(context, queue0)  # detector.mask -> manager.mask
-    manager = VisionManager(min_area=30, stop_radius=60, print_decisions=True, decisions_file='')
-    parts = {
-        'camera1': camera1,
-        'adapter1_cpu2gpu': adapter1_cpu2gpu,
-        'camera2': camera2,
-        'adapter2_cpu2gpu': adapter2_cpu2gpu,
-        'merger': merger,
-        'detector': detector,
-        'adapter3_gpu2cpu': adapter3_gpu2cpu,
-        'manager': manager,
-    }
-    monitor.attach(parts)
-    profiler = runtime.Profile(parts) if profile else None
-
-    frame = None  # while initializing
+    # every component and adapter, filled in as it is constructed; freed in reverse order
+    parts = dict.fromkeys([
+        'camera1',
+        'adapter1_cpu2gpu',
+        'camera2',
+        'adapter2_cpu2gpu',
+        'merger',
+        'detector',
+        'adapter3_gpu2cpu',
+        'manager',
+    ])
+    frame = None  # while constructing and initializing
     try:
+        camera1 = parts['camera1'] = Camera(
+            width=640, height=480, seed=1, buoys=2, frames=0, folder='', video='')
+        # camera1.image -> merger.left
+        adapter1_cpu2gpu = parts['adapter1_cpu2gpu'] = CpuToGpuAdapter(context, queue0)
+        camera2 = parts['camera2'] = Camera(
+            width=640, height=480, seed=2, buoys=2, frames=0, folder='', video='')
+        # camera2.image -> merger.right
+        adapter2_cpu2gpu = parts['adapter2_cpu2gpu'] = CpuToGpuAdapter(context, queue1)
+        merger = parts['merger'] = ImageMerger(context, queue0, image_merger_program)
+        detector = parts['detector'] = ObjectDetector(
+            context, queue0, object_detector_program, red_min=150, margin=80)
+        # detector.mask -> manager.mask
+        adapter3_gpu2cpu = parts['adapter3_gpu2cpu'] = GpuToCpuAdapter(context, queue0)
+        manager = parts['manager'] = VisionManager(
+            min_area=30, stop_radius=60, print_decisions=True, decisions_file='')
+        monitor.attach(parts)
+        profiler = runtime.Profile(parts) if profile else None
+
         camera1_image_size = camera1.initialize()
         runtime.expect_size("camera1.image", camera1_image_size, Size(480, 640, 3))
         adapter1_cpu2gpu.initialize(camera1_image_size, np.uint8)

@@ -51,18 +51,17 @@ def environment() -> jinja2.Environment:
 
 
 def wrap_call(line: str, indent: int, width: int = 100) -> str:
-    """Break a long `x = f(a, b(...))` line after its first '(' (hand-written style)."""
-    if indent + len(line) <= width or "(" not in line:
+    """Fit `x = f(a, b(...))  # note` in width, hand-written style: a trailing comment that
+    does not fit goes on its own line above; code still too long breaks after its first
+    '('."""
+    if indent + len(line) <= width:
         return line
-    comment = ""
-    if "  # " in line:
-        line, comment = line.split("  # ", 1)
-        if indent + len(line) + len(comment) + 4 > width:
-            comment = ""
-    head, rest = line.split("(", 1)
-    pad = " " * (indent + 4)
-    tail = f"  # {comment}" if comment else ""
-    return f"{head}(\n{pad}{rest}{tail}"
+    code, comment = line.split("  # ", 1) if "  # " in line else (line, "")
+    above = f"# {comment}\n{' ' * indent}" if comment else ""
+    if indent + len(code) <= width or "(" not in code:
+        return above + code
+    head, rest = code.split("(", 1)
+    return f"{above}{head}(\n{' ' * (indent + 4)}{rest}"
 
 
 def comment_text(text: str) -> str:
@@ -179,10 +178,11 @@ def render(system: System, source: str) -> list[OutputFile]:
         t = inst.type
         args = [f"{k}={py_literal(inst.params[k])}" for k in t.params]
         if t.gpu_aware:
-            construct.append(f"{name} = {t.name}(context, {queue_of(name)}, {programs[t.name]}"
+            construct.append(f"{name} = parts[{name!r}] = {t.name}(context, {queue_of(name)}, "
+                             f"{programs[t.name]}"
                              + "".join(f", {a}" for a in args) + ")")
         else:
-            construct.append(f"{name} = {t.name}({', '.join(args)})")
+            construct.append(f"{name} = parts[{name!r}] = {t.name}({', '.join(args)})")
         in_sizes = [f"{system.output_vars[system.writers[Endpoint(name, p)]]}_size"
                     for p in t.inputs]
         outs = list(t.outputs)
@@ -201,7 +201,8 @@ def render(system: System, source: str) -> list[OutputFile]:
             a = by_source.get(Endpoint(name, p))
             if a is not None:
                 cls = adapter_class(a)
-                construct.append(f"{a.name} = {cls}(context, {queue_of(a.name)})  # {a.source} -> "
+                construct.append(f"{a.name} = parts[{a.name!r}] = {cls}(context, "
+                                 f"{queue_of(a.name)})  # {a.source} -> "
                                  + ", ".join(str(c) for c in a.consumers))
                 initialize.append(f"{a.name}.initialize({system.output_vars[a.source]}_size, "
                                   f"{np_dtype(a.size.dtype)})")
@@ -251,7 +252,9 @@ def render(system: System, source: str) -> list[OutputFile]:
         zero_copy_gpu2cpu=any(a.direction == "gpu2cpu" for a in zero_copy),
         parallel=system.execution == "parallel", queues=queues,
         queue_comment=queue_comment(system, n_lanes),
-        programs=[{"var": programs[t.name], "file": f"{t.snake}.cl", "type": t.name}
+        programs=[{"var": programs[t.name], "file": f"{t.snake}.cl",
+                   "users": f"{', '.join(n for n in system.order if system.components[n].type is t)}"
+                            f" ({t.name})"}
                   for t in gpu_types],
         construct=construct, initialize=initialize, configure=configure, loop=loop,
         parts=parts, device_buffers=device_buffers,

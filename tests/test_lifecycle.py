@@ -40,7 +40,7 @@ def run_program(program: Path, *args: str) -> subprocess.CompletedProcess:
 
 
 def lifecycle_model(tmp_path: Path, fail_at: int = -1, fail_free: bool = False,
-                    frames: int = 6) -> tuple[Path, Path]:
+                    frames: int = 6, fail_init: bool = False) -> tuple[Path, Path]:
     log = tmp_path / "free.log"
     program = build_model(tmp_path, f"""\
         system: lifecycle
@@ -50,6 +50,7 @@ def lifecycle_model(tmp_path: Path, fail_at: int = -1, fail_free: bool = False,
           flaky: {{type: Flaky, params: {{fail_at: {fail_at}, log: "{log.as_posix()}"}}}}
           detector: {{type: ObjectDetector}}
           recorder: {{type: Recorder, params: {{fail_free: {str(fail_free).lower()},
+                                               fail_init: {str(fail_init).lower()},
                                                log: "{log.as_posix()}"}}}}
         connections:
           - camera.image -> flaky.image
@@ -79,6 +80,18 @@ def test_component_failing_at_frame_k_is_named_and_everything_is_freed(tmp_path)
     assert log.read_text().splitlines() == ["free recorder", "free flaky"]
     debug = run_program(program, "--debug")
     assert debug.returncode == 1 and "Traceback" in debug.stderr
+
+
+def test_a_failing_constructor_is_named_and_what_was_built_is_freed(tmp_path):
+    require_opencl()
+    program, log = lifecycle_model(tmp_path, fail_init=True)
+    proc = run_program(program)
+    assert proc.returncode == 1
+    assert ("error: recorder failed while constructing: ValueError: injected failure to "
+            "construct") in proc.stderr
+    assert "Traceback" not in proc.stderr
+    # flaky (and the camera, detector and adapters) were built before it: freed
+    assert log.read_text().splitlines() == ["free flaky"]
 
 
 def test_one_failing_free_does_not_stop_the_others(tmp_path):
@@ -155,7 +168,7 @@ def test_broken_kernel_is_reported_before_the_first_frame(tmp_path):
     write(compile_model(DATA / "broken_kernel" / "broken.yaml", out), out)
     proc = run_program(out / "broken.py", "--frames", "3")
     assert proc.returncode == 1
-    assert "error: Broken: kernel file broken.cl failed to build" in proc.stderr
+    assert "error: shaper (Broken): kernel file broken.cl failed to build" in proc.stderr
     assert "undeclared_variable" in proc.stderr  # from the OpenCL build log
     assert "frame 0" not in proc.stdout
     assert "Traceback" not in proc.stderr

@@ -224,8 +224,10 @@ def test_zero_copy_follows_the_device_facts():
 def test_zero_copy_is_recorded_in_the_code_and_the_plan(tmp_path):
     result = compile_model(BRANCHES, tmp_path, zero_copy="on")
     text = result.files[0].text
-    assert "adapter1_cpu2gpu = ZeroCopyCpuToGpuAdapter(context, " in text
-    assert "adapter3_gpu2cpu = ZeroCopyGpuToCpuAdapter(context, " in text
+    assert "adapter1_cpu2gpu = parts['adapter1_cpu2gpu'] = ZeroCopyCpuToGpuAdapter(context, " \
+        in text
+    assert "adapter3_gpu2cpu = parts['adapter3_gpu2cpu'] = ZeroCopyGpuToCpuAdapter(context, " \
+        in text
     assert "adapter3_gpu2cpu.unmap()  # the device may write detector.mask again" in text
     assert "class CpuToGpuAdapter" not in text and "enqueue_copy" not in text
     assert "#   bytes copied between CPU and GPU per frame: 0\n" in text

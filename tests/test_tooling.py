@@ -42,10 +42,10 @@ def test_check_fails_after_a_model_edit_and_diff_writes_nothing(tmp_path):
     assert proc.returncode == 1
     assert "is stale" in proc.stderr
     assert "--- a/vision_system.py\n+++ b/vision_system.py\n" in proc.stdout
-    assert "-    detector = ObjectDetector(context, queue0, object_detector_program, " \
-           "red_min=150, margin=80)\n" in proc.stdout
-    assert "+    detector = ObjectDetector(context, queue0, object_detector_program, " \
-           "red_min=140, margin=80)\n" in proc.stdout
+    assert "-            context, queue0, object_detector_program, red_min=150, margin=80)\n" \
+        in proc.stdout
+    assert "+            context, queue0, object_detector_program, red_min=140, margin=80)\n" \
+        in proc.stdout
 
     proc = gpucompgen("build", "models/vision_system.yaml", "--diff", cwd=tmp_path)
     assert proc.returncode == 0 and "red_min=140" in proc.stdout
@@ -57,8 +57,16 @@ def test_check_fails_after_a_model_edit_and_diff_writes_nothing(tmp_path):
 
 
 def test_generated_code_passes_ruff(tmp_path):
-    out = tmp_path / "standard"
-    write(compile_model(VISION, out, "standard"), out)
+    """Every model, the tests' user models too (types without descriptions, user Python
+    components), in both modes and with copying or zero-copy adapters."""
+    systems = MODELS + sorted(p for p in (ROOT / "tests" / "data").glob("*/*.yaml")
+                              if p.read_text().startswith("system:"))
+    out = tmp_path / "builds"
+    for model in systems:
+        for mode, zero_copy in (("gpu-aware", "off"), ("gpu-aware", "on"), ("standard", "off")):
+            target = out / f"{model.stem}-{mode}-{zero_copy}"
+            write(compile_model(model, target, mode, zero_copy=zero_copy), target)
+    assert len(list(out.glob("*/*.py"))) == 3 * len(systems)
     for target in (ROOT / "generated", out):
         # the project's ruff settings, plus pycodestyle warnings (trailing whitespace)
         proc = subprocess.run([sys.executable, "-m", "ruff", "check", "--no-cache",

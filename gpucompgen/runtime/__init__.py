@@ -395,10 +395,16 @@ def component_failure(exc: BaseException, frame: int | None,
                       parts: dict[str, Any]) -> PipelineError:
     """Turn an exception raised by run() into a message naming who and when.
 
-    frame is None while the components are being initialized and configured.
+    frame is None while the components are being constructed, initialized and
+    configured; parts maps every planned name to its object, None until constructed, so
+    a constructor that raises is the first name still None.
     """
     who = failing_component(exc, parts)
     when = "while initializing" if frame is None else f"at frame {frame}"
+    if who is None and frame is None:
+        unbuilt = next((name for name, obj in parts.items() if obj is None), None)
+        if unbuilt is not None:
+            who, when = unbuilt, "while constructing"
     if isinstance(exc, PipelineError):
         text = str(exc)
         if who is None or text.startswith((f"{who}:", f"{who} ")):
@@ -415,6 +421,8 @@ def free_all(parts: dict[str, Any]) -> None:
     """
     failed = []
     for name in reversed(list(parts)):
+        if parts[name] is None:  # never constructed
+            continue
         try:
             parts[name].free_memory()
         except Exception as exc:

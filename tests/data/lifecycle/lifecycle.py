@@ -1,4 +1,5 @@
-"""Components for lifecycle tests: one raises at a chosen frame, one fails to free."""
+"""Components for lifecycle tests: one raises at a chosen frame, one fails to free or
+to construct."""
 
 
 def _log(path, line):
@@ -26,7 +27,9 @@ class Flaky:
 
 
 class Recorder:
-    def __init__(self, fail_free=False, log=""):
+    def __init__(self, fail_free=False, log="", fail_init=False):
+        if fail_init:
+            raise ValueError("injected failure to construct")
         self.fail_free, self.log = fail_free, log
         self.frames = 0
 
