@@ -132,7 +132,7 @@ def test_vision_manager_on_hand_made_masks():
     left[50:53, 250:253] = 255  # 9 px, smaller
     vm.execute(left)
     big = empty.copy()
-    big[0:80, 120:180] = 255  # 4800 px, radius ~39 → stop
+    big[0:80, 120:180] = 255  # 80 x 60 px: radius (79 + 59) / 4 = 34.5 → stop
     vm.execute(big)
     mid = empty.copy()
     mid[40:50, 140:150] = 255
@@ -143,5 +143,6 @@ def test_vision_manager_on_hand_made_masks():
     assert [d.action for d in vm.history] == ["search", "turn_left", "stop", "forward",
                                               "turn_right"]
     s = vm.history[1].target
-    assert (s.x, s.y, s.area) == (14.5, 14.5, 100)
+    assert (s.x, s.y, s.area, s.radius) == (14.5, 14.5, 100, 4.5)
+    assert vm.history[2].target.radius == 34.5
     assert len(vm.history[1].sightings) == 2

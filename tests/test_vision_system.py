@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 import os
 import subprocess
 import sys
@@ -35,7 +34,7 @@ def test_detections_match_synthetic_ground_truth(build, mode):
     require_opencl()
     result, out = build(MODEL, mode)
     module = load_generated(out / "vision_system.py", f"vision_{mode.replace('-', '_')}")
-    frames = 40
+    frames = 60  # the quick start's demo
     run = module.run(frames=frames)
     assert run.frames == frames
     manager = run.components["manager"]
@@ -50,12 +49,13 @@ def test_detections_match_synthetic_ground_truth(build, mode):
         for (sx, sy, sr), (tx, ty, tr) in zip(seen, sorted(truth)):
             # a digital disk centred on a pixel has its centroid exactly there
             assert (sx, sy) == (tx, ty), f"frame {f}"
-            assert abs(sr - tr) <= 1.0, f"frame {f}"
-            assert abs(math.pi * tr * tr - math.pi * sr * sr) / (math.pi * tr * tr) < 0.1
+            assert sr == tr, f"frame {f}"  # half the bounding box of a digital disk
         action, target = expected_decision(sorted(truth), 1280, 60)
         assert decision.action == action, f"frame {f}"
+    # the scene makes the robot change course: buoys drift nearer and farther, so the
+    # largest one moves between the thirds of the frame, and one comes close enough to stop
     actions = {d.action for d in manager.history}
-    assert len(actions) >= 2, "the synthetic scene should make the robot change course"
+    assert actions == {"forward", "turn_left", "turn_right", "stop"}, actions
 
 
 def test_generated_program_runs_from_the_command_line(tmp_path):

@@ -90,22 +90,36 @@ class Camera:
 
     # -- synthetic scene ----------------------------------------------------------------
     def ground_truth(self, frame: int) -> list[Buoy]:
-        """Where the buoys are in a synthetic frame: a pure function of seed and frame."""
+        """Where the buoys are in a synthetic frame: a pure function of seed and frame.
+
+        Each buoy bobs in its own lane of the frame (so buoys never touch) and drifts
+        nearer and farther: its radius grows from a far size to a near one and back, so
+        which buoy is largest, and whether one is close, changes over the stream.
+        """
         rng = np.random.default_rng([self.seed, 7919])
         lanes = max(self.buoys, 1)
         lane = self.width / lanes
         result = []
         for i in range(self.buoys):
-            radius = int(rng.integers(max(4, self.height // 40), max(5, self.height // 10) + 1))
-            radius = min(radius, int(lane // 2) - 3, self.height // 2 - 3)
-            if radius < 2:
+            far = int(rng.integers(max(4, self.height // 40), max(5, self.height // 12) + 1))
+            near = int(rng.integers(max(far + 1, self.height // 10),
+                                    max(far + 2, self.height // 7) + 1))
+            near = min(near, int(lane // 2) - 3, self.height // 2 - 3)
+            far = min(far, near)
+            if far < 2:
                 continue
             period = float(rng.uniform(40, 120))
             phase = float(rng.uniform(0, 2 * math.pi))
-            lo, hi = i * lane + radius + 2, (i + 1) * lane - radius - 3
+            approach = float(rng.uniform(50, 150))  # frames from far to near and back
+            approach_phase = float(rng.uniform(0, 2 * math.pi))
+            closeness = (0.5 + 0.5 * math.sin(2 * math.pi * frame / approach
+                                              + approach_phase)) ** 3
+            radius = round(far + (near - far) * closeness)
+            # bounds for the nearest size, so the disk stays in its lane and the frame
+            lo, hi = i * lane + near + 2, (i + 1) * lane - near - 3
             swing = (hi - lo) / 2
             x = lo + swing + swing * math.sin(2 * math.pi * frame / period + phase)
-            ylo, yhi = radius + 2, self.height - radius - 3
+            ylo, yhi = near + 2, self.height - near - 3
             ymid = float(rng.uniform(ylo, yhi))
             yamp = min(ymid - ylo, yhi - ymid, self.height / 8)
             y = ymid + yamp * math.sin(2 * math.pi * frame / (period * 1.7) + phase)

@@ -9,7 +9,6 @@ annotated_NNNNNN.png per frame, with Pillow), --quiet (no lines on stdout).
 from __future__ import annotations
 
 import json
-import math
 from collections import deque
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -27,7 +26,7 @@ class Sighting:
     x: float  # centroid column in the mask
     y: float  # centroid row
     area: int  # pixels
-    radius: float  # radius of a disk of that area
+    radius: float  # half the extent of its bounding box: exact for a disk
 
 
 @dataclass
@@ -108,10 +107,13 @@ class VisionManager:
             index = np.arange(1, count + 1)
             areas = ndimage.sum_labels(np.ones_like(labels), labels, index)
             centres = ndimage.center_of_mass(mask > 0, labels, index)
-            for area, (cy, cx) in zip(areas, centres):
+            boxes = ndimage.find_objects(labels)
+            for area, (cy, cx), (rows, cols) in zip(areas, centres, boxes):
                 if area >= self.min_area:
-                    sightings.append(Sighting(float(cx), float(cy), int(area),
-                                              math.sqrt(area / math.pi)))
+                    # a digital disk of radius r spans 2r + 1 pixels each way; its area is
+                    # a little under pi r^2, which would put r = 60 at 59.99
+                    radius = (rows.stop - rows.start + cols.stop - cols.start - 2) / 4
+                    sightings.append(Sighting(float(cx), float(cy), int(area), radius))
         sightings.sort(key=lambda s: (s.x, s.y))
         action, target = decide(sightings, mask.shape[1], self.stop_radius)
         decision = Decision(self.frame, action, target, sightings)
