@@ -1,10 +1,13 @@
 #!/usr/bin/env python3
 """Soak test of the generated vision system (not part of the default test suite: slow).
 
-1. Stream FRAMES frames through one run of the vision system; every SAMPLE frames record
-   the process's resident memory (RSS) and the number of live OpenCL buffers.
-   Pass: after warm-up (the first 10% of frames) RSS stays within --rss-slack MiB of its
-   warm-up value, and the live buffer count never changes while streaming.
+1. Stream FRAMES frames through one run of the vision system, once with copying adapters
+   and once with zero-copy adapters (which wrap a new host buffer every frame); every
+   SAMPLE frames record the process's resident memory (RSS) and the number of live OpenCL
+   buffers. Pass: after warm-up (the first 10% of frames) RSS stays within --rss-slack MiB
+   of its warm-up value; RSS fitted over the second half of the stream grows by less than
+   --max-growth MiB per FRAMES frames (a slow leak that the slack would hide); the live
+   buffer count never changes while streaming and is 0 after free.
 2. CYCLES times in one process: build the system, load the program, run a few frames,
    free. Pass: the live buffer count is 0 after every cycle, and RSS after the last cycle
    is within --rss-slack MiB of RSS after the first few cycles.
@@ -111,11 +114,20 @@ def _with_buffer(counter: BufferCounter):
     return ClWithCountedBuffer()
 
 
-def stream(work: Path, args) -> bool:
+def slope(points: list[tuple[int, float]]) -> float:
+    """Least-squares slope of y over x."""
+    n = len(points)
+    mx = sum(x for x, _ in points) / n
+    my = sum(y for _, y in points) / n
+    sxx = sum((x - mx) ** 2 for x, _ in points)
+    return sum((x - mx) * (y - my) for x, y in points) / sxx if sxx else 0.0
+
+
+def stream(work: Path, args, zero_copy: str) -> bool:
     model = work / "vision_system.yaml"
     model.write_text(model_text(args.width, args.height), encoding="utf-8")
-    out = work / "out"
-    write(compile_model(model, out), out)
+    out = work / f"out-{zero_copy}"
+    write(compile_model(model, out, zero_copy=zero_copy), out)
     counter = BufferCounter()
     module = load(out / "vision_system.py", counter)
     monitor = SamplingMonitor(args.sample, counter)
@@ -126,15 +138,22 @@ def stream(work: Path, args) -> bool:
     rss0 = warm[0][1]
     worst = max(abs(s[1] - rss0) for s in warm)
     buffers = {s[2] for s in monitor.samples}
-    print(f"stream: {result.frames} frames of 2 x {args.width}x{args.height} in "
-          f"{seconds:.0f} s ({result.frames / seconds:.1f} frames/s)")
+    late = [(f, rss) for f, rss, _ in monitor.samples if f >= args.frames // 2]
+    growth = slope(late) * args.frames if len(late) >= 3 else 0.0
+    adapters = "zero-copy" if zero_copy == "on" else "copying"
+    print(f"stream ({adapters} adapters): {result.frames} frames of 2 x "
+          f"{args.width}x{args.height} in {seconds:.0f} s ({result.frames / seconds:.1f} "
+          "frames/s)")
     print(f"  RSS after warm-up (frame {warm[0][0]}): {rss0:.1f} MiB; at the end "
           f"(frame {warm[-1][0]}): {warm[-1][1]:.1f} MiB; largest change {worst:.1f} MiB")
+    print(f"  RSS trend over the second half: {growth:+.2f} MiB per {args.frames} frames "
+          f"(limit {args.max_growth} MiB)")
     print(f"  live OpenCL buffers while streaming: {sorted(buffers)}; after free: "
           f"{counter.live} (created {counter.created})")
     for frame, rss, live in monitor.samples[:: max(1, len(monitor.samples) // 10)]:
         print(f"    frame {frame:6d}: RSS {rss:8.1f} MiB, live buffers {live}")
-    return worst <= args.rss_slack and len(buffers) == 1 and counter.live == 0
+    return (worst <= args.rss_slack and growth <= args.max_growth and len(buffers) == 1
+            and counter.live == 0)
 
 
 def cycles(work: Path, args) -> bool:
@@ -171,9 +190,14 @@ def main() -> int:
     p.add_argument("--cycles", type=int, default=50)
     p.add_argument("--cycle-frames", type=int, default=5)
     p.add_argument("--rss-slack", type=float, default=8.0, metavar="MIB")
+    p.add_argument("--max-growth", type=float, default=1.0, metavar="MIB",
+                   help="largest RSS growth per FRAMES frames, fitted over the second half")
+    p.add_argument("--adapters", choices=("both", "copying", "zero-copy"), default="both")
     args = p.parse_args()
+    forms = {"both": ("off", "on"), "copying": ("off",), "zero-copy": ("on",)}[args.adapters]
     with tempfile.TemporaryDirectory(prefix="gpucompgen-soak-") as tmp:
-        ok_stream = stream(Path(tmp), args)
+        streamed = [stream(Path(tmp), args, zero_copy) for zero_copy in forms]  # run all
+        ok_stream = all(streamed)
         ok_cycles = cycles(Path(tmp), args)
     print("PASS" if ok_stream and ok_cycles else "FAIL")
     return 0 if ok_stream and ok_cycles else 1
