@@ -500,6 +500,7 @@ def plot(figures: list[Figure], path: Path, device: str, frames: int) -> None:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    import matplotlib.ticker
 
     sizes = sorted({f.size for f in figures}, key=lambda s: s[0] * s[1])
     fig, axes = plt.subplots(1, len(sizes), figsize=(6 * len(sizes), 4.5), squeeze=False)
@@ -523,6 +524,11 @@ def plot(figures: list[Figure], path: Path, device: str, frames: int) -> None:
         # log scale: equal ratios are equal distances, and OpenCV's OpenCL path, many
         # times slower, does not flatten the other lines
         ax.set_yscale("log")
+        # plain numbers on the log axis ("3", "20"), not "4x10^0" on some panels only;
+        # between the powers of ten only 2, 3 and 5 are labelled
+        ax.yaxis.set_major_formatter(matplotlib.ticker.FuncFormatter(lambda v, _: f"{v:g}"))
+        ax.yaxis.set_minor_formatter(matplotlib.ticker.FuncFormatter(
+            lambda v, _: f"{v:g}" if f"{v:g}".lstrip("0.")[:1] in ("2", "3", "5") else ""))
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=8)
     fig.suptitle(f"Standard vs GPU-aware components on {device}, {frames} frames each",
