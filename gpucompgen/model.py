@@ -73,6 +73,20 @@ class GpuDecl:
     tiles: tuple[int, ...] = (8, 16, 32, 64)
     block_z: tuple[int, ...] = (1,)
     prefer: tuple[int, int, int, int] = (32, 16, 16, 1)
+    # block shape constraints of the kernel: at most this many threads per work-group
+    # (e.g. __local arrays sized for them), and block_x == block_y
+    max_threads: int | None = None
+    square: bool = False
+
+    def accepts(self) -> str:
+        """What the kernel accepts, for hints."""
+        parts = [f"tile {' or '.join(map(str, self.tiles))}",
+                 f"block_z {' or '.join(map(str, self.block_z))}"]
+        if self.max_threads:
+            parts.append(f"at most {self.max_threads} threads per work-group")
+        if self.square:
+            parts.append("square blocks (block_x == block_y)")
+        return ", ".join(parts)
 
 
 @dataclass
@@ -558,7 +572,8 @@ def _load_kernel(doc, rep, base, ctype: ComponentType, spec) -> None:
     else:
         ctype.cover = cover
     gspec = _expect_map(doc, rep, base + ("gpu",), spec.get("gpu"), "gpu")
-    _unknown_keys(doc, rep, base + ("gpu",), gspec, ("tiles", "block_z", "prefer"), "gpu")
+    _unknown_keys(doc, rep, base + ("gpu",), gspec,
+                  ("tiles", "block_z", "prefer", "max_threads", "square"), "gpu")
     decl = GpuDecl()
     tiles = gspec.get("tiles", list(decl.tiles))
     block_z = gspec.get("block_z", list(decl.block_z))
@@ -573,7 +588,21 @@ def _load_kernel(doc, rep, base, ctype: ComponentType, spec) -> None:
     for key, fallback in zip(SETTING_KEYS, decl.prefer):
         v = _positive_int(doc, rep, base + ("gpu", "prefer", key), prefer.get(key), key, fallback)
         values.append(v)
-    ctype.gpu = GpuDecl(tuple(sorted(set(tiles))), tuple(sorted(set(block_z))), tuple(values))
+    max_threads = None
+    if "max_threads" in gspec:
+        max_threads = _positive_int(doc, rep, base + ("gpu", "max_threads"),
+                                    gspec["max_threads"], "max_threads", None)
+    square = gspec.get("square", False)
+    if not isinstance(square, bool):
+        rep.error(doc.pos(*base, "gpu", "square"), "gpu.square must be true or false")
+        square = False
+    if square and values[1] != values[2]:
+        rep.error(doc.pos(*base, "gpu", "prefer") if prefer else doc.pos(*base, "gpu"),
+                  f"gpu.prefer of '{ctype.name}' has block {values[1]}x{values[2]}, but "
+                  "gpu.square asks for block_x == block_y",
+                  "prefer a square block such as block_x: 16, block_y: 16")
+    ctype.gpu = GpuDecl(tuple(sorted(set(tiles))), tuple(sorted(set(block_z))), tuple(values),
+                        max_threads, square)
 
 
 def _load_python(doc, rep, base, ctype: ComponentType, spec) -> None:

@@ -373,10 +373,8 @@ class AllocateGpu(Pass):
                     ("tile", "block_x", "block_y", "block_z"), decl.prefer))
                 problems = limit_problems(tile, bx, by, bz, decl, dev)
                 for p in problems:
-                    if "kernel accepts" in p:
-                        hint = (f"the kernel of '{inst.type.name}' accepts tile "
-                                f"{' or '.join(map(str, decl.tiles))} and block_z "
-                                f"{' or '.join(map(str, decl.block_z))}")
+                    if "kernel" in p:
+                        hint = f"the kernel of '{inst.type.name}' accepts {decl.accepts()}"
                     else:
                         hint = (f"device '{dev.name}' allows work-groups of at most "
                                 f"{dev.max_work_group_size} threads, "
@@ -392,15 +390,14 @@ class AllocateGpu(Pass):
             if bz not in decl.block_z:
                 bz = min(decl.block_z)
             source = "preferred" if system.mode == "gpu-aware" else "component's own"
-            while bx * by * bz > dev.max_work_group_size or bx > dev.max_work_item_sizes[0] \
+            threads = min(dev.max_work_group_size, decl.max_threads or dev.max_work_group_size)
+            while bx * by * bz > threads or bx > dev.max_work_item_sizes[0] \
                     or by > dev.max_work_item_sizes[1] or by > tile \
                     or bx > tile and inst.type.cover == "squares":
-                if bx >= by and bx > 1:
-                    bx //= 2
-                elif by > 1:
-                    by //= 2
-                else:
+                halved = _halve_block(bx, by, decl.square)
+                if halved is None:
                     break
+                bx, by = halved
                 source = "reduced to fit the device"
             problems = limit_problems(tile, bx, by, bz, decl, dev)
             if problems:
@@ -475,11 +472,8 @@ def _smaller(system: System, name: str) -> GpuSettings | None:
         if _resident(system, name, cand, capped=False) < now:
             return cand
     bx, by, bz = s.block_x, s.block_y, s.block_z
-    while bx * by > 1:
-        if bx >= by:
-            bx //= 2
-        else:
-            by //= 2
+    while (halved := _halve_block(bx, by, decl.square)) is not None:
+        bx, by = halved
         cand = GpuSettings(s.tile, bx, by, bz, source)
         if _resident(system, name, cand, capped=False) < now:
             return cand
@@ -541,12 +535,30 @@ def _resident(system: System, name: str, s: GpuSettings, capped: bool = True) ->
     return min(threads, system.device.total_threads) if capped else threads
 
 
+def _halve_block(bx: int, by: int, square: bool) -> tuple[int, int] | None:
+    """Half the block, largest dimension first (both at once for a square block), or None
+    when it cannot shrink."""
+    if square:
+        return (bx // 2, by // 2) if min(bx, by) > 1 else None
+    if bx >= by and bx > 1:
+        return bx // 2, by
+    if by > 1:
+        return bx, by // 2
+    return None
+
+
 def limit_problems(tile, bx, by, bz, decl, dev: DeviceFacts) -> list[str]:
     problems = []
     if tile not in decl.tiles:
         problems.append(f"tile {tile} is not one the kernel accepts {list(decl.tiles)}")
     if bz not in decl.block_z:
         problems.append(f"block_z {bz} is not one the kernel accepts {list(decl.block_z)}")
+    if decl.max_threads and bx * by * bz > decl.max_threads:
+        problems.append(f"block {bx}x{by}x{bz} = {bx * by * bz} threads is over the "
+                        f"{decl.max_threads} the kernel accepts")
+    if decl.square and bx != by:
+        problems.append(f"block {bx}x{by} is not square, and the kernel accepts only "
+                        "block_x == block_y")
     for axis, v, limit in zip("xyz", (bx, by, bz), dev.max_work_item_sizes):
         if v > limit:
             problems.append(f"block_{axis} {v} is over the device's {limit}")

@@ -284,3 +284,52 @@ def test_a_budget_above_the_device_total_is_capped_with_a_warning(tmp_path):
                                f"({total:,} threads); using {total:,}")
     assert (warning.line, warning.col) == (BRANCHES.splitlines().index("  device: portable")
                                            + 2, 18)
+
+
+SHAPED_TYPES = """\
+component_types:
+  Shaped:
+    kind: gpu-aware
+    inputs:
+      image: {memory: gpu, dtype: uint8, channels: 3}
+    outputs:
+      out: {memory: gpu, dtype: uint8, channels: 3}
+    kernel: {file: shaped.cl, function: shaped}
+    gpu:
+      tiles: [16, 32]
+      max_threads: 64
+      square: true
+      prefer: {tile: 16, block_x: 32, block_y: 32, block_z: 1}
+"""
+
+
+@pytest.mark.parametrize("device", ["nvidia-hopper", "portable", "embedded-igpu"])
+@pytest.mark.parametrize("budget", [None, 1024, 300])
+def test_block_shape_constraints_hold_when_fitting_and_sharing_the_budget(tmp_path, device,
+                                                                         budget):
+    """A type's max_threads and square hold for the preference cut down to fit, and while
+    two concurrent components shrink to share the budget."""
+    (tmp_path / "shaped.yaml").write_text(SHAPED_TYPES)
+    (tmp_path / "shaped.cl").write_text(
+        "__kernel void shaped(__global const uchar *image, __global uchar *out) {}\n")
+    platform = {"device": device} | ({"thread_budget": budget} if budget else {})
+    comps = {"camera1": {"type": "Camera", "params": {"width": 320, "height": 240}},
+             "camera2": {"type": "Camera", "params": {"width": 320, "height": 240, "seed": 2}},
+             "a": {"type": "Shaped"}, "b": {"type": "Shaped"},
+             "merger": {"type": "ImageMerger"}, "detector": {"type": "ObjectDetector"},
+             "manager": {"type": "VisionManager"}}
+    conns = ["camera1.image -> a.image", "camera2.image -> b.image", "a.out -> merger.left",
+             "b.out -> merger.right", "merger.merged -> detector.frame",
+             "detector.mask -> manager.mask"]
+    model = _write(tmp_path, "shaped_system", {"system": "shaped_system", "types": ["shaped.yaml"],
+                                                "platform": platform, "components": comps,
+                                                "connections": conns})
+    system = compile_model(model, tmp_path / "out").system
+    for name in ("a", "b"):
+        s = system.settings[name]
+        assert s.block_x == s.block_y, (name, s)
+        assert s.block_x * s.block_y * s.block_z <= 64, (name, s)
+    cap = min(budget, system.device.total_threads) if budget else system.device.total_threads
+    assert sum(_resident(system, n) for n in ("a", "b")) <= cap
+    if budget == 300:  # 2 x (10 x 8 work-groups of tile 32) = 160 groups: 1 thread each
+        assert [system.settings[n].block_x for n in ("a", "b")] == [1, 1]
