@@ -324,7 +324,7 @@ def cmd_devices(args) -> int:
 
     statuses = survey_devices()
     try:
-        chosen = select_device()
+        chosen = select_device(statuses)
         problem = next((s.problem for s in statuses if s.device == chosen), None)
         if problem:
             problem = (f"PYOPENCL_CTX={os.environ.get('PYOPENCL_CTX')} selects "

@@ -29,16 +29,13 @@ def _pin_device() -> str | None:
     if os.environ.get("PYOPENCL_CTX"):
         return None
     try:
-        from gpucompgen.runtime import NO_DEVICE_HINT, survey_devices
+        from gpucompgen.runtime import survey_devices, unusable_message
     except ImportError as exc:  # pyopencl or numpy missing
         return f"no OpenCL: {exc}"
     statuses = survey_devices()
     usable = [s for s in statuses if s.problem is None]
     if not usable:
-        if not statuses:
-            return f"no OpenCL device; {NO_DEVICE_HINT}"
-        tried = "; ".join(f"{s.ctx} {s.device.name.strip()}: {s.problem}" for s in statuses)
-        return f"no OpenCL device compiles kernels ({tried}); {NO_DEVICE_HINT}"
+        return unusable_message(statuses)
     pocl = [s for s in usable if "portable" in s.device.platform.name.lower()]
     os.environ["PYOPENCL_CTX"] = (pocl or usable)[0].ctx
     return None

@@ -115,12 +115,21 @@ NO_DEVICE_HINT = (
     "(the PyPI PoCL cannot compile for CPUs its LLVM does not know: 'unknown target CPU')")
 
 
-def select_device():
+def unusable_message(statuses: list[DeviceStatus]) -> str:
+    """Why none of these devices can be used, and what to install."""
+    if not statuses:
+        return f"no OpenCL device found; {NO_DEVICE_HINT}"
+    tried = "; ".join(f"{s.ctx} {s.device.name.strip()}: {s.problem}" for s in statuses)
+    return f"no OpenCL device can compile kernels ({tried}); {NO_DEVICE_HINT}"
+
+
+def select_device(statuses: list[DeviceStatus] | None = None):
     """The device PYOPENCL_CTX selects, else the first device that compiles OpenCL C.
 
     pyopencl's own default takes the first device, even one whose compiler cannot build
     anything (a PoCL whose LLVM does not know the host CPU); skipping such a device keeps
-    ``python generated/x.py`` working wherever some OpenCL device works.
+    ``python generated/x.py`` working wherever some OpenCL device works.  statuses, from
+    survey_devices(), saves probing the devices again.
     """
     import pyopencl as cl
 
@@ -131,14 +140,12 @@ def select_device():
             raise PipelineError(
                 f"PYOPENCL_CTX={os.environ['PYOPENCL_CTX']!r} selects no usable OpenCL "
                 f"device ({exc}); 'gpucompgen devices' lists the devices") from None
-    statuses = survey_devices(stop_at_first_usable=True)
+    if statuses is None:
+        statuses = survey_devices(stop_at_first_usable=True)
     for status in statuses:
         if status.problem is None:
             return status.device
-    if not statuses:
-        raise PipelineError(f"no OpenCL device found; {NO_DEVICE_HINT}")
-    tried = "; ".join(f"{s.ctx} {s.device.name.strip()}: {s.problem}" for s in statuses)
-    raise PipelineError(f"no OpenCL device can compile kernels ({tried}); {NO_DEVICE_HINT}")
+    raise PipelineError(unusable_message(statuses))
 
 
 def create_context():
