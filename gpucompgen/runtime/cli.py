@@ -1,0 +1,80 @@
+"""The command line of every generated program."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import traceback
+from collections.abc import Callable
+
+from .errors import PipelineError, Stopped
+from .lifecycle import Result
+from .monitor import Monitor
+from .signals import _stop_on_signals
+
+
+def add_program_options(parser: argparse.ArgumentParser) -> None:
+    """The generated program's options; 'gpucompgen run' offers the same and passes them on."""
+    parser.add_argument("--frames", type=int, default=None, metavar="N",
+                        help="stop after N frames (default: until a source ends its stream)")
+    parser.add_argument("-q", "--quiet", action="store_true",
+                        help="print nothing but errors (no progress, decisions or summary)")
+    parser.add_argument("--stats-json", metavar="FILE",
+                        help="time every execute() and transfer() and write frames, "
+                             "per-frame and per-component timings to FILE as JSON")
+    parser.add_argument("--decisions", metavar="FILE",
+                        help="write the sinks' decisions to FILE: JSON lines if it ends in "
+                             ".jsonl or .json, else one text line per frame")
+    parser.add_argument("--save-images", metavar="DIR",
+                        help="write the sinks' images (masks, annotated frames) as PNG to DIR")
+    parser.add_argument("--profile", action="store_true",
+                        help="time every kernel and copy with OpenCL profiling events and "
+                             "count the bytes moved between CPU and GPU (printed at the end)")
+
+
+def main(run: Callable[..., Result], description: str, argv: list[str] | None = None) -> int:
+    """Command line of a generated program: run it, print errors without tracebacks.
+
+    Exit codes: 0 done, 1 a component or the device failed, 2 usage, 130 SIGINT,
+    143 SIGTERM (128 + the signal's number).
+    """
+    parser = argparse.ArgumentParser(
+        description=description,
+        epilog="Exit codes: 0 done, 1 a component or the device failed, 2 usage, "
+               "130 on SIGINT, 143 on SIGTERM. Select the OpenCL device with PYOPENCL_CTX.")
+    add_program_options(parser)
+    parser.add_argument("--debug", action="store_true", help="show tracebacks on errors")
+    args = parser.parse_args(argv)
+    if args.frames is not None and args.frames < 0:
+        parser.error("--frames must be 0 or more")
+    monitor = Monitor(progress=False if args.quiet else None, stats_path=args.stats_json,
+                      options={"decisions": args.decisions, "save_images": args.save_images,
+                               "quiet": args.quiet})
+    restore = _stop_on_signals()
+    try:
+        result = run(frames=args.frames, monitor=monitor, profile=args.profile)
+    except Stopped as exc:
+        print(f"stopped by {exc} after {monitor.frames} frame(s); every component was freed",
+              file=sys.stderr)
+        return 128 + exc.signum
+    except KeyboardInterrupt:
+        print(f"interrupted after {monitor.frames} frame(s)", file=sys.stderr)
+        return 130
+    except PipelineError as exc:
+        if args.debug:
+            traceback.print_exc()
+        print(f"error: {exc}", file=sys.stderr)
+        return 1
+    except Exception as exc:  # a bug outside any component: still no traceback by default
+        if args.debug:
+            traceback.print_exc()
+        print(f"error: {type(exc).__name__}: {exc}", file=sys.stderr)
+        print("  (run with --debug for the traceback)", file=sys.stderr)
+        return 1
+    finally:
+        restore()
+    if result.profile is not None:
+        print(result.profile.report(result.frames), file=sys.stderr)
+    if not args.quiet:
+        print(f"processed {result.frames} frame(s)", file=sys.stderr)
+    return 0
