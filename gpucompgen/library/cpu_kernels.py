@@ -75,22 +75,27 @@ def box_blur(image: np.ndarray, *, radius: int, out: np.ndarray | None = None) -
     (sum + n // 2) // n for the n = (2 radius + 1)^2 pixels, as the kernel computes it.
     Any radius >= 0, also one larger than the frame.
 
-    The window sums are separable: sums along rows, then along columns, each the
-    difference of two running sums. They run in uint16: a window's sum is at most
-    15 * 15 * 255 = 57,375 (radius 7, the type's maximum), so the running sums may wrap
-    around but their differences are exact (arithmetic modulo 65,536). Larger radii
-    than the type allows use int64.
+    The window sums are separable: each pixel's sum along its row's window (one shifted
+    copy added per column offset), then the sums of those along the column's window.
+    They fit uint16: a window's sum is at most 15 * 15 * 255 = 57,375 at radius 7, the
+    type's maximum (radii beyond it sum in int64).
     """
     _check_image("BoxBlur", "image", image, 3)
     radius = int(radius)
     if radius < 0:
         raise ValueError(f"BoxBlur: radius must be 0 or more, not {radius}")
+    height, width = image.shape[:2]
     side = 2 * radius + 1
     n = side * side
     acc = np.uint16 if n * 255 + n // 2 < 2 ** 16 else np.int64
+    # clamped coordinates: the edge pixels repeated radius times beyond each border
     padded = np.pad(image, ((radius, radius), (radius, radius), (0, 0)), mode="edge")
-    rows = _window_sums(padded, side, axis=1, dtype=acc)  # (h + 2r) x w x 3
-    sums = _window_sums(rows, side, axis=0, dtype=acc)  # h x w x 3
+    rows = padded[:, :width].astype(acc)  # (height + 2 radius) x width x 3
+    for dx in range(1, side):
+        rows += padded[:, dx:dx + width]
+    sums = rows[:height].copy()  # height x width x 3
+    for dy in range(1, side):
+        sums += rows[dy:dy + height]
     sums += n // 2
     sums //= n
     return _store(sums, out, "BoxBlur", "smooth")
@@ -105,19 +110,6 @@ CPU_IMPLEMENTATIONS = {
 
 
 # -- helpers --------------------------------------------------------------------------
-def _window_sums(values: np.ndarray, side: int, axis: int, dtype) -> np.ndarray:
-    """Sums of `side` consecutive elements along axis (modulo the range of dtype)."""
-    shape = list(values.shape)
-    shape[axis] += 1
-    running = np.zeros(shape, dtype)
-    inside = [slice(None)] * values.ndim
-    inside[axis] = slice(1, None)
-    np.cumsum(values, axis=axis, dtype=dtype, out=running[tuple(inside)])
-    upper, lower = [slice(None)] * values.ndim, [slice(None)] * values.ndim
-    upper[axis], lower[axis] = slice(side, None), slice(None, -side)
-    return running[tuple(upper)] - running[tuple(lower)]
-
-
 def _check_image(type_name: str, port: str, array: np.ndarray, channels: int) -> None:
     if not isinstance(array, np.ndarray) or array.dtype != np.uint8:
         dtype = getattr(array, "dtype", type(array).__name__)
@@ -143,5 +135,5 @@ def _store(values: np.ndarray, out: np.ndarray | None, type_name: str,
     if out is None:
         return np.ascontiguousarray(values, dtype=np.uint8)
     target = _output(out, values.shape, type_name, port)
-    np.copyto(target, values, casting="unsafe")  # values fit: checked by the caller
+    np.copyto(target, values, casting="unsafe")  # the values are 0..255
     return target
