@@ -48,7 +48,6 @@ import sys
 from pathlib import Path
 
 import numpy as np
-import pyopencl as cl
 
 from gpucompgen import runtime
 from gpucompgen.library.frame_sink import FrameSink
@@ -72,8 +71,8 @@ class VerticalMirror(runtime.KernelComponent):
     # cv2.flip(image, 0). Copies whole rows, 16 bytes at a time where rows allow.
 
     function = 'vertical_mirror'
-    inputs = {'image': np.uint8}
-    outputs = {'mirrored': np.uint8}
+    inputs = (('image', np.uint8),)
+    outputs = (('mirrored', np.uint8),)
 
     def output_sizes(self, image):
         """Input sizes in, output sizes out (the type's size expressions)."""

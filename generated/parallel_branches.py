@@ -48,7 +48,6 @@ import sys
 from pathlib import Path
 
 import numpy as np
-import pyopencl as cl
 
 from gpucompgen import runtime
 from gpucompgen.library.camera import Camera
@@ -69,8 +68,8 @@ class BoxBlur(runtime.KernelComponent):
     # edges clamped, rounded half up (integer arithmetic, bit-exact).
 
     function = 'box_blur'
-    inputs = {'image': np.uint8}
-    outputs = {'smooth': np.uint8}
+    inputs = (('image', np.uint8),)
+    outputs = (('smooth', np.uint8),)
 
     def output_sizes(self, image):
         """Input sizes in, output sizes out (the type's size expressions)."""
@@ -88,8 +87,8 @@ class ImageMerger(runtime.KernelComponent):
     # Places two frames of the same height side by side (left | right).
 
     function = 'image_merger'
-    inputs = {'left': np.uint8, 'right': np.uint8}
-    outputs = {'merged': np.uint8}
+    inputs = (('left', np.uint8), ('right', np.uint8))
+    outputs = (('merged', np.uint8),)
 
     def output_sizes(self, left, right):
         """Input sizes in, output sizes out (the type's size expressions)."""
@@ -108,8 +107,8 @@ class ObjectDetector(runtime.KernelComponent):
     # blue by at least margin, else black (0).
 
     function = 'object_detector'
-    inputs = {'frame': np.uint8}
-    outputs = {'mask': np.uint8}
+    inputs = (('frame', np.uint8),)
+    outputs = (('mask', np.uint8),)
 
     def output_sizes(self, frame):
         """Input sizes in, output sizes out (the type's size expressions)."""

@@ -43,7 +43,6 @@ import sys
 from pathlib import Path
 
 import numpy as np
-import pyopencl as cl
 
 from gpucompgen import runtime
 from gpucompgen.library.camera import Camera
@@ -63,8 +62,8 @@ class ImageMerger(runtime.KernelComponent):
     # Places two frames of the same height side by side (left | right).
 
     function = 'image_merger'
-    inputs = {'left': np.uint8, 'right': np.uint8}
-    outputs = {'merged': np.uint8}
+    inputs = (('left', np.uint8), ('right', np.uint8))
+    outputs = (('merged', np.uint8),)
 
     def output_sizes(self, left, right):
         """Input sizes in, output sizes out (the type's size expressions)."""
@@ -83,8 +82,8 @@ class ObjectDetector(runtime.KernelComponent):
     # blue by at least margin, else black (0).
 
     function = 'object_detector'
-    inputs = {'frame': np.uint8}
-    outputs = {'mask': np.uint8}
+    inputs = (('frame', np.uint8),)
+    outputs = (('mask', np.uint8),)
 
     def output_sizes(self, frame):
         """Input sizes in, output sizes out (the type's size expressions)."""

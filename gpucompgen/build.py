@@ -16,10 +16,10 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from . import device as device_mod
-from .errors import Diagnostic, GpucompgenError, OutputError, Reporter
-from .model import load_system
 from .backend.opencl.render import HEADER_PREFIX, OutputFile, render, source_path
+from .errors import Diagnostic, GpucompgenError, OutputError, Reporter
 from .ir import MODES, System
+from .model import load_system
 from .passes import run_passes
 from .passes.lower import lib_dir_name
 

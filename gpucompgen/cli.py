@@ -17,8 +17,8 @@ from pathlib import Path
 
 from . import __version__
 from .errors import GpucompgenError, OutputError
-from .model import EXECUTIONS, ZERO_COPY
 from .ir import MODES
+from .model import EXECUTIONS, ZERO_COPY
 from .runtime import add_program_options
 
 EPILOG = """\

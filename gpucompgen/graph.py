@@ -16,8 +16,8 @@ import subprocess
 from pathlib import Path
 
 from .errors import OutputError
-from .model import Endpoint
 from .ir import AdapterNode, ComponentNode, System
+from .model import Endpoint
 
 FORMATS = (".dot", ".svg", ".png")
 

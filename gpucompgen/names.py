@@ -35,7 +35,8 @@ CLASS_RESERVED = frozenset({
     "np", "cl", "runtime", "Size",
     # runtime.KernelComponent's members
     "function", "inputs", "outputs", "output_sizes", "sizes", "buffers", "hosts",
-    "arguments", "copies_own_data", "host_visible", "settings_source",
+    "arguments", "copies_own_data", "host_visible", "settings_source", "_inputs",
+    "_outputs", "_slots",
 })
 
 # A system's name becomes <system>.py, whose folder comes first on sys.path when it runs:

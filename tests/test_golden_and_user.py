@@ -83,8 +83,7 @@ def test_user_types_build_and_run(build):
         frame = cam.execute().astype(int)
         assert mean == pytest.approx(np.minimum(frame + 40, 255).mean(), abs=1e-9)
     # the settings came from the user's declaration
-    assert "brighten.config_gpu(tile=16, block_x=8, block_y=8, block_z=1)" in \
-        (out / "bright.py").read_text()
+    assert "tile=16, local_size=(8, 8, 1), global_size=" in (out / "bright.py").read_text()
 
 
 def test_build_refuses_to_overwrite_foreign_files(tmp_path):

@@ -18,8 +18,9 @@ from .sizes import Size
 
 class KernelComponent:
     function: ClassVar[str] = ""
-    inputs: ClassVar[dict[str, Any]] = {}  # port -> numpy element type
-    outputs: ClassVar[dict[str, Any]] = {}
+    # (port, numpy element type) in the type's order
+    inputs: ClassVar[tuple[tuple[str, Any], ...]] = ()
+    outputs: ClassVar[tuple[tuple[str, Any], ...]] = ()
 
     def __init__(self, context, queue, program, *, copies_own_data: bool = False,
                  host_visible: bool = False, **params: Any):
@@ -37,6 +38,7 @@ class KernelComponent:
         self.event = None  # of the last kernel enqueued
         for name, value in params.items():
             setattr(self, name, value)
+        self._inputs, self._outputs = dict(self.inputs), dict(self.outputs)
         self.sizes: dict[str, Size] = {}
         self.buffers: dict[str, Any] = {}  # device buffers by port
         self.hosts: dict[str, Any] = {}  # host arrays of outputs (copies_own_data)
@@ -49,23 +51,23 @@ class KernelComponent:
         import numpy as np
         import pyopencl as cl
 
-        for port, size in zip(self.inputs, inputs):
+        for port, size in zip(self._inputs, inputs):
             self.sizes[port] = Size(*size)
         out_sizes = list(self.output_sizes(*inputs))
-        for port, size in zip(self.outputs, out_sizes):
+        for port, size in zip(self._outputs, out_sizes):
             self.sizes[port] = size
         mf = cl.mem_flags
         if self.copies_own_data:
-            for port, dtype in self.inputs.items():
+            for port, dtype in self._inputs.items():
                 self.buffers[port] = cl.Buffer(self.context, mf.READ_ONLY,
                                                self.sizes[port].nbytes(dtype))
-            for port, dtype in self.outputs.items():
+            for port, dtype in self._outputs.items():
                 self.buffers[port] = cl.Buffer(self.context, mf.WRITE_ONLY,
                                                self.sizes[port].nbytes(dtype))
                 self.hosts[port] = np.empty(self.sizes[port].shape, dtype)
         else:
             flags = mf.READ_WRITE | (mf.ALLOC_HOST_PTR if self.host_visible else 0)
-            for port, dtype in self.outputs.items():
+            for port, dtype in self._outputs.items():
                 self.buffers[port] = cl.Buffer(self.context, flags,
                                                self.sizes[port].nbytes(dtype))
         return out_sizes[0] if len(out_sizes) == 1 else tuple(out_sizes)
@@ -78,7 +80,7 @@ class KernelComponent:
         _check_work_group(self.kernel, self.queue.device, local_size, type(self).__name__,
                           settings_source)
         self.arguments = list(arguments)
-        inputs = list(self.inputs)
+        inputs = [port for port, _ in self.inputs]
         self._slots = []  # (argument index, input index) filled in by execute()
         for i, arg in enumerate(self.arguments):
             if isinstance(arg, str):
@@ -93,19 +95,19 @@ class KernelComponent:
 
         if self.copies_own_data:
             copied_in = [cl.enqueue_copy(self.queue, self.buffers[port], np.ascontiguousarray(x))
-                         for port, x in zip(self.inputs, inputs)]
+                         for port, x in zip(self._inputs, inputs)]
             self.kernel.set_args(*self.arguments)
             ran = cl.enqueue_nd_range_kernel(self.queue, self.kernel, self.global_size,
                                              self.local_size)
             copied_out = [cl.enqueue_copy(self.queue, self.hosts[port], self.buffers[port])
-                          for port in self.outputs]
+                          for port in self._outputs]
             if self.profile is not None:
-                for port, event in zip(self.inputs, copied_in):
+                for port, event in zip(self._inputs, copied_in):
                     self.profile.copy(self, "cpu2gpu", event, self.buffers[port].size)
                 self.profile.kernel(self, ran)
-                for port, event in zip(self.outputs, copied_out):
+                for port, event in zip(self._outputs, copied_out):
                     self.profile.copy(self, "gpu2cpu", event, self.hosts[port].nbytes)
-            results = [self.hosts[port] for port in self.outputs]
+            results = [self.hosts[port] for port in self._outputs]
         else:
             args = list(self.arguments)
             for i, k in self._slots:
@@ -115,12 +117,12 @@ class KernelComponent:
                                                     self.local_size, wait_for=wait_for)
             if self.profile is not None:
                 self.profile.kernel(self, self.event)
-            results = [self.buffers[port] for port in self.outputs]
+            results = [self.buffers[port] for port, _ in self.outputs]
         return results[0] if len(results) == 1 else tuple(results)
 
     def free_memory(self):
         self.hosts.clear()
-        for port in list(self.outputs) + list(self.inputs):
+        for port, _ in self.outputs + self.inputs:
             buffer = self.buffers.pop(port, None)
             if buffer is not None:
                 buffer.release()

@@ -45,6 +45,7 @@ def environment() -> jinja2.Environment:
     env.filters["number"] = lambda n: f"{n:_}"
     env.filters["kwargs"] = keyword_arguments
     env.filters["py_text"] = py_text
+    env.filters["pairs"] = lambda ports: [f"({p!r}, np.{dtype})" for p, dtype in ports]
     env.globals["fit"] = fit
     env.globals["comment_lines"] = comment_lines
     env.globals["argument_groups"] = argument_groups
