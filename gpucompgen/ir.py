@@ -368,8 +368,8 @@ def build_system(model: SystemModel, device: DeviceFacts, mode: str = "gpu-aware
 
 def dump(system: System) -> str:
     """The whole IR as text: every node with its ports, every edge, every decision."""
-    lines = [f"system {system.name} (mode {system.mode}, execution {system.execution}, "
-             f"zero-copy {'on' if system.zero_copy else 'off'}, device {system.device.name})"]
+    lines = [(f"system {system.name} (mode {system.mode}, execution {system.execution}, "
+              f"zero-copy {'on' if system.zero_copy else 'off'}, device {system.device.name})")]
     if system.done:
         lines.append(f"  after: {', '.join(system.done)}")
     names = system.order or list(system.nodes)

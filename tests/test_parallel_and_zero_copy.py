@@ -185,9 +185,8 @@ def test_gpu_to_cpu_adapter_never_hands_out_a_frame_still_being_written(
     """A slow kernel writes the buffer; the adapter's result must be its final contents."""
     import pyopencl as cl
 
-    from gpucompgen.runtime import Size
-
     from gpucompgen import runtime
+    from gpucompgen.runtime import Size
 
     cls = runtime.ZeroCopyGpuToCpuAdapter if zero_copy == "on" else runtime.GpuToCpuAdapter
     producer_queue = cl.CommandQueue(cl_context)
@@ -341,7 +340,7 @@ def test_memory_check_counts_what_the_plan_says_is_on_the_device(tmp_path, model
     peak = int(re.search(r"peak device memory: ([\d,]+) bytes", text).group(1).replace(",", ""))
     # the program's start-up check lists the same buffers the plan counts
     checked = re.search(r"check_device_memory\(context.devices\[0\], \{(.*?)\}\)",
-                        result.files[0].text, re.S)
+                        result.files[0].text, re.DOTALL)
     listed = sum(int(n.replace("_", "")) for n in re.findall(r": ([\d_]+),", checked.group(1))) \
         if checked else 0
     assert sum(b.nbytes for b in plan.device_buffers()) == peak == listed
