@@ -31,7 +31,8 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 #   adapter2_gpu2cpu (mirror5.mirrored)  host    864x1152x3 uint8  2,985,984
 #
 #   device: portable OpenCL 1.2 device
-#   peak device memory: 17,915,904 bytes; peak host memory: 5,971,968 bytes (all allocated at start)
+#   peak device memory: 17,915,904 bytes; peak host memory: 5,971,968 bytes
+#   (every buffer is allocated once, at start)
 #   bytes copied between CPU and GPU per frame: 5,971,968
 #   zero-copy adapters: off (auto: device has no unified host memory)
 #   execution: parallel, 1 queue

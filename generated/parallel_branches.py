@@ -33,7 +33,8 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 #   adapter3_gpu2cpu (detector.mask)  host    480x1280x1 uint8    614,400
 #
 #   device: portable OpenCL 1.2 device
-#   peak device memory: 6,144,000 bytes; peak host memory: 2,457,600 bytes (all allocated at start)
+#   peak device memory: 6,144,000 bytes; peak host memory: 2,457,600 bytes
+#   (every buffer is allocated once, at start)
 #   bytes copied between CPU and GPU per frame: 2,457,600
 #   zero-copy adapters: off (auto: device has no unified host memory)
 #   execution: parallel, 2 queues

@@ -240,7 +240,8 @@ def plan_lines(plan: ProgramPlan) -> list[str]:
     lines.append("")
     lines.append(f"device: {plan.device_name}")
     lines.append(f"peak device memory: {plan.device_bytes:,} bytes; peak host memory: "
-                 f"{plan.host_bytes:,} bytes (all allocated at start)")
+                 f"{plan.host_bytes:,} bytes")
+    lines.append("(every buffer is allocated once, at start)")
     lines.append(f"bytes copied between CPU and GPU per frame: {plan.copied_bytes:,}")
     lines.append(f"zero-copy adapters: {'on' if plan.zero_copy else 'off'} "
                  f"({plan.zero_copy_reason})")
