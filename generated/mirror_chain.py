@@ -9,19 +9,30 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 """
 
 # System plan:
-#   step  name                      stage  queue  runs  GPU settings          threads  buffers                                 bytes
-#   1     source (StillImage)       1      -      CPU   -                     -        image 864x1152x3 uint8                  2,985,984
-#   2     adapter1_cpu2gpu          1      -      copy  -                     -        device source.image 864x1152x3 uint8    2,985,984
-#   3     mirror1 (VerticalMirror)  2      -      GPU   tile 32, block 8x8x1  1,728    mirrored 864x1152x3 uint8               2,985,984
-#   4     mirror2 (VerticalMirror)  3      -      GPU   tile 32, block 8x8x1  1,728    mirrored 864x1152x3 uint8               2,985,984
-#   5     mirror3 (VerticalMirror)  4      -      GPU   tile 32, block 8x8x1  1,728    mirrored 864x1152x3 uint8               2,985,984
-#   6     mirror4 (VerticalMirror)  5      -      GPU   tile 32, block 8x8x1  1,728    mirrored 864x1152x3 uint8               2,985,984
-#   7     mirror5 (VerticalMirror)  6      -      GPU   tile 32, block 8x8x1  1,728    mirrored 864x1152x3 uint8               2,985,984
-#   8     adapter2_gpu2cpu          6      -      copy  -                     -        host mirror5.mirrored 864x1152x3 uint8  2,985,984
-#   9     sink (FrameSink)          7      -      CPU   -                     -        -                                       -
+#   step  name                      stage  queue  runs  GPU settings          threads
+#   1     source (StillImage)       1      -      CPU   -                     -
+#   2     adapter1_cpu2gpu          1      -      copy  -                     -
+#   3     mirror1 (VerticalMirror)  2      -      GPU   tile 32, block 8x8x1  1,728
+#   4     mirror2 (VerticalMirror)  3      -      GPU   tile 32, block 8x8x1  1,728
+#   5     mirror3 (VerticalMirror)  4      -      GPU   tile 32, block 8x8x1  1,728
+#   6     mirror4 (VerticalMirror)  5      -      GPU   tile 32, block 8x8x1  1,728
+#   7     mirror5 (VerticalMirror)  6      -      GPU   tile 32, block 8x8x1  1,728
+#   8     adapter2_gpu2cpu          6      -      copy  -                     -
+#   9     sink (FrameSink)          7      -      CPU   -                     -
+#
+#   buffer                               memory  size                  bytes
+#   source.image                         host    864x1152x3 uint8  2,985,984
+#   adapter1_cpu2gpu (source.image)      device  864x1152x3 uint8  2,985,984
+#   mirror1.mirrored                     device  864x1152x3 uint8  2,985,984
+#   mirror2.mirrored                     device  864x1152x3 uint8  2,985,984
+#   mirror3.mirrored                     device  864x1152x3 uint8  2,985,984
+#   mirror4.mirrored                     device  864x1152x3 uint8  2,985,984
+#   mirror5.mirrored                     device  864x1152x3 uint8  2,985,984
+#   adapter2_gpu2cpu (mirror5.mirrored)  host    864x1152x3 uint8  2,985,984
 #
 #   device: portable OpenCL 1.2 device
-#   peak device memory: 17,915,904 bytes; peak host memory: 5,971,968 bytes (all allocated at start)
+#   peak device memory: 17,915,904 bytes; peak host memory: 5,971,968 bytes
+#   (every buffer is allocated once, at start)
 #   bytes copied between CPU and GPU per frame: 5,971,968
 #   zero-copy adapters: off (auto: device has no unified host memory)
 #   execution: parallel, 1 queue
@@ -38,126 +49,37 @@ import sys
 from pathlib import Path
 
 import numpy as np
-import pyopencl as cl
 
 from gpucompgen import runtime
 from gpucompgen.library.frame_sink import FrameSink
 from gpucompgen.library.still_image import StillImage
 from gpucompgen.runtime import Size
 
-DESCRIPTION = "The paper's evaluation (Section V): one 1152x864 frame through a chain of five VerticalMirror components; 'gpucompgen bench' builds longer chains like this one."
+DESCRIPTION = (
+    "The paper's evaluation (Section V): one 1152x864 frame through a chain of five VerticalMirror "
+    "components; 'gpucompgen bench' builds longer chains like this one."
+)
 LIB_DIR = Path(__file__).resolve().with_name('mirror_chain_lib')
 
 
-class CpuToGpuAdapter:
-    """Generated CPU-to-GPU adapter (paper, Figure 6): one device buffer, one copy a frame."""
-
-    def __init__(self, context, queue):
-        self.context = context
-        self.queue = queue
-        self.buffer = None
-        self.profile = None  # a runtime.Profile with --profile
-        self.event = None
-
-    def initialize(self, size, dtype):
-        self.nbytes = size.nbytes(dtype)
-        self.buffer = cl.Buffer(self.context, cl.mem_flags.READ_ONLY, self.nbytes)
-
-    def transfer(self, host, wait_for=None):
-        if host.nbytes != self.nbytes:
-            raise runtime.PipelineError(
-                f"frame of {host.nbytes} bytes where {self.nbytes} were expected")
-        # not blocking: the copy's event keeps `host` alive until the device has read it
-        self.event = cl.enqueue_copy(self.queue, self.buffer, np.ascontiguousarray(host),
-                                     is_blocking=False, wait_for=wait_for)
-        if self.profile is not None:
-            self.profile.copy(self, "cpu2gpu", self.event, self.nbytes)
-        return self.buffer
-
-    def free_memory(self):
-        if self.buffer is not None:
-            self.buffer.release()
-            self.buffer = None
-
-
-class GpuToCpuAdapter:
-    """Generated GPU-to-CPU adapter (paper, Figure 7): one host array, one copy a frame."""
-
-    def __init__(self, context, queue):
-        self.context = context
-        self.queue = queue
-        self.host = None
-        self.profile = None  # a runtime.Profile with --profile
-        self.event = None
-
-    def initialize(self, size, dtype):
-        self.host = np.empty(size.shape, dtype)
-
-    def transfer(self, buffer, wait_for=None):
-        # blocking: the host reads it next
-        self.event = cl.enqueue_copy(self.queue, self.host, buffer, wait_for=wait_for)
-        if self.profile is not None:
-            self.profile.copy(self, "gpu2cpu", self.event, self.host.nbytes)
-        return self.host
-
-    def free_memory(self):
-        self.host = None
-
-
-class VerticalMirror:
-    """GPU-aware component VerticalMirror, kernel vertical_mirror() in vertical_mirror.cl.
+class VerticalMirror(runtime.KernelComponent):
+    """GPU-aware component VerticalMirror: kernel vertical_mirror() in vertical_mirror.cl.
 
     One work-group of block_x * block_y * block_z threads covers tile whole rows of
     'mirrored'.
     """
-    # Flips a frame upside down (row y becomes row height-1-y), bit-exact as np.flipud and cv2.flip(image, 0). Copies whole rows, 16 bytes at a time where rows allow.
+    # Flips a frame upside down (row y becomes row height-1-y), bit-exact as np.flipud and
+    # cv2.flip(image, 0). Copies whole rows, 16 bytes at a time where rows allow.
 
-    def __init__(self, context, queue, program):
-        self.context = context
-        self.queue = queue
-        self.kernel = cl.Kernel(program, 'vertical_mirror')
-        self.profile = None  # a runtime.Profile with --profile
-        self.event = None  # of the last kernel enqueued
-        self.mirrored = None
+    function = 'vertical_mirror'
+    inputs = (('image', np.uint8),)
+    outputs = (('mirrored', np.uint8),)
 
-    def initialize(self, image):
-        """Input sizes in, output sizes out; output memory is allocated once, here."""
-        self.image_size = image
-        self.mirrored_size = Size(image.height, image.width, 3)
-        self.mirrored = cl.Buffer(
-            self.context, cl.mem_flags.READ_WRITE, self.mirrored_size.nbytes(np.uint8))
-        return self.mirrored_size
-
-    def config_gpu(self, tile, block_x, block_y, block_z):
-        """GPU settings chosen by the system, used for every frame."""
-        grid = self.mirrored_size
-        self.local_size = (block_x, block_y, block_z)
-        self.global_size = (block_x,
-                            -(-grid.height // tile) * block_y,
-                            block_z)
-        runtime.check_work_group(self.kernel, self.queue.device, self.local_size,
-                                 'VerticalMirror')
-        # kernel arguments after the buffers: sizes of every port, parameters, tile
-        self.scalar_args = (
-            np.int32(self.image_size.height),
-            np.int32(self.image_size.width),
-            np.int32(self.mirrored_size.height),
-            np.int32(self.mirrored_size.width),
-            np.int32(tile),
-        )
-
-    def execute(self, image, wait_for=None):
-        self.kernel.set_args(image, self.mirrored, *self.scalar_args)
-        self.event = cl.enqueue_nd_range_kernel(self.queue, self.kernel, self.global_size,
-                                                self.local_size, wait_for=wait_for)
-        if self.profile is not None:
-            self.profile.kernel(self, self.event)
-        return self.mirrored
-
-    def free_memory(self):
-        if self.mirrored is not None:
-            self.mirrored.release()
-            self.mirrored = None
+    def output_sizes(self, image):
+        """Input sizes in, output sizes out (the type's size expressions)."""
+        return [
+            Size(image.height, image.width, 3),
+        ]
 
 
 def run(frames=None, context=None, monitor=None, profile=False):
@@ -174,6 +96,7 @@ def run(frames=None, context=None, monitor=None, profile=False):
     # without waiting; a command waits for another queue's event (wait_for=[...]) only
     # where it reads that queue's data, and the host waits only where it reads a result.
     queue = runtime.create_queue(context, profile)
+    # every device buffer, with its bytes: checked against the device before allocating
     runtime.check_device_memory(context.devices[0], {
         'adapter1_cpu2gpu (source.image)': 2_985_984,
         'mirror1.mirrored': 2_985_984,
@@ -183,7 +106,8 @@ def run(frames=None, context=None, monitor=None, profile=False):
         'mirror5.mirrored': 2_985_984,
     })
     vertical_mirror_program = runtime.build_program(
-        context, LIB_DIR / 'vertical_mirror.cl', 'mirror1, mirror2, mirror3, mirror4, mirror5 (VerticalMirror)')
+        context, LIB_DIR / 'vertical_mirror.cl',
+        'mirror1, mirror2, mirror3, mirror4, mirror5 (VerticalMirror)')
 
     # every component and adapter, filled in as it is constructed; freed in reverse order
     parts = dict.fromkeys([
@@ -201,39 +125,90 @@ def run(frames=None, context=None, monitor=None, profile=False):
     try:
         source = parts['source'] = StillImage(width=1152, height=864, seed=1, frames=0)
         # source.image -> mirror1.image
-        adapter1_cpu2gpu = parts['adapter1_cpu2gpu'] = CpuToGpuAdapter(context, queue)
+        adapter1_cpu2gpu = parts['adapter1_cpu2gpu'] = runtime.CpuToGpuAdapter(
+            context, queue, nbytes=2_985_984, blocking=False)
         mirror1 = parts['mirror1'] = VerticalMirror(context, queue, vertical_mirror_program)
         mirror2 = parts['mirror2'] = VerticalMirror(context, queue, vertical_mirror_program)
         mirror3 = parts['mirror3'] = VerticalMirror(context, queue, vertical_mirror_program)
         mirror4 = parts['mirror4'] = VerticalMirror(context, queue, vertical_mirror_program)
         mirror5 = parts['mirror5'] = VerticalMirror(context, queue, vertical_mirror_program)
         # mirror5.mirrored -> sink.image
-        adapter2_gpu2cpu = parts['adapter2_gpu2cpu'] = GpuToCpuAdapter(context, queue)
+        adapter2_gpu2cpu = parts['adapter2_gpu2cpu'] = runtime.GpuToCpuAdapter(
+            context, queue, nbytes=2_985_984)
         sink = parts['sink'] = FrameSink()
         monitor.attach(parts)
         profiler = runtime.Profile(parts) if profile else None
 
         source_image_size = source.initialize()
-        runtime.expect_size("source.image", source_image_size, Size(864, 1152, 3))
-        adapter1_cpu2gpu.initialize(source_image_size, np.uint8)
-        mirror1_mirrored_size = mirror1.initialize(source_image_size)
-        runtime.expect_size("mirror1.mirrored", mirror1_mirrored_size, Size(864, 1152, 3))
+        runtime.expect_size('source.image', source_image_size, Size(864, 1152, 3))
+        source_image_gpu_size = adapter1_cpu2gpu.initialize(source_image_size, np.uint8)
+        mirror1_mirrored_size = mirror1.initialize(source_image_gpu_size)
+        runtime.expect_size('mirror1.mirrored', mirror1_mirrored_size, Size(864, 1152, 3))
         mirror2_mirrored_size = mirror2.initialize(mirror1_mirrored_size)
-        runtime.expect_size("mirror2.mirrored", mirror2_mirrored_size, Size(864, 1152, 3))
+        runtime.expect_size('mirror2.mirrored', mirror2_mirrored_size, Size(864, 1152, 3))
         mirror3_mirrored_size = mirror3.initialize(mirror2_mirrored_size)
-        runtime.expect_size("mirror3.mirrored", mirror3_mirrored_size, Size(864, 1152, 3))
+        runtime.expect_size('mirror3.mirrored', mirror3_mirrored_size, Size(864, 1152, 3))
         mirror4_mirrored_size = mirror4.initialize(mirror3_mirrored_size)
-        runtime.expect_size("mirror4.mirrored", mirror4_mirrored_size, Size(864, 1152, 3))
+        runtime.expect_size('mirror4.mirrored', mirror4_mirrored_size, Size(864, 1152, 3))
         mirror5_mirrored_size = mirror5.initialize(mirror4_mirrored_size)
-        runtime.expect_size("mirror5.mirrored", mirror5_mirrored_size, Size(864, 1152, 3))
-        adapter2_gpu2cpu.initialize(mirror5_mirrored_size, np.uint8)
-        sink.initialize(mirror5_mirrored_size)
+        runtime.expect_size('mirror5.mirrored', mirror5_mirrored_size, Size(864, 1152, 3))
+        mirror5_mirrored_cpu_size = adapter2_gpu2cpu.initialize(mirror5_mirrored_size, np.uint8)
+        sink.initialize(mirror5_mirrored_cpu_size)
 
-        mirror1.config_gpu(tile=32, block_x=8, block_y=8, block_z=1)  # preferred, 1,728 threads
-        mirror2.config_gpu(tile=32, block_x=8, block_y=8, block_z=1)  # preferred, 1,728 threads
-        mirror3.config_gpu(tile=32, block_x=8, block_y=8, block_z=1)  # preferred, 1,728 threads
-        mirror4.config_gpu(tile=32, block_x=8, block_y=8, block_z=1)  # preferred, 1,728 threads
-        mirror5.config_gpu(tile=32, block_x=8, block_y=8, block_z=1)  # preferred, 1,728 threads
+        # mirror1: settings preferred, 1,728 resident threads; kernel arguments in the calling
+        # convention's order (a port's name stands for its buffer)
+        mirror1.config_gpu(
+            tile=32, local_size=(8, 8, 1), global_size=(8, 216, 1),
+            settings_source='preferred', arguments=[
+                'image', 'mirrored',  # buffers: inputs, then outputs
+                np.int32(864), np.int32(1152),  # image: height, width
+                np.int32(864), np.int32(1152),  # mirrored: height, width
+                np.int32(32),  # tile
+            ])
+
+        # mirror2: settings preferred, 1,728 resident threads; kernel arguments in the calling
+        # convention's order (a port's name stands for its buffer)
+        mirror2.config_gpu(
+            tile=32, local_size=(8, 8, 1), global_size=(8, 216, 1),
+            settings_source='preferred', arguments=[
+                'image', 'mirrored',  # buffers: inputs, then outputs
+                np.int32(864), np.int32(1152),  # image: height, width
+                np.int32(864), np.int32(1152),  # mirrored: height, width
+                np.int32(32),  # tile
+            ])
+
+        # mirror3: settings preferred, 1,728 resident threads; kernel arguments in the calling
+        # convention's order (a port's name stands for its buffer)
+        mirror3.config_gpu(
+            tile=32, local_size=(8, 8, 1), global_size=(8, 216, 1),
+            settings_source='preferred', arguments=[
+                'image', 'mirrored',  # buffers: inputs, then outputs
+                np.int32(864), np.int32(1152),  # image: height, width
+                np.int32(864), np.int32(1152),  # mirrored: height, width
+                np.int32(32),  # tile
+            ])
+
+        # mirror4: settings preferred, 1,728 resident threads; kernel arguments in the calling
+        # convention's order (a port's name stands for its buffer)
+        mirror4.config_gpu(
+            tile=32, local_size=(8, 8, 1), global_size=(8, 216, 1),
+            settings_source='preferred', arguments=[
+                'image', 'mirrored',  # buffers: inputs, then outputs
+                np.int32(864), np.int32(1152),  # image: height, width
+                np.int32(864), np.int32(1152),  # mirrored: height, width
+                np.int32(32),  # tile
+            ])
+
+        # mirror5: settings preferred, 1,728 resident threads; kernel arguments in the calling
+        # convention's order (a port's name stands for its buffer)
+        mirror5.config_gpu(
+            tile=32, local_size=(8, 8, 1), global_size=(8, 216, 1),
+            settings_source='preferred', arguments=[
+                'image', 'mirrored',  # buffers: inputs, then outputs
+                np.int32(864), np.int32(1152),  # image: height, width
+                np.int32(864), np.int32(1152),  # mirrored: height, width
+                np.int32(32),  # tile
+            ])
 
         frame = 0
         while frames is None or frame < frames:

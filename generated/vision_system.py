@@ -9,18 +9,28 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 """
 
 # System plan:
-#   step  name                       stage  queue  runs  GPU settings            threads  buffers                               bytes
-#   1     camera1 (Camera)           1      -      CPU   -                       -        image 480x640x3 uint8                 921,600
-#   2     camera2 (Camera)           1      -      CPU   -                       -        image 480x640x3 uint8                 921,600
-#   3     adapter1_cpu2gpu           1      0      copy  -                       -        device camera1.image 480x640x3 uint8  921,600
-#   4     adapter2_cpu2gpu           1      1      copy  -                       -        device camera2.image 480x640x3 uint8  921,600
-#   5     merger (ImageMerger)       2      0      GPU   tile 16, block 16x16x1  16,384   merged 480x1280x3 uint8               1,843,200
-#   6     detector (ObjectDetector)  3      0      GPU   tile 32, block 16x16x1  16,384   mask 480x1280x1 uint8                 614,400
-#   7     adapter3_gpu2cpu           3      0      copy  -                       -        host detector.mask 480x1280x1 uint8   614,400
-#   8     manager (VisionManager)    4      -      CPU   -                       -        -                                     -
+#   step  name                       stage  queue  runs  GPU settings            threads
+#   1     camera1 (Camera)           1      -      CPU   -                       -
+#   2     camera2 (Camera)           1      -      CPU   -                       -
+#   3     adapter1_cpu2gpu           1      0      copy  -                       -
+#   4     adapter2_cpu2gpu           1      1      copy  -                       -
+#   5     merger (ImageMerger)       2      0      GPU   tile 16, block 16x16x1  16,384
+#   6     detector (ObjectDetector)  3      0      GPU   tile 32, block 16x16x1  16,384
+#   7     adapter3_gpu2cpu           3      0      copy  -                       -
+#   8     manager (VisionManager)    4      -      CPU   -                       -
+#
+#   buffer                            memory  size                  bytes
+#   camera1.image                     host    480x640x3 uint8     921,600
+#   camera2.image                     host    480x640x3 uint8     921,600
+#   adapter1_cpu2gpu (camera1.image)  device  480x640x3 uint8     921,600
+#   adapter2_cpu2gpu (camera2.image)  device  480x640x3 uint8     921,600
+#   merger.merged                     device  480x1280x3 uint8  1,843,200
+#   detector.mask                     device  480x1280x1 uint8    614,400
+#   adapter3_gpu2cpu (detector.mask)  host    480x1280x1 uint8    614,400
 #
 #   device: portable OpenCL 1.2 device
-#   peak device memory: 4,300,800 bytes; peak host memory: 2,457,600 bytes (all allocated at start)
+#   peak device memory: 4,300,800 bytes; peak host memory: 2,457,600 bytes
+#   (every buffer is allocated once, at start)
 #   bytes copied between CPU and GPU per frame: 2,457,600
 #   zero-copy adapters: off (auto: device has no unified host memory)
 #   execution: parallel, 2 queues
@@ -34,7 +44,6 @@ import sys
 from pathlib import Path
 
 import numpy as np
-import pyopencl as cl
 
 from gpucompgen import runtime
 from gpucompgen.library.camera import Camera
@@ -45,178 +54,43 @@ DESCRIPTION = 'Vision system of the underwater robot (Campeanu et al., Figure 3)
 LIB_DIR = Path(__file__).resolve().with_name('vision_system_lib')
 
 
-class CpuToGpuAdapter:
-    """Generated CPU-to-GPU adapter (paper, Figure 6): one device buffer, one copy a frame."""
-
-    def __init__(self, context, queue):
-        self.context = context
-        self.queue = queue
-        self.buffer = None
-        self.profile = None  # a runtime.Profile with --profile
-        self.event = None
-
-    def initialize(self, size, dtype):
-        self.nbytes = size.nbytes(dtype)
-        self.buffer = cl.Buffer(self.context, cl.mem_flags.READ_ONLY, self.nbytes)
-
-    def transfer(self, host, wait_for=None):
-        if host.nbytes != self.nbytes:
-            raise runtime.PipelineError(
-                f"frame of {host.nbytes} bytes where {self.nbytes} were expected")
-        # not blocking: the copy's event keeps `host` alive until the device has read it
-        self.event = cl.enqueue_copy(self.queue, self.buffer, np.ascontiguousarray(host),
-                                     is_blocking=False, wait_for=wait_for)
-        if self.profile is not None:
-            self.profile.copy(self, "cpu2gpu", self.event, self.nbytes)
-        return self.buffer
-
-    def free_memory(self):
-        if self.buffer is not None:
-            self.buffer.release()
-            self.buffer = None
-
-
-class GpuToCpuAdapter:
-    """Generated GPU-to-CPU adapter (paper, Figure 7): one host array, one copy a frame."""
-
-    def __init__(self, context, queue):
-        self.context = context
-        self.queue = queue
-        self.host = None
-        self.profile = None  # a runtime.Profile with --profile
-        self.event = None
-
-    def initialize(self, size, dtype):
-        self.host = np.empty(size.shape, dtype)
-
-    def transfer(self, buffer, wait_for=None):
-        # blocking: the host reads it next
-        self.event = cl.enqueue_copy(self.queue, self.host, buffer, wait_for=wait_for)
-        if self.profile is not None:
-            self.profile.copy(self, "gpu2cpu", self.event, self.host.nbytes)
-        return self.host
-
-    def free_memory(self):
-        self.host = None
-
-
-class ImageMerger:
-    """GPU-aware component ImageMerger, kernel image_merger() in image_merger.cl.
+class ImageMerger(runtime.KernelComponent):
+    """GPU-aware component ImageMerger: kernel image_merger() in image_merger.cl.
 
     One work-group of block_x * block_y * block_z threads covers a tile x tile square
     of 'merged'.
     """
     # Places two frames of the same height side by side (left | right).
 
-    def __init__(self, context, queue, program):
-        self.context = context
-        self.queue = queue
-        self.kernel = cl.Kernel(program, 'image_merger')
-        self.profile = None  # a runtime.Profile with --profile
-        self.event = None  # of the last kernel enqueued
-        self.merged = None
+    function = 'image_merger'
+    inputs = (('left', np.uint8), ('right', np.uint8))
+    outputs = (('merged', np.uint8),)
 
-    def initialize(self, left, right):
-        """Input sizes in, output sizes out; output memory is allocated once, here."""
-        self.left_size = left
-        self.right_size = right
-        self.merged_size = Size(left.height, left.width + right.width, 3)
-        self.merged = cl.Buffer(
-            self.context, cl.mem_flags.READ_WRITE, self.merged_size.nbytes(np.uint8))
-        return self.merged_size
-
-    def config_gpu(self, tile, block_x, block_y, block_z):
-        """GPU settings chosen by the system, used for every frame."""
-        grid = self.merged_size
-        self.local_size = (block_x, block_y, block_z)
-        self.global_size = (-(-grid.width // tile) * block_x,
-                            -(-grid.height // tile) * block_y,
-                            block_z)
-        runtime.check_work_group(self.kernel, self.queue.device, self.local_size,
-                                 'ImageMerger')
-        # kernel arguments after the buffers: sizes of every port, parameters, tile
-        self.scalar_args = (
-            np.int32(self.left_size.height),
-            np.int32(self.left_size.width),
-            np.int32(self.right_size.height),
-            np.int32(self.right_size.width),
-            np.int32(self.merged_size.height),
-            np.int32(self.merged_size.width),
-            np.int32(tile),
-        )
-
-    def execute(self, left, right, wait_for=None):
-        self.kernel.set_args(left, right, self.merged, *self.scalar_args)
-        self.event = cl.enqueue_nd_range_kernel(self.queue, self.kernel, self.global_size,
-                                                self.local_size, wait_for=wait_for)
-        if self.profile is not None:
-            self.profile.kernel(self, self.event)
-        return self.merged
-
-    def free_memory(self):
-        if self.merged is not None:
-            self.merged.release()
-            self.merged = None
+    def output_sizes(self, left, right):
+        """Input sizes in, output sizes out (the type's size expressions)."""
+        return [
+            Size(left.height, left.width + right.width, 3),
+        ]
 
 
-class ObjectDetector:
-    """GPU-aware component ObjectDetector, kernel object_detector() in object_detector.cl.
+class ObjectDetector(runtime.KernelComponent):
+    """GPU-aware component ObjectDetector: kernel object_detector() in object_detector.cl.
 
     One work-group of block_x * block_y * block_z threads covers a tile x tile square
     of 'mask'.
     """
-    # Marks red buoys: a pixel is white (255) when red is at least red_min and exceeds green and blue by at least margin, else black (0).
+    # Marks red buoys: a pixel is white (255) when red is at least red_min and exceeds green and
+    # blue by at least margin, else black (0).
 
-    def __init__(self, context, queue, program, red_min, margin):
-        self.context = context
-        self.queue = queue
-        self.kernel = cl.Kernel(program, 'object_detector')
-        self.profile = None  # a runtime.Profile with --profile
-        self.event = None  # of the last kernel enqueued
-        self.red_min = red_min
-        self.margin = margin
-        self.mask = None
+    function = 'object_detector'
+    inputs = (('frame', np.uint8),)
+    outputs = (('mask', np.uint8),)
 
-    def initialize(self, frame):
-        """Input sizes in, output sizes out; output memory is allocated once, here."""
-        self.frame_size = frame
-        self.mask_size = Size(frame.height, frame.width, 1)
-        self.mask = cl.Buffer(
-            self.context, cl.mem_flags.READ_WRITE, self.mask_size.nbytes(np.uint8))
-        return self.mask_size
-
-    def config_gpu(self, tile, block_x, block_y, block_z):
-        """GPU settings chosen by the system, used for every frame."""
-        grid = self.mask_size
-        self.local_size = (block_x, block_y, block_z)
-        self.global_size = (-(-grid.width // tile) * block_x,
-                            -(-grid.height // tile) * block_y,
-                            block_z)
-        runtime.check_work_group(self.kernel, self.queue.device, self.local_size,
-                                 'ObjectDetector')
-        # kernel arguments after the buffers: sizes of every port, parameters, tile
-        self.scalar_args = (
-            np.int32(self.frame_size.height),
-            np.int32(self.frame_size.width),
-            np.int32(self.mask_size.height),
-            np.int32(self.mask_size.width),
-            np.int32(self.red_min),
-            np.int32(self.margin),
-            np.int32(tile),
-        )
-
-    def execute(self, frame, wait_for=None):
-        self.kernel.set_args(frame, self.mask, *self.scalar_args)
-        self.event = cl.enqueue_nd_range_kernel(self.queue, self.kernel, self.global_size,
-                                                self.local_size, wait_for=wait_for)
-        if self.profile is not None:
-            self.profile.kernel(self, self.event)
-        return self.mask
-
-    def free_memory(self):
-        if self.mask is not None:
-            self.mask.release()
-            self.mask = None
+    def output_sizes(self, frame):
+        """Input sizes in, output sizes out (the type's size expressions)."""
+        return [
+            Size(frame.height, frame.width, 1),
+        ]
 
 
 def run(frames=None, context=None, monitor=None, profile=False):
@@ -234,6 +108,7 @@ def run(frames=None, context=None, monitor=None, profile=False):
     # where it reads that queue's data, and the host waits only where it reads a result.
     queue0 = runtime.create_queue(context, profile)
     queue1 = runtime.create_queue(context, profile)
+    # every device buffer, with its bytes: checked against the device before allocating
     runtime.check_device_memory(context.devices[0], {
         'adapter1_cpu2gpu (camera1.image)': 921_600,
         'adapter2_cpu2gpu (camera2.image)': 921_600,
@@ -248,8 +123,8 @@ def run(frames=None, context=None, monitor=None, profile=False):
     # every component and adapter, filled in as it is constructed; freed in reverse order
     parts = dict.fromkeys([
         'camera1',
-        'adapter1_cpu2gpu',
         'camera2',
+        'adapter1_cpu2gpu',
         'adapter2_cpu2gpu',
         'merger',
         'detector',
@@ -260,37 +135,62 @@ def run(frames=None, context=None, monitor=None, profile=False):
     try:
         camera1 = parts['camera1'] = Camera(
             width=640, height=480, seed=1, buoys=2, frames=0, folder='', video='')
-        # camera1.image -> merger.left
-        adapter1_cpu2gpu = parts['adapter1_cpu2gpu'] = CpuToGpuAdapter(context, queue0)
         camera2 = parts['camera2'] = Camera(
             width=640, height=480, seed=2, buoys=2, frames=0, folder='', video='')
+        # camera1.image -> merger.left
+        adapter1_cpu2gpu = parts['adapter1_cpu2gpu'] = runtime.CpuToGpuAdapter(
+            context, queue0, nbytes=921_600, blocking=False)
         # camera2.image -> merger.right
-        adapter2_cpu2gpu = parts['adapter2_cpu2gpu'] = CpuToGpuAdapter(context, queue1)
+        adapter2_cpu2gpu = parts['adapter2_cpu2gpu'] = runtime.CpuToGpuAdapter(
+            context, queue1, nbytes=921_600, blocking=False)
         merger = parts['merger'] = ImageMerger(context, queue0, image_merger_program)
         detector = parts['detector'] = ObjectDetector(
             context, queue0, object_detector_program, red_min=150, margin=80)
         # detector.mask -> manager.mask
-        adapter3_gpu2cpu = parts['adapter3_gpu2cpu'] = GpuToCpuAdapter(context, queue0)
+        adapter3_gpu2cpu = parts['adapter3_gpu2cpu'] = runtime.GpuToCpuAdapter(
+            context, queue0, nbytes=614_400)
         manager = parts['manager'] = VisionManager(
             min_area=30, stop_radius=60, print_decisions=True, decisions_file='')
         monitor.attach(parts)
         profiler = runtime.Profile(parts) if profile else None
 
         camera1_image_size = camera1.initialize()
-        runtime.expect_size("camera1.image", camera1_image_size, Size(480, 640, 3))
-        adapter1_cpu2gpu.initialize(camera1_image_size, np.uint8)
+        runtime.expect_size('camera1.image', camera1_image_size, Size(480, 640, 3))
         camera2_image_size = camera2.initialize()
-        runtime.expect_size("camera2.image", camera2_image_size, Size(480, 640, 3))
-        adapter2_cpu2gpu.initialize(camera2_image_size, np.uint8)
-        merger_merged_size = merger.initialize(camera1_image_size, camera2_image_size)
-        runtime.expect_size("merger.merged", merger_merged_size, Size(480, 1280, 3))
+        runtime.expect_size('camera2.image', camera2_image_size, Size(480, 640, 3))
+        camera1_image_gpu_size = adapter1_cpu2gpu.initialize(camera1_image_size, np.uint8)
+        camera2_image_gpu_size = adapter2_cpu2gpu.initialize(camera2_image_size, np.uint8)
+        merger_merged_size = merger.initialize(camera1_image_gpu_size, camera2_image_gpu_size)
+        runtime.expect_size('merger.merged', merger_merged_size, Size(480, 1280, 3))
         detector_mask_size = detector.initialize(merger_merged_size)
-        runtime.expect_size("detector.mask", detector_mask_size, Size(480, 1280, 1))
-        adapter3_gpu2cpu.initialize(detector_mask_size, np.uint8)
-        manager.initialize(detector_mask_size)
+        runtime.expect_size('detector.mask', detector_mask_size, Size(480, 1280, 1))
+        detector_mask_cpu_size = adapter3_gpu2cpu.initialize(detector_mask_size, np.uint8)
+        manager.initialize(detector_mask_cpu_size)
 
-        merger.config_gpu(tile=16, block_x=16, block_y=16, block_z=1)  # preferred, 16,384 threads
-        detector.config_gpu(tile=32, block_x=16, block_y=16, block_z=1)  # model, 16,384 threads
+        # merger: settings preferred, 16,384 resident threads; kernel arguments in the calling
+        # convention's order (a port's name stands for its buffer)
+        merger.config_gpu(
+            tile=16, local_size=(16, 16, 1), global_size=(1280, 480, 1),
+            settings_source='preferred', arguments=[
+                'left', 'right', 'merged',  # buffers: inputs, then outputs
+                np.int32(480), np.int32(640),  # left: height, width
+                np.int32(480), np.int32(640),  # right: height, width
+                np.int32(480), np.int32(1280),  # merged: height, width
+                np.int32(16),  # tile
+            ])
+
+        # detector: settings model, 16,384 resident threads; kernel arguments in the calling
+        # convention's order (a port's name stands for its buffer)
+        detector.config_gpu(
+            tile=32, local_size=(16, 16, 1), global_size=(640, 240, 1),
+            settings_source='model', arguments=[
+                'frame', 'mask',  # buffers: inputs, then outputs
+                np.int32(480), np.int32(1280),  # frame: height, width
+                np.int32(480), np.int32(1280),  # mask: height, width
+                np.int32(150),  # red_min
+                np.int32(80),  # margin
+                np.int32(32),  # tile
+            ])
 
         frame = 0
         while frames is None or frame < frames:

@@ -16,10 +16,12 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from . import device as device_mod
+from .backend.opencl.render import HEADER_PREFIX, OutputFile, render, source_path
 from .errors import Diagnostic, GpucompgenError, OutputError, Reporter
+from .ir import MODES, System
 from .model import load_system
-from .passes import MODES, System, run_passes
-from .render import HEADER_PREFIX, OutputFile, lib_dir_name, render, source_path
+from .passes import run_passes
+from .passes.lower import lib_dir_name
 
 
 @dataclass
@@ -32,11 +34,13 @@ class BuildResult:
 def compile_model(model_path: Path, out_dir: Path, mode: str = "gpu-aware",
                   device: str | None = None, dump: Callable[[str], None] | None = None,
                   display: str | None = None, execution: str | None = None,
-                  zero_copy: str | None = None) -> BuildResult:
+                  zero_copy: str | None = None, verify: bool | None = None) -> BuildResult:
     """Everything but writing: raises GpucompgenError with all problems found.
 
     execution ("parallel" | "sequential") and zero_copy ("auto" | "on" | "off") override
     the model's platform.execution and platform.zero_copy; None keeps the model's.
+    verify: check the IR's invariants after every pass (--debug; the test suite sets
+    GPUCOMPGEN_VERIFY=1 so that None verifies there too).
     """
     if mode not in MODES:
         raise ValueError(mode)
@@ -46,7 +50,7 @@ def compile_model(model_path: Path, out_dir: Path, mode: str = "gpu-aware",
     facts = device_mod.resolve(spec, model.device_pos, rep,
                                model.device_positions if device is None else None)
     rep.raise_if_errors()
-    system, warnings = run_passes(model, facts, mode, dump, execution, zero_copy)
+    system, warnings = run_passes(model, facts, mode, dump, execution, zero_copy, verify)
     files = render(system, source_path(model_path, out_dir))
     _must_compile(files[0])
     return BuildResult(system, files, warnings)
@@ -68,7 +72,7 @@ def owned_paths(system_name: str, out_dir: Path) -> tuple[Path, Path]:
 
 def check_ownership(result: BuildResult, out_dir: Path) -> None:
     """Refuse to replace files that gpucompgen did not write."""
-    program, lib = owned_paths(result.system.model.name, out_dir)
+    program, lib = owned_paths(result.system.name, out_dir)
     foreign = []
     if program.exists() and not _generated(program):
         foreign.append(program)
@@ -96,7 +100,7 @@ def _generated(path: Path) -> bool:
 def write(result: BuildResult, out_dir: Path) -> list[Path]:
     """Write all files, all or nothing: everything is staged first, then the lib folder and
     the program replace the old ones; if that fails, the old lib folder is put back."""
-    name = result.system.model.name
+    name = result.system.name
     program, lib = owned_paths(name, out_dir)
     if out_dir.exists() and not out_dir.is_dir():
         raise OutputError(f"output folder {out_dir} is a file")
@@ -114,7 +118,7 @@ def write(result: BuildResult, out_dir: Path) -> list[Path]:
             target = staging / f.path
             target.parent.mkdir(parents=True, exist_ok=True)
             target.write_text(f.text, encoding="utf-8", newline="\n")
-        staged_lib = staging / lib_dir_name(result.system)
+        staged_lib = staging / lib_dir_name(result.system.name)
         staged_lib.mkdir(exist_ok=True)
         old = staging / "old_lib"
         if lib.exists():
@@ -136,7 +140,7 @@ def write(result: BuildResult, out_dir: Path) -> list[Path]:
 
 def diff(result: BuildResult, out_dir: Path) -> str:
     """Unified diff from what is in out_dir to what a build would write ('' when current)."""
-    program, lib = owned_paths(result.system.model.name, out_dir)
+    program, lib = owned_paths(result.system.name, out_dir)
     wanted = {out_dir / f.path: f.text for f in result.files}
     existing = {program} | ({p for p in lib.rglob("*") if p.is_file()} if lib.is_dir() else set())
     chunks = []

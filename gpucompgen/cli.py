@@ -17,8 +17,8 @@ from pathlib import Path
 
 from . import __version__
 from .errors import GpucompgenError, OutputError
+from .ir import MODES
 from .model import EXECUTIONS, ZERO_COPY
-from .passes import MODES
 from .runtime import add_program_options
 
 EPILOG = """\
@@ -87,7 +87,7 @@ def parser() -> argparse.ArgumentParser:
     b.add_argument("--overwrite", action="store_true",
                    help="replace files in the output folder that gpucompgen did not write")
     b.add_argument("--print-between-passes", action="store_true",
-                   help="dump the system after each pass (to stderr)")
+                   help="print the whole system IR after each pass (to stderr)")
 
     r = _sub(sub, "run", "build into a temporary folder and run",
              "Build MODEL into a temporary folder and run the program; the options below\n"
@@ -199,7 +199,8 @@ def _compile(args, out_dir: Path):
         def dump(text):
             print(text, file=sys.stderr)
     result = compile_model(args.model, out_dir, args.mode, args.device, dump,
-                           execution=args.execution, zero_copy=args.zero_copy)
+                           execution=args.execution, zero_copy=args.zero_copy,
+                           verify=True if args.debug else None)
     for w in result.warnings:
         print(w.format(), file=sys.stderr)
     return result
@@ -235,7 +236,7 @@ def cmd_run(args) -> int:
         out = Path(tmp)
         result = _compile(args, out)
         write(result, out)
-        program = out / f"{result.system.model.name}.py"
+        program = out / f"{result.system.name}.py"
         cmd = [sys.executable, str(program)]
         for flag, value in (("--frames", args.frames), ("--stats-json", args.stats_json),
                             ("--decisions", args.decisions),
@@ -265,12 +266,12 @@ def cmd_run(args) -> int:
 
 def cmd_check(args) -> int:
     """Every check, nothing written: all problems (main prints them) or a summary."""
-    from .render import summary_lines
+    from .plan import summary_lines
 
     result = _compile(args, Path("generated"))
     status = "ok" if not result.warnings else "ok with warnings"
-    print(f"{args.model}: {status}: system '{result.system.model.name}'")
-    for line in summary_lines(result.system):
+    print(f"{args.model}: {status}: system '{result.system.name}'")
+    for line in summary_lines(result.system.plan):
         print(f"  {line}")
     if result.warnings:
         print(_counts(0, len(result.warnings)) + (" (--strict: failing)" if args.strict else ""),
@@ -281,10 +282,10 @@ def cmd_check(args) -> int:
 
 
 def cmd_plan(args) -> int:
-    from .render import plan_lines
+    from .plan import plan_lines
 
     result = _compile(args, Path("generated"))
-    for line in plan_lines(result.system):
+    for line in plan_lines(result.system.plan):
         print(line)
     return 0
 

@@ -8,36 +8,13 @@ never on the machine that runs the generator, so checked-in output is reproducib
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, fields, replace
+from dataclasses import fields, replace
 from typing import Any
 
 from .errors import Pos, Reporter, did_you_mean
+from .runtime.facts import DeviceFacts
 
 KiB, MiB, GiB = 1 << 10, 1 << 20, 1 << 30
-
-
-@dataclass(frozen=True)
-class DeviceFacts:
-    name: str
-    compute_units: int
-    max_work_group_size: int
-    max_work_item_sizes: tuple[int, int, int]
-    local_mem_size: int
-    global_mem_size: int
-    max_mem_alloc_size: int
-    host_unified_memory: bool
-    # Threads one compute unit keeps resident; compute_units * this is the device's total,
-    # the default thread budget for components that run at the same time.
-    threads_per_compute_unit: int = 2048
-
-    @property
-    def total_threads(self) -> int:
-        return self.compute_units * self.threads_per_compute_unit
-
-    def as_dict(self) -> dict[str, Any]:
-        d = asdict(self)
-        d["max_work_item_sizes"] = list(self.max_work_item_sizes)
-        return d
 
 
 PROFILES: dict[str, DeviceFacts] = {
@@ -128,23 +105,7 @@ def resolve(spec: Any, pos: Pos, rep: Reporter,
 
 def query_device(device: Any = None) -> DeviceFacts:
     """Facts of a real OpenCL device (the one the runtime selects when device is None)."""
-    import pyopencl as cl
-
     from .runtime import select_device
+    from .runtime.facts import query
 
-    if device is None:
-        device = select_device()
-    sizes = tuple(device.max_work_item_sizes)[:3]
-    sizes = tuple(sizes) + (1,) * (3 - len(sizes))
-    return DeviceFacts(
-        name=device.name.strip(),
-        compute_units=device.max_compute_units,
-        max_work_group_size=device.max_work_group_size,
-        max_work_item_sizes=sizes,
-        local_mem_size=device.local_mem_size,
-        global_mem_size=device.global_mem_size,
-        max_mem_alloc_size=device.max_mem_alloc_size,
-        host_unified_memory=bool(getattr(device, "host_unified_memory", False)),
-        threads_per_compute_unit=2048 if device.type & cl.device_type.GPU else
-        device.max_work_group_size,
-    )
+    return query(device if device is not None else select_device())

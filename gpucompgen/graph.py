@@ -16,8 +16,8 @@ import subprocess
 from pathlib import Path
 
 from .errors import OutputError
+from .ir import AdapterNode, ComponentNode, System
 from .model import Endpoint
-from .passes import System
 
 FORMATS = (".dot", ".svg", ".png")
 
@@ -34,16 +34,17 @@ def quote(text: str) -> str:
 
 
 def _port(system: System, end: Endpoint) -> str:
-    return f"{end.port} [GPU]" if system.memory(end) == "gpu" else end.port
+    port = system.nodes[end.component].port(end.port)
+    return f"{end.port} [GPU]" if port.memory == "gpu" else end.port
 
 
 def dot_text(system: System) -> str:
-    """The DOT source of the system's architecture."""
+    """The DOT source of the system's architecture: its IR's nodes and edges."""
     gpu_aware_mode = system.mode == "gpu-aware"
     figure = "Figure 3" if gpu_aware_mode else "Figures 1 and 2"
-    title = f"{system.model.name} ({system.mode} mode, as in the paper's {figure})"
+    title = f"{system.name} ({system.mode} mode, as in the paper's {figure})"
     lines = [
-        f"digraph {quote(system.model.name)} {{",
+        f"digraph {quote(system.name)} {{",
         f"  label={quote(title)};",
         "  labelloc=t;",
         "  rankdir=LR;",
@@ -55,42 +56,34 @@ def dot_text(system: System) -> str:
          'labelangle=20];'),
     ]
     for name in system.order:
-        t = system.components[name].type
-        if t.gpu_aware and gpu_aware_mode:
+        node = system.nodes[name]
+        if isinstance(node, AdapterNode):
+            arrow = "CPU to GPU" if node.direction == "cpu2gpu" else "GPU to CPU"
+            how = "zero-copy" if node.zero_copy else "copy"
+            label = f"{name}\ngenerated adapter\n{arrow} {how}"
+            lines.append(f"  {quote(name)} [label={quote(label)}, shape=cds, "
+                         'style="filled,dashed", fillcolor="#fff2cc"];')
+            continue
+        t = node.type
+        if node.on_gpu and gpu_aware_mode:
             label = f"{name}\n{t.name}\nGPU-aware"
             lines.append(f"  {quote(name)} [label={quote(label)}, peripheries=2, "
                          'fillcolor="#d9f2d9"];')
-        elif t.gpu_aware:
+        elif node.on_gpu:
             label = f"{name}\n{t.name}\nstandard: copies its own GPU data"
             lines.append(f"  {quote(name)} [label={quote(label)}];")
         else:
             label = f"{name}\n{t.name}"
             lines.append(f"  {quote(name)} [label={quote(label)}];")
-    for a in system.adapters:
-        arrow = "CPU to GPU" if a.direction == "cpu2gpu" else "GPU to CPU"
-        label = f"{a.name}\ngenerated adapter\n{arrow} copy"
-        lines.append(f"  {quote(a.name)} [label={quote(label)}, shape=cds, "
-                     'style="filled,dashed", fillcolor="#fff2cc"];')
-
-    by_source = {a.source: a for a in system.adapters}
-    for name in system.order:
-        for pname in system.components[name].type.outputs:
-            src = Endpoint(name, pname)
-            size = system.sizes.get(src)
-            label = quote(str(size) if size else "")
-            adapter = by_source.get(src)
-            via = set(adapter.consumers) if adapter else set()
-            if adapter is not None:
-                lines.append(f"  {quote(name)} -> {quote(adapter.name)} [label={label}, "
-                             f"taillabel={quote(_port(system, src))}];")
-            for dst in system.readers.get(src, []):
-                head = quote(_port(system, dst))
-                if dst in via:
-                    lines.append(f"  {quote(adapter.name)} -> {quote(dst.component)} "
-                                 f"[label={label}, headlabel={head}];")
-                else:
-                    lines.append(f"  {quote(name)} -> {quote(dst.component)} [label={label}, "
-                                 f"taillabel={quote(_port(system, src))}, headlabel={head}];")
+    for e in system.edges:
+        label = quote(str(e.data) if e.data else "")
+        attrs = [f"label={label}"]
+        if isinstance(system.nodes[e.source.component], ComponentNode):
+            attrs.append(f"taillabel={quote(_port(system, e.source))}")
+        if isinstance(system.nodes[e.target.component], ComponentNode):
+            attrs.append(f"headlabel={quote(_port(system, e.target))}")
+        lines.append(f"  {quote(e.source.component)} -> {quote(e.target.component)} "
+                     f"[{', '.join(attrs)}];")
     lines.append("}")
     return "\n".join(lines) + "\n"
 

@@ -7,10 +7,11 @@ import keyword
 import re
 import sys
 
+# OpenCL C reserved words live with the OpenCL backend (re-exported here).
+from .backend.opencl.reserved import OPENCL_RESERVED
+
 NAME_RE = re.compile(r"[A-Za-z][A-Za-z0-9_]*\Z")
 MAX_NAME = 48
-
-OPENCL_RESERVED = frozenset(["auto", "break", "case", "char", "const", "continue", "default", "do", "double", "else", "enum", "extern", "float", "for", "goto", "if", "inline", "int", "long", "register", "restrict", "return", "short", "signed", "sizeof", "static", "struct", "switch", "typedef", "union", "unsigned", "void", "volatile", "while", "bool", "half", "uchar", "ushort", "uint", "ulong", "size_t", "ptrdiff_t", "intptr_t", "uintptr_t", "image2d_t", "image3d_t", "image2d_array_t", "image1d_t", "image1d_buffer_t", "image1d_array_t", "sampler_t", "event_t", "kernel", "__kernel", "global", "__global", "local", "__local", "constant", "__constant", "private", "__private", "read_only", "__read_only", "write_only", "__write_only", "read_write", "__read_write", "complex", "imaginary", "true", "false"])
 
 # Names the generated program itself uses at module level or in run().
 GENERATED_RESERVED = frozenset({
@@ -32,6 +33,10 @@ CLASS_RESERVED = frozenset({
     "global_size", "scalar_args", "initialize", "config_gpu", "execute", "free_memory",
     "wait_for", "ran", "grid", "tile", "block_x", "block_y", "block_z",
     "np", "cl", "runtime", "Size",
+    # runtime.KernelComponent's members
+    "function", "inputs", "outputs", "output_sizes", "sizes", "buffers", "hosts",
+    "arguments", "copies_own_data", "host_visible", "settings_source", "_inputs",
+    "_outputs", "_slots",
 })
 
 # A system's name becomes <system>.py, whose folder comes first on sys.path when it runs:
@@ -51,6 +56,8 @@ def member_names(name: str, role: str) -> list[str]:
     if role == "param":
         return [name]
     return [name, f"{name}_size", f"{name}_gpu", f"{name}_copied"]
+
+__all__ = ["OPENCL_RESERVED", "fold", "member_names", "name_problem", "snake"]
 
 _RESERVED = (frozenset(keyword.kwlist) | frozenset(keyword.softkwlist) | frozenset(dir(builtins))
              | OPENCL_RESERVED | {"self"})

@@ -14,6 +14,9 @@ import pytest
 ROOT = Path(__file__).resolve().parent.parent
 IN_CI = os.environ.get("CI", "").lower() in ("1", "true", "yes")
 
+# Every build in the tests (also in subprocesses) verifies the IR after every pass.
+os.environ["GPUCOMPGEN_VERIFY"] = "1"
+
 _worker = os.environ.get("PYTEST_XDIST_WORKER", "main")
 os.environ.setdefault("POCL_CACHE_DIR", str(Path(os.environ.get("TMPDIR", "/tmp"))
                                              / f"gpucompgen-pocl-cache-{os.getuid()}-{_worker}"))
@@ -85,3 +88,26 @@ def build(tmp_path):
         return result, out
 
     return _build
+
+
+def configure(comp, tile: int, bx: int, by: int, bz: int) -> None:
+    """config_gpu() on a generated GPU-aware class with any settings, as the lower pass
+    would call it: the global size and the kernel arguments follow the calling convention
+    (restated here from its documentation, an independent reference for the tests)."""
+    import math
+
+    import numpy as np
+
+    from gpucompgen.model import library_types
+
+    ctype = library_types()[type(comp).__name__]
+    ports = list(ctype.inputs) + list(ctype.outputs)
+    args = list(ports)
+    for port in ports:
+        args += [np.int32(comp.sizes[port].height), np.int32(comp.sizes[port].width)]
+    for name, decl in ctype.params.items():
+        args.append((np.float32 if decl.type == "float" else np.int32)(getattr(comp, name)))
+    args.append(np.int32(tile))
+    grid = comp.sizes[ctype.grid]
+    gx = bx if ctype.cover == "rows" else math.ceil(grid.width / tile) * bx
+    comp.config_gpu(tile, (bx, by, bz), (gx, math.ceil(grid.height / tile) * by, bz), args)

@@ -72,7 +72,7 @@ def test_each_generated_variant_has_its_own_adapters(tmp_path, variant, adapters
 
     bench.Generated(tmp_path, 2, (40, 30), variant, context=None)
     source = (tmp_path / f"{variant}_2_40x30" / "mirror_chain_2.py").read_text()
-    used = set(re.findall(r"= (\w*Adapter)\(context", source))
+    used = set(re.findall(r"= runtime\.(\w*Adapter)\(", source))
     assert used == adapters
 
 
@@ -82,7 +82,9 @@ def test_chain_model_is_a_valid_system(tmp_path):
     model = tmp_path / "c.yaml"
     model.write_text(bench.chain_model(3, 40, 30))
     result = compile_model(model, tmp_path / "out")
-    assert result.system.order == ["source", "mirror1", "mirror2", "mirror3", "sink"]
+    assert list(result.system.components) == ["source", "mirror1", "mirror2", "mirror3", "sink"]
+    assert result.system.order == ["source", "adapter1_cpu2gpu", "mirror1", "mirror2",
+                                   "mirror3", "adapter2_gpu2cpu", "sink"]
     assert [a.direction for a in result.system.adapters] == ["cpu2gpu", "gpu2cpu"]
     standard = compile_model(model, tmp_path / "out", "standard")
     assert standard.system.adapters == []

@@ -19,6 +19,7 @@ def _program(ctx, name):
 def _run_class(module, cls_name, ctx, queue, program, params, inputs, settings):
     """Drive a generated GPU-aware class through the paper's interface."""
     import pyopencl as cl
+    from conftest import configure
 
     from gpucompgen.runtime import Size
 
@@ -29,7 +30,7 @@ def _run_class(module, cls_name, ctx, queue, program, params, inputs, settings):
                               hostbuf=np.ascontiguousarray(arr)))
         sizes.append(Size(arr.shape[0], arr.shape[1], arr.shape[2] if arr.ndim == 3 else 1))
     out_size = comp.initialize(*sizes)
-    comp.config_gpu(*settings)
+    configure(comp, *settings)
     out_buf = comp.execute(*bufs)
     out = np.empty(out_size.shape, np.uint8)
     cl.enqueue_copy(queue, out, out_buf)
@@ -75,12 +76,12 @@ def test_object_detector_matches_numpy(vision_module, cl_context, cl_queue, sett
     np.testing.assert_array_equal(out, expected.astype(np.uint8))
 
 
-def test_adapters_round_trip_bit_exact(vision_module, cl_context, cl_queue):
-    from gpucompgen.runtime import Size
+def test_adapters_round_trip_bit_exact(cl_context, cl_queue):
+    from gpucompgen.runtime import CpuToGpuAdapter, GpuToCpuAdapter, Size
 
-    up = vision_module.CpuToGpuAdapter(cl_context, cl_queue)
-    down = vision_module.GpuToCpuAdapter(cl_context, cl_queue)
     size = Size(33, 45, 3)
+    up = CpuToGpuAdapter(cl_context, cl_queue, nbytes=size.nbytes(np.uint8))
+    down = GpuToCpuAdapter(cl_context, cl_queue, nbytes=size.nbytes(np.uint8))
     up.initialize(size, np.uint8)
     down.initialize(size, np.uint8)
     for seed in range(3):

@@ -9,7 +9,7 @@ import sys
 
 import numpy as np
 import pytest
-from conftest import ROOT, load_generated, require_opencl
+from conftest import ROOT, configure, load_generated, require_opencl
 
 from gpucompgen.library.still_image import still_frame
 
@@ -56,9 +56,9 @@ def test_vertical_mirror_is_bit_exact(mirror_class, mirror_program, cl_context, 
     src = cl.Buffer(cl_context, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR,
                     hostbuf=image)
     assert comp.initialize(Size(*shape, 3)) == Size(*shape, 3)
-    comp.config_gpu(*settings)
+    configure(comp, *settings)
     # the output buffer starts with junk, so a row the kernel missed shows
-    cl.enqueue_fill_buffer(cl_queue, comp.mirrored, np.uint8(0xA5), 0, image.nbytes)
+    cl.enqueue_fill_buffer(cl_queue, comp.buffers["mirrored"], np.uint8(0xA5), 0, image.nbytes)
     out = np.empty_like(image)
     cl.enqueue_copy(cl_queue, out, comp.execute(src))
     comp.free_memory()
@@ -189,10 +189,9 @@ def test_rows_cover_is_printed_and_planned(build):
     _, out = build(MODEL)
     text = (out / "mirror_chain.py").read_text()
     assert "covers tile whole rows of\n    'mirrored'" in text
-    assert "self.global_size = (block_x,\n" in text
-    # 864 rows / tile 32 = 27 groups of 64 threads
-    assert "config_gpu(tile=32, block_x=8, block_y=8, block_z=1)  # preferred, 1,728 threads" \
-        in text
+    # rows: one group across, 864 rows / tile 32 = 27 groups of 8x8 threads down
+    assert "tile=32, local_size=(8, 8, 1), global_size=(8, 216, 1)," in text
+    assert "mirror1: settings preferred, 1,728 resident threads" in text
 
 
 def test_bad_kernel_cover_is_a_positioned_error(tmp_path):

@@ -126,20 +126,22 @@ def test_the_vision_system_is_identical_in_every_variant(tmp_path):
             np.testing.assert_array_equal(masks[f], expected)
 
 
-def test_zero_copy_view_is_unmapped_before_the_device_writes_again(tmp_path):
+def test_zero_copy_view_is_unmapped_before_the_device_writes_again(tmp_path, monkeypatch):
     """The producer of a mapped buffer never runs while its view is still mapped."""
     require_opencl()
     import pyopencl as cl
 
+    from gpucompgen import runtime
+
     _, module = _module(tmp_path, BRANCHES, "parallel", "on", tag="unmap")
     adapters = []
-    init = module.ZeroCopyGpuToCpuAdapter.__init__
+    init = runtime.ZeroCopyGpuToCpuAdapter.__init__
 
-    def record(self, *args):
-        init(self, *args)
+    def record(self, *args, **kwargs):
+        init(self, *args, **kwargs)
         adapters.append(self)
 
-    module.ZeroCopyGpuToCpuAdapter.__init__ = record
+    monkeypatch.setattr(runtime.ZeroCopyGpuToCpuAdapter, "__init__", record)
     produced = []
     original = module.ObjectDetector.execute
 
@@ -151,8 +153,8 @@ def test_zero_copy_view_is_unmapped_before_the_device_writes_again(tmp_path):
     def detector_execute(self, *args, **kwargs):
         assert adapters and all(a.view is None for a in adapters), \
             "the detector writes its mask while a zero-copy view of it is mapped"
-        if self.mask is not None:  # from the second frame on
-            assert map_count(self.mask) == 0, "the mask is still mapped on the device"
+        if "mask" in self.buffers:  # allocated: every frame
+            assert map_count(self.buffers["mask"]) == 0, "the mask is still mapped on the device"
         produced.append(self)
         return original(self, *args, **kwargs)
 
@@ -183,15 +185,14 @@ def test_gpu_to_cpu_adapter_never_hands_out_a_frame_still_being_written(
     """A slow kernel writes the buffer; the adapter's result must be its final contents."""
     import pyopencl as cl
 
+    from gpucompgen import runtime
     from gpucompgen.runtime import Size
 
-    _, module = _module(tmp_path, ROOT / "models" / "vision_system.yaml", "parallel",
-                        zero_copy, tag=f"slow{same_queue}")
-    cls = module.ZeroCopyGpuToCpuAdapter if zero_copy == "on" else module.GpuToCpuAdapter
+    cls = runtime.ZeroCopyGpuToCpuAdapter if zero_copy == "on" else runtime.GpuToCpuAdapter
     producer_queue = cl.CommandQueue(cl_context)
     adapter_queue = producer_queue if same_queue else cl.CommandQueue(cl_context)
-    adapter = cls(cl_context, adapter_queue)
     size = Size(64, 256, 1)
+    adapter = cls(cl_context, adapter_queue, nbytes=size.nbytes(np.uint8))
     adapter.initialize(size, np.uint8)
     n = size.height * size.width
     expected = ((np.arange(n) * 7 + 3) % 256).astype(np.uint8).reshape(size.shape)
@@ -224,12 +225,14 @@ def test_zero_copy_follows_the_device_facts():
 def test_zero_copy_is_recorded_in_the_code_and_the_plan(tmp_path):
     result = compile_model(BRANCHES, tmp_path, zero_copy="on")
     text = result.files[0].text
-    assert "adapter1_cpu2gpu = parts['adapter1_cpu2gpu'] = ZeroCopyCpuToGpuAdapter(context, " \
+    assert "adapter1_cpu2gpu = parts['adapter1_cpu2gpu'] = runtime.ZeroCopyCpuToGpuAdapter(" \
         in text
-    assert "adapter3_gpu2cpu = parts['adapter3_gpu2cpu'] = ZeroCopyGpuToCpuAdapter(context, " \
+    assert "adapter3_gpu2cpu = parts['adapter3_gpu2cpu'] = runtime.ZeroCopyGpuToCpuAdapter(" \
         in text
     assert "adapter3_gpu2cpu.unmap()  # the device may write detector.mask again" in text
-    assert "class CpuToGpuAdapter" not in text and "enqueue_copy" not in text
+    assert "runtime.CpuToGpuAdapter" not in text and "runtime.GpuToCpuAdapter" not in text
+    # the outputs the adapters map are allocated in host-visible memory
+    assert "host_visible=True" in text
     assert "#   bytes copied between CPU and GPU per frame: 0\n" in text
     assert "#   zero-copy adapters: on (forced by the model or the command line)" in text
     copying = compile_model(BRANCHES, tmp_path).files[0].text
@@ -280,9 +283,9 @@ def test_parallel_program_uses_one_queue_per_branch(tmp_path):
     assert ("queue0 = runtime.create_queue(context, profile)\n"
             "    queue1 = runtime.create_queue(context, profile)") in text
     assert "merger.execute(blur1_smooth, blur2_smooth, wait_for=[blur2.event])" in text
-    assert "is_blocking=False" in text
+    assert "blocking=False" in text
     seq = compile_model(BRANCHES, tmp_path, execution="sequential").files[0].text
-    assert "wait_for" not in seq and "queue1" not in seq and "is_blocking=False" not in seq
+    assert "wait_for" not in seq and "queue1" not in seq and "blocking=False" not in seq
 
 
 def test_lane_ends_no_host_read_covers_are_waited_for_at_frame_end(tmp_path):
@@ -329,9 +332,15 @@ def test_memory_check_counts_what_the_plan_says_is_on_the_device(tmp_path, model
     import re
 
     from gpucompgen.build import compile_model
-    from gpucompgen.render import device_buffer_sizes, plan_lines
+    from gpucompgen.plan import plan_lines
 
-    system = compile_model(model, tmp_path, mode, zero_copy=zero_copy).system
-    plan = "\n".join(plan_lines(system))
-    peak = int(re.search(r"peak device memory: ([\d,]+) bytes", plan).group(1).replace(",", ""))
-    assert sum(n for _, n in device_buffer_sizes(system)) == peak
+    result = compile_model(model, tmp_path, mode, zero_copy=zero_copy)
+    plan = result.system.plan
+    text = "\n".join(plan_lines(plan))
+    peak = int(re.search(r"peak device memory: ([\d,]+) bytes", text).group(1).replace(",", ""))
+    # the program's start-up check lists the same buffers the plan counts
+    checked = re.search(r"check_device_memory\(context.devices\[0\], \{(.*?)\}\)",
+                        result.files[0].text, re.DOTALL)
+    listed = sum(int(n.replace("_", "")) for n in re.findall(r": ([\d_]+),", checked.group(1))) \
+        if checked else 0
+    assert sum(b.nbytes for b in plan.device_buffers()) == peak == listed

@@ -142,7 +142,7 @@ def test_stats_json_has_the_promised_fields(tmp_path):
     assert len(doc["frame_seconds"]) == 3 and all(t > 0 for t in doc["frame_seconds"])
     assert doc["wall_seconds"] > 0 and doc["frames_per_second"] > 0
     assert list(doc["components"]) == [
-        "camera1", "adapter1_cpu2gpu", "camera2", "adapter2_cpu2gpu", "merger", "detector",
+        "camera1", "camera2", "adapter1_cpu2gpu", "adapter2_cpu2gpu", "merger", "detector",
         "adapter3_gpu2cpu", "manager"]
     for name, c in doc["components"].items():
         assert set(c) == {"calls", "total_seconds", "mean_seconds", "max_seconds"}, name

@@ -5,7 +5,10 @@ pyopencl and numpy only. One module per concern:
 
     errors      PipelineError (a problem the user can act on) and Stopped (a signal)
     sizes       Size, the size of the data on one port
+    facts       DeviceFacts: the device facts the generator plans for and the runtime checks
     devices     device selection, queues, device and kernel limits, the memory check
+    adapters    the CPU<->GPU adapters (copying and zero-copy), the same in every system
+    components  KernelComponent, the base class of generated GPU-aware component classes
     programs    building kernel files, with the component named in errors
     lifecycle   size checks, user modules, failures named by component, freeing
     profiling   --profile: event times and bytes moved
@@ -18,7 +21,14 @@ Everything is importable from ``gpucompgen.runtime`` as before.
 
 from __future__ import annotations
 
+from .adapters import (
+    CpuToGpuAdapter,
+    GpuToCpuAdapter,
+    ZeroCopyCpuToGpuAdapter,
+    ZeroCopyGpuToCpuAdapter,
+)
 from .cli import add_program_options, main
+from .components import KernelComponent
 from .devices import (
     NO_DEVICE_HINT,
     DeviceLimits,
@@ -53,11 +63,41 @@ from .signals import _stop_on_signals
 from .sizes import Size
 
 __all__ = [
-    "NO_DEVICE_HINT", "DeviceLimits", "DeviceStatus", "KernelLimits", "Monitor",
-    "PipelineError", "Profile", "Result", "Size", "Stopped", "_build_problem",
-    "_stop_on_signals", "add_program_options", "build_program", "check_device_memory",
-    "check_work_group", "component_failure", "create_context", "create_queue",
-    "device_limits", "expect_size", "failing_component", "free_all", "kernel_limits",
-    "load_class", "load_module", "main", "probe_device", "quiet_compiler", "select_device",
-    "survey_devices", "unusable_message",
+    "NO_DEVICE_HINT",
+    "CpuToGpuAdapter",
+    "DeviceLimits",
+    "DeviceStatus",
+    "GpuToCpuAdapter",
+    "KernelComponent",
+    "KernelLimits",
+    "Monitor",
+    "PipelineError",
+    "Profile",
+    "Result",
+    "Size",
+    "Stopped",
+    "ZeroCopyCpuToGpuAdapter",
+    "ZeroCopyGpuToCpuAdapter",
+    "_build_problem",
+    "_stop_on_signals",
+    "add_program_options",
+    "build_program",
+    "check_device_memory",
+    "check_work_group",
+    "component_failure",
+    "create_context",
+    "create_queue",
+    "device_limits",
+    "expect_size",
+    "failing_component",
+    "free_all",
+    "kernel_limits",
+    "load_class",
+    "load_module",
+    "main",
+    "probe_device",
+    "quiet_compiler",
+    "select_device",
+    "survey_devices",
+    "unusable_message",
 ]

@@ -6,6 +6,8 @@ import os
 from typing import Any, NamedTuple
 
 from .errors import PipelineError
+from .facts import DeviceFacts
+from .facts import query as query_facts
 from .programs import quiet_compiler
 
 # A kernel every OpenCL C compiler must accept: whether a device can build it is whether
@@ -125,17 +127,9 @@ def create_queue(context, profile: bool = False):
     return cl.CommandQueue(context, properties=properties)
 
 
-class DeviceLimits(NamedTuple):
-    """What the generated program needs to know about its OpenCL device, queried once."""
-
-    name: str
-    compute_units: int
-    max_work_group_size: int
-    max_work_item_sizes: tuple[int, ...]
-    local_mem_size: int
-    global_mem_size: int
-    max_mem_alloc_size: int
-    host_unified_memory: bool
+# What the program needs to know about its OpenCL device: the same facts the generator
+# plans for (one declaration, in facts.py), queried once per device.
+DeviceLimits = DeviceFacts
 
 
 class KernelLimits(NamedTuple):
@@ -152,10 +146,7 @@ def device_limits(device) -> DeviceLimits:
     """The device's limits, queried from OpenCL once per device and remembered."""
     limits = _DEVICE_LIMITS.get(device.int_ptr)
     if limits is None:
-        limits = DeviceLimits(
-            device.name.strip(), device.max_compute_units, device.max_work_group_size,
-            tuple(device.max_work_item_sizes), device.local_mem_size, device.global_mem_size,
-            device.max_mem_alloc_size, bool(getattr(device, "host_unified_memory", False)))
+        limits = query_facts(device)
         _DEVICE_LIMITS[device.int_ptr] = limits
     return limits
 

@@ -1,0 +1,270 @@
+"""lower: the last pass turns the System into a ProgramPlan of plain records.
+
+Every decision becomes concrete here: which part allocates which buffer of how many
+bytes, each launch's arguments (in the calling convention's order, scalars with their
+values), global and local sizes, each transfer, the queue variables and waits, the names
+of programs and of files in the lib folder.  Backends print the plan; nothing decides
+after this pass.
+"""
+
+from __future__ import annotations
+
+import ast
+import copy
+import math
+
+from ..backend.opencl.convention import PARAM_C_TYPES, kernel_parameters
+from ..ir import AdapterNode, ComponentNode, System
+from ..model import DTYPES, ComponentType, Endpoint
+from ..plan import (
+    Argument,
+    Buffer,
+    KernelClass,
+    Launch,
+    Part,
+    Program,
+    ProgramPlan,
+    Step,
+    Transfer,
+    UserClass,
+)
+from .allocate_gpu import resident_threads
+from .base import Pass
+
+
+class Lower(Pass):
+    name = "lower"
+
+    def apply(self, system, rep):
+        system.plan = lower(system)
+        return system
+
+
+def lib_dir_name(system_name: str) -> str:
+    return f"{system_name}_lib"
+
+
+def lib_files(system: System) -> dict[str, str]:
+    """A unique file name in the lib folder for every kernel and user Python file used.
+
+    Kernels are named after their type; a user's Python file keeps its name unless another
+    file of the same name (from another folder) is used too: then it gets a numbered suffix,
+    so neither replaces the other.  One entry per file, however many types use it.
+    """
+    names: dict[str, str] = {}  # source path -> lib file name
+    taken: set[str] = set()
+    for t in used_types(system):
+        if t.gpu_aware:
+            key, wanted = f"kernel:{t.name}", f"{t.snake}.cl"
+        elif t.origin == "user":
+            key, wanted = str(t.python_file.resolve()), t.python_file.name
+        else:
+            continue
+        if key in names:
+            continue
+        name, stem, suffix, i = wanted, wanted.rsplit(".", 1)[0], wanted.rsplit(".", 1)[1], 2
+        while name.lower() in taken:
+            name, i = f"{stem}_{i}.{suffix}", i + 1
+        taken.add(name.lower())
+        names[key] = name
+    return names
+
+
+def lib_key(t: ComponentType) -> str:
+    return f"kernel:{t.name}" if t.gpu_aware else str(t.python_file.resolve())
+
+
+def used_types(system: System) -> list[ComponentType]:
+    found: dict[str, ComponentType] = {}
+    for node in system.nodes.values():
+        if isinstance(node, ComponentNode):
+            found.setdefault(node.type.name, node.type)
+    return [found[k] for k in sorted(found)]
+
+
+def np_name(dtype: str) -> str:
+    return DTYPES[dtype][0]
+
+
+class _SelfParams(ast.NodeTransformer):
+    """In a generated class, a parameter `p` in a size expression reads `self.p`."""
+
+    def __init__(self, params):
+        self.params = params
+
+    def visit_Name(self, node):
+        if node.id in self.params:
+            return ast.Attribute(value=ast.Name("self", ast.Load()), attr=node.id, ctx=ast.Load())
+        return node
+
+
+def size_expr(tree: ast.Expression, ctype: ComponentType) -> str:
+    body = _SelfParams(set(ctype.params)).visit(copy.deepcopy(tree.body))
+    return ast.unparse(body)
+
+
+def kernel_class(t: ComponentType, file: str) -> KernelClass:
+    return KernelClass(
+        name=t.name, function=t.kernel_function, file=file, description=t.description,
+        inputs=tuple((p, np_name(d.dtype)) for p, d in t.inputs.items()),
+        outputs=tuple((p, np_name(d.dtype)) for p, d in t.outputs.items()),
+        output_sizes=tuple((size_expr(d.height, t), size_expr(d.width, t), d.channels)
+                           for d in t.outputs.values()),
+        grid=t.grid, rows=t.cover == "rows")
+
+
+def launch(system: System, node: ComponentNode, program: str) -> Launch:
+    """The kernel launch of a GPU component: arguments in convention order, sizes decided."""
+    s = system.settings[node.name]
+    t = node.type
+    args = []
+    for p in kernel_parameters(t):
+        if p.kind == "buffer":
+            args.append(Argument(p.name, "buffer", port=p.port))
+        elif p.role == "size":
+            data = system.data(Endpoint(node.name, p.port))
+            args.append(Argument(p.name, "scalar", port=p.port, host_type="int32",
+                                 value=getattr(data, p.dim)))
+        elif p.role == "param":
+            host = PARAM_C_TYPES[t.params[p.param].type][1].removeprefix("np.")
+            value = node.params[p.param]
+            value = float(value) if host == "float32" else int(value)
+            args.append(Argument(p.name, "scalar", host_type=host, value=value))
+        else:  # the tile
+            args.append(Argument(p.name, "scalar", host_type="int32", value=s.tile))
+    grid = system.data(Endpoint(node.name, t.grid))
+    groups_y = math.ceil(grid.height / s.tile)
+    groups_x = 1 if t.cover == "rows" else math.ceil(grid.width / s.tile)
+    return Launch(node.name, t.kernel_function, tuple(args), s.tile,
+                  (s.block_x, s.block_y, s.block_z),
+                  (groups_x * s.block_x, groups_y * s.block_y, s.block_z), s.source,
+                  resident_threads(system, node.name))
+
+
+def lower(system: System) -> ProgramPlan:
+    model = system.model
+    files = lib_files(system)
+    types = used_types(system)
+    gpu_types = [t for t in types if t.gpu_aware]
+    taken = set(system.nodes)
+    programs: dict[str, str] = {}
+    for t in gpu_types:
+        var = f"{t.snake}_program"
+        while var in taken:
+            var += "_"
+        programs[t.name] = var
+        taken.add(var)
+    n_lanes = max(system.lanes.values(), default=0) + 1 if system.lanes else 0
+    queues = ("queue",) if n_lanes == 1 else tuple(f"queue{i}" for i in range(n_lanes))
+    if system.lanes or gpu_types:
+        queues = queues or ("queue",)
+
+    def queue_of(name: str) -> str:
+        return queues[system.lanes.get(name, 0)]
+
+    standard = system.mode == "standard"
+    parallel = system.execution == "parallel"
+    parts, buffers, launches, transfers, steps = [], [], [], [], []
+    sources = [n for n in system.order if isinstance(system.nodes[n], ComponentNode)
+               and not system.nodes[n].inputs and not system.nodes[n].on_gpu]
+    for name in system.order:
+        node = system.nodes[name]
+        in_vars = tuple(f"{system.input_var(Endpoint(name, p))}_size" for p in node.inputs)
+        outs = tuple((f"{system.output_vars[Endpoint(name, p)]}_size", p,
+                      system.data(Endpoint(name, p)).size) for p in node.outputs)
+        if isinstance(node, AdapterNode):
+            data = node.outputs["output"].data
+            consumers = tuple(system.readers(Endpoint(name, "output")))
+            blocking = node.direction == "gpu2cpu" or not parallel
+            transfers.append(Transfer(name, node.direction, data, node.zero_copy, blocking,
+                                      node.source, consumers))
+            cls = ("CpuToGpuAdapter" if node.direction == "cpu2gpu" else "GpuToCpuAdapter")
+            if node.zero_copy:
+                cls = f"ZeroCopy{cls}"
+            else:
+                side = "device" if node.direction == "cpu2gpu" else "host"
+                buffers.append(Buffer(name, "output", f"{name} ({node.source})", side, data))
+            runs = ("copy" if not node.zero_copy else
+                    "map" if node.direction == "gpu2cpu" else "in place")
+            options = [("nbytes", data.nbytes)]
+            if node.direction == "cpu2gpu" and not node.zero_copy:
+                options.append(("blocking", blocking))
+            parts.append(Part(name, "adapter", f"runtime.{cls}", runs=runs,
+                              stage=system.stages[name], queue=queue_of(name),
+                              options=tuple(options),
+                              note=f"{node.source} -> {', '.join(map(str, consumers))}",
+                              init_inputs=in_vars, init_outputs=outs,
+                              dtype=np_name(data.dtype)))
+            steps.append(Step("transfer", name, (system.input_var(Endpoint(name, "input")),),
+                              (system.output_vars[Endpoint(name, "output")],),
+                              tuple(system.waits.get(name, ()))))
+            continue
+        t = node.type
+        params = tuple((k, node.params[k]) for k in t.params)
+        options: list[tuple[str, object]] = []
+        if node.on_gpu:
+            device_ports = ({**node.inputs, **node.outputs} if standard else node.outputs)
+            for p, port in device_ports.items():
+                buffers.append(Buffer(name, p, f"{name}.{p}", "device", port.data))
+            if standard:
+                for p, port in node.outputs.items():
+                    buffers.append(Buffer(name, p, f"{name}.{p} (host)", "host", port.data))
+                for p, port in node.inputs.items():
+                    transfers.append(Transfer(name, "cpu2gpu", port.data))
+                for p, port in node.outputs.items():
+                    transfers.append(Transfer(name, "gpu2cpu", port.data))
+                options.append(("copies_own_data", True))
+            elif system.zero_copy:
+                options.append(("host_visible", True))
+            launches.append(launch(system, node, programs[t.name]))
+        else:
+            for p, port in node.outputs.items():
+                buffers.append(Buffer(name, p, f"{name}.{p}", "host", port.data))
+        parts.append(Part(name, "component", t.name, t.name, "GPU" if node.on_gpu else "CPU",
+                          system.stages[name], queue_of(name) if node.on_gpu else None,
+                          programs.get(t.name) if node.on_gpu else None, params,
+                          tuple(options), init_inputs=in_vars, init_outputs=outs))
+        steps.append(Step("execute", name,
+                          tuple(system.input_var(Endpoint(name, p)) for p in node.inputs),
+                          tuple(system.output_vars[Endpoint(name, p)] for p in node.outputs),
+                          tuple(system.waits.get(name, ())) if not standard else ()))
+        for a in system.unmap_after.get(name, []):
+            steps.append(Step("unmap", a, note=f"the device may write "
+                              f"{system.nodes[a].source} again"))
+        if sources and name == sources[-1]:
+            ends = tuple(system.output_vars[Endpoint(s, p)] for s in sources
+                         for p in system.nodes[s].outputs)
+            if ends:
+                steps.append(Step("end_of_stream", inputs=ends))
+
+    imports, user_classes = [], []
+    for t in types:
+        if t.gpu_aware:
+            continue
+        if t.origin == "library":
+            imports.append((f"gpucompgen.library.{t.python_file.stem}", t.python_class,
+                            "" if t.python_class == t.name else t.name))
+        else:
+            user_classes.append(UserClass(t.name, files[lib_key(t)], t.python_class))
+    users = {t.name: ", ".join(n for n in system.order
+                               if isinstance(system.nodes[n], ComponentNode)
+                               and system.nodes[n].type is t) for t in gpu_types}
+    asked = model.thread_budget
+    budget_source = ("platform.thread_budget" if asked and asked <= system.thread_budget else
+                     "device total" if not asked else
+                     f"device total; platform.thread_budget {asked:,} is more")
+    return ProgramPlan(
+        system=system.name, mode=system.mode, execution=system.execution,
+        device_name=system.device.name, zero_copy=system.zero_copy,
+        zero_copy_reason=system.zero_copy_reason, queues=queues if n_lanes or gpu_types else (),
+        programs=tuple(Program(programs[t.name], files[lib_key(t)], f"{users[t.name]} ({t.name})")
+                       for t in gpu_types),
+        imports=tuple(sorted(imports)), user_classes=tuple(user_classes),
+        kernel_classes=tuple(kernel_class(t, files[lib_key(t)]) for t in gpu_types),
+        parts=tuple(parts), buffers=tuple(buffers), launches=tuple(launches),
+        transfers=tuple(transfers), steps=tuple(steps),
+        frame_end_waits=tuple(system.frame_end_waits),
+        thread_budget=system.thread_budget, thread_budget_source=budget_source,
+        concurrent=tuple((g, sum(resident_threads(system, n) for n in g))
+                         for g in system.concurrent),
+        lib_files={v: k for k, v in files.items()})

@@ -1,0 +1,97 @@
+"""The pipeline: every pass in order, verified after each when asked, dumped when asked.
+
+    check-connections → check-port-types → schedule → propagate-sizes → insert-adapters
+    → allocate-gpu → name-variables → assign-queues → lower
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable
+
+from ..errors import GpucompgenError, Reporter
+from ..ir import MODES, System, build_system
+from ..model import EXECUTIONS, ZERO_COPY, SystemModel
+from ..runtime.facts import DeviceFacts
+from .allocate_gpu import AllocateGpu
+from .assign_queues import AssignQueues
+from .base import Pass
+from .check_connections import CheckConnections
+from .check_port_types import CheckPortTypes
+from .insert_adapters import InsertAdapters
+from .lower import Lower
+from .name_variables import NameVariables
+from .propagate_sizes import PropagateSizes
+from .schedule import Schedule
+
+PIPELINE: tuple[Pass, ...] = (CheckConnections(), CheckPortTypes(), Schedule(),
+                             PropagateSizes(), InsertAdapters(), AllocateGpu(), NameVariables(),
+                             AssignQueues(), Lower())
+
+
+def new_system(model: SystemModel, device: DeviceFacts, mode: str = "gpu-aware",
+               execution: str | None = None, zero_copy: str | None = None) -> System:
+    """The IR of a model with its platform decisions (mode, execution, zero-copy) taken.
+
+    execution ("parallel" | "sequential") and zero_copy ("auto" | "on" | "off") override
+    the model's platform settings (the command line's --execution and --zero-copy).
+    """
+    execution = execution or model.execution
+    zero_copy = zero_copy or model.zero_copy
+    if mode not in MODES or execution not in EXECUTIONS or zero_copy not in ZERO_COPY:
+        raise ValueError(f"mode {mode!r}, execution {execution!r}, zero_copy {zero_copy!r}")
+    system = build_system(model, device, mode,
+                          "sequential" if mode == "standard" else execution)
+    if mode == "standard":
+        system.zero_copy_reason = "standard mode: components copy their own data"
+    elif zero_copy == "auto":
+        system.zero_copy = device.host_unified_memory
+        system.zero_copy_reason = (f"auto: device {'has' if system.zero_copy else 'has no'} "
+                                   "unified host memory")
+    else:
+        system.zero_copy = zero_copy == "on"
+        system.zero_copy_reason = "forced by the model or the command line"
+    return system
+
+
+def verify_by_default() -> bool:
+    """The test suite verifies the IR after every pass (GPUCOMPGEN_VERIFY=1)."""
+    return os.environ.get("GPUCOMPGEN_VERIFY", "") not in ("", "0")
+
+
+def run_pipeline(system: System, passes: tuple[Pass, ...] = PIPELINE,
+                 dump: Callable[[str], None] | None = None,
+                 verify: bool | None = None) -> tuple[System, list]:
+    """Run passes and return the system and its warnings, or raise with every problem.
+
+    Once a pass has found errors, only the checking passes that cope with a partly checked
+    system still run (Pass.runs_after_errors); the others are skipped, and the IR is no
+    longer verified (it may be partly checked).
+    """
+    verify = verify_by_default() if verify is None else verify
+    rep = Reporter()
+    for p in passes:
+        if rep.has_errors and not p.runs_after_errors:
+            continue
+        system = p.apply(system, rep)
+        system.done.append(p.name)
+        if verify and not rep.has_errors:
+            system.verify()
+        if dump is not None:
+            dump(f"// after {p.name}\n{system.dump()}\n")
+    if rep.has_errors:
+        raise GpucompgenError(sorted(set(rep.diagnostics)))
+    return system, rep.warnings
+
+
+def run_passes(model: SystemModel, device: DeviceFacts, mode: str = "gpu-aware",
+               dump: Callable[[str], None] | None = None, execution: str | None = None,
+               zero_copy: str | None = None, verify: bool | None = None
+               ) -> tuple[System, list]:
+    """Build the IR of a model and run every pass on it."""
+    return run_pipeline(new_system(model, device, mode, execution, zero_copy), PIPELINE,
+                        dump, verify)
+
+
+def passes_names() -> list[str]:
+    return [p.name for p in PIPELINE]

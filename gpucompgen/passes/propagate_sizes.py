@@ -1,0 +1,79 @@
+"""propagate-sizes: from the sources' parameters down the graph, every port gets its Data."""
+
+from __future__ import annotations
+
+from .. import sizeexpr
+from ..ir import ComponentNode, Data, Size
+from ..model import Endpoint
+from .base import Pass
+
+
+class PropagateSizes(Pass):
+    name = "propagate-sizes"
+    runs_after_errors = True
+
+    def apply(self, system, rep):
+        for name in system.order:
+            node = system.nodes[name]
+            in_sizes: dict[str, tuple[int, int]] = {}
+            complete = True
+            for pname, port in node.inputs.items():
+                src = system.writer(Endpoint(name, pname))
+                data = system.data(src) if src is not None else None
+                if data is None:
+                    complete = False
+                    break
+                port.data = Data(Size(data.height, data.width, port.channels), port.dtype)
+                in_sizes[pname] = (data.height, data.width)
+            for edge in system.edges:
+                if edge.target.component == name:
+                    edge.data = system.data(edge.source)
+            if not complete:
+                continue
+            if isinstance(node, ComponentNode):
+                self._outputs(system, node, in_sizes, rep)
+            else:  # an adapter: its output is its input, in the other memory
+                for port in node.outputs.values():
+                    port.data = next(iter(node.inputs.values())).data
+        for end, data in system.sizes.items():
+            node = system.nodes[end.component]
+            # every port of a GPU component is a device buffer (its own or an adapter's)
+            if isinstance(node, ComponentNode) and node.on_gpu and \
+                    data.nbytes > system.device.max_mem_alloc_size:
+                rep.error(node.pos, f"'{end}' needs {data.nbytes:,} bytes, more than the "
+                          f"device's largest allocation ({system.device.max_mem_alloc_size:,} "
+                          "bytes)", "use smaller frames or a device with more memory")
+        return system
+
+    @staticmethod
+    def _outputs(system, node: ComponentNode, in_sizes, rep) -> None:
+        ctype, name = node.type, node.name
+        int_params = {k: v for k, v in node.params.items() if ctype.params[k].type == "int"}
+        ok = True
+        for tree, message in ctype.requires:
+            try:
+                if not sizeexpr.evaluate(tree, in_sizes, int_params):
+                    shown = ", ".join(f"{p} is {h}x{w}" for p, (h, w) in in_sizes.items())
+                    rep.error(node.pos, f"'{name}' ({ctype.name}): {message} ({shown})",
+                              "change the sizes of what feeds it")
+                    ok = False
+            except sizeexpr.SizeExprError as exc:
+                rep.error(node.pos, f"'{name}': {exc}")
+                ok = False
+        if not ok:
+            return
+        for pname, port in node.outputs.items():
+            decl = ctype.outputs[pname]
+            if decl.height is None or decl.width is None:
+                continue
+            try:
+                h = sizeexpr.evaluate(decl.height, in_sizes, int_params)
+                w = sizeexpr.evaluate(decl.width, in_sizes, int_params)
+            except sizeexpr.SizeExprError as exc:
+                rep.error(node.pos, f"'{name}.{pname}': {exc}")
+                continue
+            if h < 1 or w < 1:
+                rep.error(node.pos, f"output '{name}.{pname}' would be {h}x{w}",
+                          "sizes must be positive; check parameters and inputs")
+                continue
+            port.data = Data(Size(h, w, port.channels), port.dtype)

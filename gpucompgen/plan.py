@@ -1,0 +1,289 @@
+"""The program plan: a lowered system as plain, backend-neutral records.
+
+The lower pass makes every decision concrete here — buffers and their bytes, each kernel
+launch with its arguments in calling-convention order and its global and local sizes,
+each transfer, the lanes (queues) and waits, the variable names.  The backend's templates
+only print these records; ``plan``, ``check``'s summary, the program's start-up memory
+check and ``--profile``'s byte counts read the same ones.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+from .ir import Data
+from .model import Endpoint
+from .runtime.sizes import Size
+
+
+@dataclass(frozen=True)
+class Buffer:
+    owner: str  # the part that allocates it
+    port: str
+    what: str  # as shown in messages: 'merger.merged', 'adapter1_cpu2gpu (camera1.image)'
+    memory: str  # "device" | "host"
+    data: Data
+
+    @property
+    def nbytes(self) -> int:
+        return self.data.nbytes
+
+
+@dataclass(frozen=True)
+class Argument:
+    """One kernel argument, in the calling convention's order."""
+
+    name: str  # the convention's name of the parameter
+    kind: str  # "buffer" | "scalar"
+    port: str = ""  # a buffer: the port it belongs to
+    host_type: str = ""  # a scalar: the numpy type it is passed as
+    value: Any = None  # a scalar's value, decided at build time
+
+
+@dataclass(frozen=True)
+class Launch:
+    part: str
+    function: str
+    arguments: tuple[Argument, ...]
+    tile: int
+    local_size: tuple[int, int, int]
+    global_size: tuple[int, int, int]
+    settings_source: str  # who chose the settings: "model", "preferred", ...
+    threads: int  # resident threads
+
+    @property
+    def settings_from_model(self) -> bool:
+        return self.settings_source == "model"
+
+
+@dataclass(frozen=True)
+class Transfer:
+    """Bytes moved between CPU and GPU each frame: by an adapter, or by a component that
+    copies its own data (standard mode)."""
+
+    part: str
+    direction: str  # "cpu2gpu" | "gpu2cpu"
+    data: Data
+    zero_copy: bool = False  # nothing copied: the other side maps the memory in place
+    blocking: bool = True  # the host waits for the copy
+    source: Endpoint | None = None  # an adapter's producing port
+    consumers: tuple[Endpoint, ...] = ()
+
+    @property
+    def nbytes(self) -> int:
+        return self.data.nbytes
+
+    @property
+    def copied(self) -> int:
+        return 0 if self.zero_copy else self.nbytes
+
+
+@dataclass(frozen=True)
+class Part:
+    """An object of the program: a component or an adapter, constructed in run order."""
+
+    name: str
+    kind: str  # "component" | "adapter"
+    cls: str  # its class in generated code
+    type_name: str = ""  # a component's type
+    runs: str = "CPU"  # "CPU" | "GPU" | "copy" | "map" | "in place"
+    stage: int = 0
+    queue: str | None = None  # the queue variable of a GPU command
+    program: str | None = None  # the program variable of a kernel component
+    params: tuple[tuple[str, Any], ...] = ()  # constructor arguments (model parameters)
+    options: tuple[tuple[str, Any], ...] = ()  # constructor settings the system chose
+    note: str = ""  # e.g. what an adapter joins
+    # initialize(): the size variables it takes, what it gives (variable, port, Size) and,
+    # for an adapter, the element type
+    init_inputs: tuple[str, ...] = ()
+    init_outputs: tuple[tuple[str, str, Size], ...] = ()
+    dtype: str = ""
+
+
+@dataclass(frozen=True)
+class Step:
+    """One statement of the stream loop."""
+
+    kind: str  # "execute" | "transfer" | "unmap" | "end_of_stream"
+    part: str = ""
+    inputs: tuple[str, ...] = ()  # variables
+    outputs: tuple[str, ...] = ()  # variables
+    waits: tuple[str, ...] = ()  # parts whose last event it waits for
+    note: str = ""
+
+
+@dataclass(frozen=True)
+class Program:
+    var: str
+    file: str
+    users: str
+
+
+@dataclass(frozen=True)
+class KernelClass:
+    """A kernel component type as the program declares it (what differs per type)."""
+
+    name: str
+    function: str
+    file: str
+    description: str
+    inputs: tuple[tuple[str, str], ...]  # (port, element type)
+    outputs: tuple[tuple[str, str], ...]
+    output_sizes: tuple[tuple[str, str, int], ...]  # (height expr, width expr, channels)
+    grid: str
+    rows: bool
+
+
+@dataclass(frozen=True)
+class UserClass:
+    name: str
+    file: str  # in the lib folder
+    cls: str
+
+
+@dataclass
+class ProgramPlan:
+    system: str
+    mode: str
+    execution: str
+    device_name: str
+    zero_copy: bool
+    zero_copy_reason: str
+    queues: tuple[str, ...] = ()
+    programs: tuple[Program, ...] = ()
+    imports: tuple[tuple[str, str, str], ...] = ()  # (module, name, alias)
+    user_classes: tuple[UserClass, ...] = ()
+    kernel_classes: tuple[KernelClass, ...] = ()
+    parts: tuple[Part, ...] = ()
+    buffers: tuple[Buffer, ...] = ()
+    launches: tuple[Launch, ...] = ()
+    transfers: tuple[Transfer, ...] = ()
+    steps: tuple[Step, ...] = ()
+    frame_end_waits: tuple[str, ...] = ()
+    thread_budget: int = 0
+    thread_budget_source: str = ""
+    concurrent: tuple[tuple[tuple[str, ...], int], ...] = ()  # (group, resident threads)
+    lib_files: dict[str, str] = field(default_factory=dict)  # lib file -> what it is
+
+    # --- the facts everything reads --------------------------------------------------------
+    def device_buffers(self) -> list[Buffer]:
+        return [b for b in self.buffers if b.memory == "device"]
+
+    @property
+    def device_bytes(self) -> int:
+        return sum(b.nbytes for b in self.buffers if b.memory == "device")
+
+    @property
+    def host_bytes(self) -> int:
+        return sum(b.nbytes for b in self.buffers if b.memory == "host")
+
+    @property
+    def copied_bytes(self) -> int:
+        return sum(t.copied for t in self.transfers)
+
+    def launch(self, part: str) -> Launch | None:
+        return next((la for la in self.launches if la.part == part), None)
+
+    def adapter_transfer(self, part: str) -> Transfer | None:
+        return next((t for t in self.transfers if t.part == part and t.source), None)
+
+    def uses_gpu(self) -> bool:
+        return bool(self.queues)
+
+    def dump_lines(self) -> list[str]:
+        lines = [f"plan: queues {', '.join(self.queues) or '-'}"]
+        for b in self.buffers:
+            lines.append(f"  buffer {b.what}: {b.memory} {b.data} ({b.nbytes:,} bytes)")
+        for la in self.launches:
+            lines.append(f"  launch {la.part}: {la.function} global {la.global_size} local "
+                         f"{la.local_size} args ({', '.join(_arg(a) for a in la.arguments)})")
+        for t in self.transfers:
+            lines.append(f"  transfer {t.part}: {t.direction} {t.nbytes:,} bytes"
+                         + (" zero-copy" if t.zero_copy else ""))
+        return lines
+
+
+def _arg(a: Argument) -> str:
+    return a.port if a.kind == "buffer" else f"{a.name}={a.value}"
+
+
+def plan_lines(plan: ProgramPlan) -> list[str]:
+    """The system plan, as printed by `gpucompgen plan` and atop the generated program.
+
+    One row per part in the order they run: the stage (parts of one stage never depend on
+    each other), the queue of a GPU command, where it runs, the GPU settings and resident
+    threads the system chose, and every buffer with its bytes.  Then the totals: peak device
+    and host memory (all allocated once, at start), bytes copied between CPU and GPU per
+    frame, and the thread budget.
+    """
+    parallel = plan.execution == "parallel" and len(plan.queues) > 1
+    rows = [("step", "name", "stage", "queue", "runs", "GPU settings", "threads")]
+    for i, part in enumerate(plan.parts, 1):
+        queue = part.queue.removeprefix("queue") if parallel and part.queue else "-"
+        la = plan.launch(part.name)
+        setting = (f"tile {la.tile}, block {la.local_size[0]}x{la.local_size[1]}x"
+                   f"{la.local_size[2]}" if la else "-")
+        name = part.name if part.kind == "adapter" else f"{part.name} ({part.type_name})"
+        rows.append((str(i), name, str(part.stage), queue, part.runs, setting,
+                     f"{la.threads:,}" if la else "-"))
+    lines = _table(rows)
+    lines.append("")
+    rows = [("buffer", "memory", "size", "bytes")]
+    for b in plan.buffers:
+        rows.append((b.what, b.memory, str(b.data), f"{b.nbytes:,}"))
+    for t in plan.transfers:
+        if t.zero_copy:
+            view = "mapped device" if t.direction == "gpu2cpu" else "host"
+            rows.append((f"{t.part} ({t.source})", f"{view} view", str(t.data), "0"))
+    lines += _table(rows, right=(3,))
+    lines.append("")
+    lines.append(f"device: {plan.device_name}")
+    lines.append(f"peak device memory: {plan.device_bytes:,} bytes; peak host memory: "
+                 f"{plan.host_bytes:,} bytes")
+    lines.append("(every buffer is allocated once, at start)")
+    lines.append(f"bytes copied between CPU and GPU per frame: {plan.copied_bytes:,}")
+    lines.append(f"zero-copy adapters: {'on' if plan.zero_copy else 'off'} "
+                 f"({plan.zero_copy_reason})")
+    n = len(plan.queues)
+    lines.append(f"execution: {plan.execution}" + (
+        f", {n} queue{'s' if n != 1 else ''}" if plan.execution == "parallel" and n else ""))
+    if plan.concurrent:
+        lines.append(f"thread budget: {plan.thread_budget:,} ({plan.thread_budget_source}); "
+                     "GPU components that can run at the same time:")
+        for group, threads in plan.concurrent:
+            lines.append(f"  {', '.join(group)}: {threads:,} threads")
+    return lines
+
+
+def _table(rows: list[tuple[str, ...]], right: tuple[int, ...] = ()) -> list[str]:
+    widths = [max(len(r[c]) for r in rows) for c in range(len(rows[0]))]
+    return ["  ".join(cell.rjust(w) if c in right else cell.ljust(w)
+                      for c, (cell, w) in enumerate(zip(r, widths))).rstrip() for r in rows]
+
+
+def summary_lines(plan: ProgramPlan) -> list[str]:
+    """What `gpucompgen check` prints about a checked system: components, adapters, sizes."""
+    comps = [p for p in plan.parts if p.kind == "component"]
+    lines = [f"{len(comps)} component{'s' if len(comps) != 1 else ''}, in order: "
+             + ", ".join(f"{p.name} ({p.type_name}, {'GPU' if p.runs == 'GPU' else 'CPU'})"
+                         for p in comps)]
+    adapters = [t for t in plan.transfers if t.source is not None]
+    n = len(adapters)
+    lines.append(f"{n} adapter{'s' if n != 1 else ''} will be inserted" + (":" if n else ""))
+    for t in adapters:
+        lines.append(f"  {t.part}: {t.source} -> {', '.join(map(str, t.consumers))} "
+                     f"({t.data}, {t.nbytes:,} bytes a frame)")
+    lines.append("sizes:")
+    for p in comps:
+        for _, port, size in sorted(p.init_outputs, key=lambda o: o[1]):
+            data = next(b.data for b in plan.buffers if b.owner == p.name and b.port == port)
+            lines.append(f"  {p.name}.{port}: {data}")
+    for p in comps:
+        la = plan.launch(p.name)
+        if la is not None:
+            bx, by, bz = la.local_size
+            lines.append(f"GPU settings of {p.name}: tile {la.tile}, block {bx}x{by}x{bz} "
+                         f"({la.settings_source})")
+    lines.append("device: " + plan.device_name.encode("unicode_escape").decode("ascii"))
+    return lines

@@ -1,0 +1,138 @@
+"""The base class of kernel components: what every GPU-aware component class does.
+
+A generated class declares what differs per type — its kernel function, its ports and
+their element types, and how its output sizes follow from its inputs and parameters —
+and the generated ``run()`` passes what differs per system: the GPU settings, global and
+local sizes and the kernel's arguments in calling-convention order (buffers by port name,
+scalars as values).  This class allocates, launches and frees.
+"""
+
+from __future__ import annotations
+
+import inspect
+from typing import Any, ClassVar
+
+from .devices import check_work_group
+from .sizes import Size
+
+
+class KernelComponent:
+    function: ClassVar[str] = ""
+    # (port, numpy element type) in the type's order
+    inputs: ClassVar[tuple[tuple[str, Any], ...]] = ()
+    outputs: ClassVar[tuple[tuple[str, Any], ...]] = ()
+
+    def __init__(self, context, queue, program, *, copies_own_data: bool = False,
+                 host_visible: bool = False, **params: Any):
+        """copies_own_data: a standard component (paper, Section II) that copies its inputs
+        to the device and its outputs back itself on every execute; host_visible: outputs
+        in host-visible memory, so a zero-copy adapter can map them."""
+        import pyopencl as cl
+
+        self.context = context
+        self.queue = queue
+        self.kernel = cl.Kernel(program, self.function)
+        self.copies_own_data = copies_own_data
+        self.host_visible = host_visible
+        self.profile = None  # a runtime.Profile with --profile
+        self.event = None  # of the last kernel enqueued
+        for name, value in params.items():
+            setattr(self, name, value)
+        self._inputs, self._outputs = dict(self.inputs), dict(self.outputs)
+        self.sizes: dict[str, Size] = {}
+        self.buffers: dict[str, Any] = {}  # device buffers by port
+        self.hosts: dict[str, Any] = {}  # host arrays of outputs (copies_own_data)
+
+    def output_sizes(self, *inputs: Size) -> list[Size]:
+        raise NotImplementedError
+
+    def initialize(self, *inputs: Size):
+        """Input sizes in, output sizes out; memory is allocated once, here."""
+        import numpy as np
+        import pyopencl as cl
+
+        for port, size in zip(self._inputs, inputs):
+            self.sizes[port] = Size(*size)
+        out_sizes = list(self.output_sizes(*inputs))
+        for port, size in zip(self._outputs, out_sizes):
+            self.sizes[port] = size
+        mf = cl.mem_flags
+        if self.copies_own_data:
+            for port, dtype in self._inputs.items():
+                self.buffers[port] = cl.Buffer(self.context, mf.READ_ONLY,
+                                               self.sizes[port].nbytes(dtype))
+            for port, dtype in self._outputs.items():
+                self.buffers[port] = cl.Buffer(self.context, mf.WRITE_ONLY,
+                                               self.sizes[port].nbytes(dtype))
+                self.hosts[port] = np.empty(self.sizes[port].shape, dtype)
+        else:
+            flags = mf.READ_WRITE | (mf.ALLOC_HOST_PTR if self.host_visible else 0)
+            for port, dtype in self._outputs.items():
+                self.buffers[port] = cl.Buffer(self.context, flags,
+                                               self.sizes[port].nbytes(dtype))
+        return out_sizes[0] if len(out_sizes) == 1 else tuple(out_sizes)
+
+    def config_gpu(self, tile: int, local_size: tuple[int, int, int],
+                   global_size: tuple[int, int, int], arguments, settings_source: str = ""):
+        """The GPU settings the system chose, used for every frame; arguments in the
+        calling convention's order: a port's name stands for its buffer."""
+        self.tile, self.local_size, self.global_size = tile, local_size, global_size
+        _check_work_group(self.kernel, self.queue.device, local_size, type(self).__name__,
+                          settings_source)
+        self.arguments = list(arguments)
+        inputs = [port for port, _ in self.inputs]
+        self._slots = []  # (argument index, input index) filled in by execute()
+        for i, arg in enumerate(self.arguments):
+            if isinstance(arg, str):
+                if arg in self.buffers:
+                    self.arguments[i] = self.buffers[arg]
+                else:
+                    self._slots.append((i, inputs.index(arg)))
+
+    def execute(self, *inputs, wait_for=None):
+        import numpy as np
+        import pyopencl as cl
+
+        if self.copies_own_data:
+            copied_in = [cl.enqueue_copy(self.queue, self.buffers[port], np.ascontiguousarray(x))
+                         for port, x in zip(self._inputs, inputs)]
+            self.kernel.set_args(*self.arguments)
+            ran = cl.enqueue_nd_range_kernel(self.queue, self.kernel, self.global_size,
+                                             self.local_size)
+            copied_out = [cl.enqueue_copy(self.queue, self.hosts[port], self.buffers[port])
+                          for port in self._outputs]
+            if self.profile is not None:
+                for port, event in zip(self._inputs, copied_in):
+                    self.profile.copy(self, "cpu2gpu", event, self.buffers[port].size)
+                self.profile.kernel(self, ran)
+                for port, event in zip(self._outputs, copied_out):
+                    self.profile.copy(self, "gpu2cpu", event, self.hosts[port].nbytes)
+            results = [self.hosts[port] for port in self._outputs]
+        else:
+            args = list(self.arguments)
+            for i, k in self._slots:
+                args[i] = inputs[k]
+            self.kernel.set_args(*args)
+            self.event = cl.enqueue_nd_range_kernel(self.queue, self.kernel, self.global_size,
+                                                    self.local_size, wait_for=wait_for)
+            if self.profile is not None:
+                self.profile.kernel(self, self.event)
+            results = [self.buffers[port] for port, _ in self.outputs]
+        return results[0] if len(results) == 1 else tuple(results)
+
+    def free_memory(self):
+        self.hosts.clear()
+        for port, _ in self.outputs + self.inputs:
+            buffer = self.buffers.pop(port, None)
+            if buffer is not None:
+                buffer.release()
+        self.arguments = []
+
+
+def _check_work_group(kernel, device, local_size, component: str, settings_source: str):
+    # settings_source says who chose the settings ("model" for gpu_settings), so that a
+    # run-time limit error says what to change; passed where check_work_group takes it
+    if settings_source and "settings_source" in inspect.signature(check_work_group).parameters:
+        return check_work_group(kernel, device, local_size, component,
+                                settings_source=settings_source)
+    return check_work_group(kernel, device, local_size, component)
