@@ -105,12 +105,16 @@ class Part:
 class Step:
     """One statement of the stream loop."""
 
-    kind: str  # "execute" | "transfer" | "unmap" | "end_of_stream"
+    kind: str  # "execute" | "transfer" | "unmap" | "end_of_stream" | "check"
     part: str = ""
     inputs: tuple[str, ...] = ()  # variables
     outputs: tuple[str, ...] = ()  # variables
     waits: tuple[str, ...] = ()  # parts whose last event it waits for
     note: str = ""
+    # "check": a CPU component's output entering another part must have this host shape
+    # and numpy element type (note names the port)
+    shape: tuple[int, ...] = ()
+    dtype: str = ""
 
 
 @dataclass(frozen=True)

@@ -167,6 +167,7 @@ def lower(system: System) -> ProgramPlan:
     parts, buffers, launches, transfers, steps = [], [], [], [], []
     sources = [n for n in system.order if isinstance(system.nodes[n], ComponentNode)
                and not system.nodes[n].inputs and not system.nodes[n].on_gpu]
+    pending_checks: list[Step] = []
     for name in system.order:
         node = system.nodes[name]
         in_vars = tuple(f"{system.input_var(Endpoint(name, p))}_size" for p in node.inputs)
@@ -228,6 +229,17 @@ def lower(system: System) -> ProgramPlan:
                           tuple(system.input_var(Endpoint(name, p)) for p in node.inputs),
                           tuple(system.output_vars[Endpoint(name, p)] for p in node.outputs),
                           tuple(system.waits.get(name, ())) if not standard else ()))
+        # what a CPU component returns is checked where it enters another part (a
+        # source's after the end-of-stream test: None ends the stream there)
+        checks = [Step("check", name, (system.output_vars[Endpoint(name, p)],),
+                       note=f"{name}.{p}", shape=port.data.size.shape,
+                       dtype=np_name(port.data.dtype))
+                  for p, port in node.outputs.items()
+                  if not node.on_gpu and system.readers(Endpoint(name, p))]
+        if name in sources:
+            pending_checks += checks
+        else:
+            steps += checks
         for a in system.unmap_after.get(name, []):
             steps.append(Step("unmap", a, note=f"the device may write "
                               f"{system.nodes[a].source} again"))
@@ -236,6 +248,8 @@ def lower(system: System) -> ProgramPlan:
                          for p in system.nodes[s].outputs)
             if ends:
                 steps.append(Step("end_of_stream", inputs=ends))
+            steps += pending_checks
+            pending_checks = []
 
     imports, user_classes = [], []
     for t in types:

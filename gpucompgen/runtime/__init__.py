@@ -10,6 +10,7 @@ pyopencl and numpy only. One module per concern:
     adapters    the CPU<->GPU adapters (copying and zero-copy), the same in every system
     components  KernelComponent, the base class of generated GPU-aware component classes
     programs    building kernel files, with the component named in errors
+    frames      shape and element type of frames crossing components
     lifecycle   size checks, user modules, failures named by component, freeing
     profiling   --profile: event times and bytes moved
     monitor     progress, --stats-json, runtime options
@@ -47,6 +48,7 @@ from .devices import (
     unusable_message,
 )
 from .errors import PipelineError, Stopped
+from .frames import check_frame
 from .lifecycle import (
     Result,
     component_failure,
@@ -82,7 +84,7 @@ __all__ = [
     "_stop_on_signals",
     "add_program_options",
     "build_program",
-    "check_device_memory",
+    "check_device_memory", "check_frame",
     "check_work_group",
     "component_failure",
     "create_context",

@@ -75,7 +75,8 @@ def component_failure(exc: BaseException, frame: int | None,
     configured; parts maps every planned name to its object, None until constructed, so
     a constructor that raises is the first name still None.
     """
-    who = failing_component(exc, parts)
+    # a check of what a part returned names that part (runtime.check_frame)
+    who = failing_component(exc, parts) or getattr(exc, "component", None)
     when = "while initializing" if frame is None else f"at frame {frame}"
     if who is None and frame is None:
         unbuilt = next((name for name, obj in parts.items() if obj is None), None)

@@ -213,6 +213,7 @@ def run(frames=None, context=None, monitor=None, profile=False):
             source_image = source.execute()
             if source_image is None:
                 break  # end of stream
+            runtime.check_frame('source.image', source_image, (864, 1152, 3), np.uint8)
             source_image_gpu = adapter1_cpu2gpu.transfer(source_image)
             mirror1_mirrored = mirror1.execute(source_image_gpu)
             mirror2_mirrored = mirror2.execute(mirror1_mirrored)

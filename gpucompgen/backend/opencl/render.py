@@ -108,6 +108,8 @@ def py_literal(value) -> str:
     """A Python literal for a model value (escaped: no model text becomes code)."""
     if isinstance(value, (bool, int, float, str)) or value is None:
         return repr(value)
+    if isinstance(value, tuple) and all(type(v) is int for v in value):
+        return repr(value)  # a shape
     raise TypeError(f"no literal for {type(value).__name__}")
 
 
