@@ -37,7 +37,25 @@ class Lower(Pass):
 
     def apply(self, system, rep):
         system.plan = lower(system)
+        check_device_memory(system, rep)
         return system
+
+
+def check_device_memory(system: System, rep) -> None:
+    """Every device buffer is allocated at start: all of them must fit the device's memory
+    (each buffer's own limit, max_mem_alloc_size, is checked when sizes propagate)."""
+    plan, device = system.plan, system.device
+    if plan.device_bytes <= device.global_mem_size:
+        return
+    largest = sorted(plan.device_buffers(), key=lambda b: (-b.nbytes, b.what))[:3]
+    shown = ", ".join(f"{b.what} {b.nbytes:,}" for b in largest)
+    where = system.model.device_positions.get("global_mem_size", (None, None))[1] \
+        or system.model.device_pos
+    rep.error(where, f"the system needs {plan.device_bytes:,} bytes of device memory at peak "
+              f"(largest buffers: {shown}), more than device '{device.name}' has "
+              f"({device.global_mem_size:,} bytes)",
+              "use smaller frames, zero-copy adapters on a device with unified memory, or a "
+              "device (platform.device) with more memory")
 
 
 def lib_dir_name(system_name: str) -> str:
