@@ -291,15 +291,14 @@ def _load_type(doc: Document, rep: Reporter, path: Path, origin: str, tname: str
         pos=doc.key_pos(*base))
     # parameters
     params = _expect_map(doc, rep, base + ("params",), spec.get("params"), "params")
-    for pname, pspec in params.items():
+    for pname, written in params.items():
         ppath = base + ("params", pname)
         problem = name_problem(pname, "parameter name")
         if problem:
             rep.error(doc.key_pos(*ppath), problem)
             continue
-        if isinstance(pspec, str):
-            pspec = {"type": pspec}
-        pspec = _expect_map(doc, rep, ppath, pspec, f"parameter '{pname}'")
+        pspec = _expect_map(doc, rep, ppath, {"type": written} if isinstance(written, str)
+                            else written, f"parameter '{pname}'")
         _unknown_keys(doc, rep, ppath, pspec, PARAM_KEYS, f"parameter '{pname}'")
         ptype = pspec.get("type")
         if not _named(ptype, PARAM_TYPES):
@@ -324,6 +323,11 @@ def _load_type(doc: Document, rep: Reporter, path: Path, origin: str, tname: str
                 bound = None
             bounds[key] = bound
         default = pspec.get("default")
+        if "default" in pspec and default is None:
+            rep.error(doc.pos(*ppath, "default"), f"default of '{pname}' is empty (null)",
+                      f"give {'an' if ptype == 'int' else 'a'} {ptype} default, or remove "
+                      "'default:' to make the parameter required")
+            continue
         problem = None if default is None else _param_value_problem(
             default, ParamDecl(pname, ptype, minimum=bounds["min"], maximum=bounds["max"]),
             kind == "gpu-aware")
@@ -367,13 +371,13 @@ def _load_type(doc: Document, rep: Reporter, path: Path, origin: str, tname: str
     if not isinstance(requires, list):
         rep.error(doc.pos(*base, "requires"), "requires must be a list of conditions")
         requires = []
-    for i, req in enumerate(requires):
+    for i, written in enumerate(requires):
         rpath = base + ("requires", i)
-        message = ""
-        if isinstance(req, dict):
-            _unknown_keys(doc, rep, rpath, req, ("check", "message"), "a requirement")
-            message = _text(doc, rep, rpath + ("message",), req.get("message"), "message")
-            req = req.get("check")
+        message, req = "", written
+        if isinstance(written, dict):
+            _unknown_keys(doc, rep, rpath, written, ("check", "message"), "a requirement")
+            message = _text(doc, rep, rpath + ("message",), written.get("message"), "message")
+            req = written.get("check")
         try:
             tree = sizeexpr.parse(req, set(ctype.inputs), set(_int_params(ctype)),
                                   condition=True)
@@ -862,9 +866,9 @@ def load_system(path: Path, display: str | None = None) -> SystemModel:
     overrides: dict[str, tuple[dict[str, int], Pos]] = {}
     settings = _expect_map(doc, rep, ("platform", "gpu_settings"), platform.get("gpu_settings"),
                            "gpu_settings")
-    for cname, sspec in settings.items():
+    for cname, written in settings.items():
         spath = ("platform", "gpu_settings", cname)
-        sspec = _expect_map(doc, rep, spath, sspec, f"gpu_settings of '{cname}'")
+        sspec = _expect_map(doc, rep, spath, written, f"gpu_settings of '{cname}'")
         _unknown_keys(doc, rep, spath, sspec, SETTING_KEYS, f"gpu_settings of '{cname}'")
         values = {}
         for key in SETTING_KEYS:
@@ -898,7 +902,7 @@ def load_system(path: Path, display: str | None = None) -> SystemModel:
     # imports (a GPU-aware type's own class, or a standard type's Python class)
     class_names = {t.python_class or t.name: t.name for t in types.values()}
     class_names.update({t.name: t.name for t in types.values()})
-    for order, (cname, cspec) in enumerate(comps.items()):
+    for order, (cname, written) in enumerate(comps.items()):
         cpath = ("components", cname)
         problem = name_problem(cname, "component name", top_level=True)
         if problem:
@@ -910,9 +914,8 @@ def load_system(path: Path, display: str | None = None) -> SystemModel:
                       "names must differ by more than case and underscores")
             continue
         folded[fold(cname)] = cname
-        if isinstance(cspec, str):
-            cspec = {"type": cspec}
-        cspec = _expect_map(doc, rep, cpath, cspec, f"component '{cname}'")
+        cspec = _expect_map(doc, rep, cpath, {"type": written} if isinstance(written, str)
+                            else written, f"component '{cname}'")
         _unknown_keys(doc, rep, cpath, cspec, INSTANCE_KEYS, f"component '{cname}'")
         tname = cspec.get("type")
         if not _named(tname, types):
@@ -992,9 +995,7 @@ def _instance_params(doc, rep, cpath, ctype: ComponentType, given) -> dict[str, 
             rep.error(doc.pos(*cpath, "params", pname),
                       f"parameter '{pname}' of '{ctype.name}' {problem}", hint)
             continue
-        if decl.type == "float":
-            value = float(value)
-        params[pname] = value
+        params[pname] = float(value) if decl.type == "float" else value
     for pname, decl in ctype.params.items():
         if pname not in params and pname not in given:
             if decl.required:

@@ -20,6 +20,8 @@ FUNCS = ("min", "max")
 MAX_SOURCE = 200  # characters of one expression
 MAX_VALUE = 1 << 62  # bound on every value while evaluating (an int64 with room to spare)
 MAX_SIDE = 1 << 20  # the largest height or width of any port, CPU or GPU: 1,048,576
+# the most bytes one frame of a port may have (checked where sizes and element types meet)
+MAX_FRAME_BYTES = 1 << 32
 ARITH_OPS = {ast.Add: "+", ast.Sub: "-", ast.Mult: "*", ast.FloorDiv: "//", ast.Mod: "%"}
 COMPARE_OPS = (ast.Eq, ast.NotEq, ast.Lt, ast.LtE, ast.Gt, ast.GtE)
 WHAT = "only integers, + - * // %, min(a, b, ...), max(a, b, ...), parameters and " \
@@ -192,6 +194,17 @@ class _Evaluator:
 def _compare(op: ast.cmpop, left: int, right: int) -> bool:
     return {ast.Eq: left == right, ast.NotEq: left != right, ast.Lt: left < right,
             ast.LtE: left <= right, ast.Gt: left > right, ast.GtE: left >= right}[type(op)]
+
+
+def frame_problem(height: int, width: int, channels: int, itemsize: int) -> str:
+    """Why a frame of this shape cannot be (for any port, CPU or GPU), or ''."""
+    if not (0 < height <= MAX_SIDE and 0 < width <= MAX_SIDE):
+        return f"a frame of {height:,}x{width:,} pixels is outside 1..{MAX_SIDE:,} per side"
+    nbytes = height * width * channels * itemsize
+    if nbytes > MAX_FRAME_BYTES:
+        return (f"a frame of {height:,}x{width:,}x{channels} needs {nbytes:,} bytes, more "
+                f"than any frame may have ({MAX_FRAME_BYTES:,} bytes)")
+    return ""
 
 
 def to_python(tree: ast.Expression, port_prefix: str = "") -> str:
