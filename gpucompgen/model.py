@@ -327,7 +327,6 @@ def _load_type(doc: Document, rep: Reporter, path: Path, origin: str, tname: str
             rep.error(doc.pos(*ppath, "default"), f"default of '{pname}' is empty (null)",
                       f"give {'an' if ptype == 'int' else 'a'} {ptype} default, or remove "
                       "'default:' to make the parameter required")
-            continue
         problem = None if default is None else _param_value_problem(
             default, ParamDecl(pname, ptype, minimum=bounds["min"], maximum=bounds["max"]),
             kind == "gpu-aware")

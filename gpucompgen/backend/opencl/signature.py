@@ -127,7 +127,7 @@ def find_definition(source: str, name: str) -> Definition:
         params = _params(code[m.end():close], typedefs, line)
         return Definition(name, line, params)
     if declared_only is not None:
-        raise SignatureError(f"'__kernel void {name}(...)' is declared at line {declared_only} "
+        raise SignatureError(f"'__kernel void {name}(...)' is declared "
                              "but never defined", "give the kernel its body", declared_only)
     hint = ("the file defines " + ", ".join(f"'{k}'" for k in other_kernels)
             if other_kernels else "define '__kernel void " + name + "(...) { ... }' "

@@ -1,0 +1,10 @@
+import sys
+
+
+class Displayer:
+    pass
+
+
+class Window:
+    def Display(self):
+        pass
