@@ -847,8 +847,11 @@ def load_system(path: Path, display: str | None = None) -> SystemModel:
     if not isinstance(type_files, list):
         rep.error(doc.pos("types"), "types must be a list of component-type files")
         type_files = []
+    types_failed = False  # a type file could not be read: its types are not "unknown"
     for i, rel in enumerate(type_files):
-        user = _load_user_types(doc, rep, path, display, i, rel) or {}
+        user = _load_user_types(doc, rep, path, display, i, rel)
+        types_failed |= user is None
+        user = user or {}
         for tname, ctype in user.items():
             clash = next((t for t in types if fold(t) == fold(tname)), None)
             if clash is not None:
@@ -918,6 +921,8 @@ def load_system(path: Path, display: str | None = None) -> SystemModel:
         _unknown_keys(doc, rep, cpath, cspec, INSTANCE_KEYS, f"component '{cname}'")
         tname = cspec.get("type")
         if not _named(tname, types):
+            if types_failed and isinstance(tname, str):
+                continue
             rep.error(doc.pos(*cpath, "type") if "type" in cspec else doc.key_pos(*cpath),
                       f"unknown component type {tname!r} for '{cname}'",
                       did_you_mean(str(tname), types))
