@@ -240,6 +240,10 @@ TYPE_KEYS = ("kind", "description", "params", "inputs", "outputs", "requires", "
              "python", "gpu")
 PORT_KEYS = ("memory", "dtype", "channels", "height", "width", "description")
 PARAM_KEYS = ("type", "default", "min", "max", "description")
+REQUIRE_KEYS = ("check", "message")
+KERNEL_KEYS = ("file", "function", "grid", "cover")
+GPU_KEYS = ("tiles", "block_z", "prefer", "max_threads", "square")
+PYTHON_KEYS = ("file", "class")
 
 
 def load_types_file(path: Path, display: str, origin: str, rep: Reporter,
@@ -374,7 +378,7 @@ def _load_type(doc: Document, rep: Reporter, path: Path, origin: str, tname: str
         rpath = base + ("requires", i)
         message, req = "", written
         if isinstance(written, dict):
-            _unknown_keys(doc, rep, rpath, written, ("check", "message"), "a requirement")
+            _unknown_keys(doc, rep, rpath, written, REQUIRE_KEYS, "a requirement")
             message = _text(doc, rep, rpath + ("message",), written.get("message"), "message")
             req = written.get("check")
         try:
@@ -600,8 +604,7 @@ def _load_kernel(doc, rep, base, ctype: ComponentType, spec,
     if not kspec:
         rep.error(ctype.pos, f"GPU-aware type '{ctype.name}' needs 'kernel: {{file, function}}'")
         return
-    _unknown_keys(doc, rep, base + ("kernel",), kspec, ("file", "function", "grid", "cover"),
-                  "kernel")
+    _unknown_keys(doc, rep, base + ("kernel",), kspec, KERNEL_KEYS, "kernel")
     found = _resolve_file(doc, rep, base + ("kernel", "file"), ctype.decl_file.parent,
                           kspec.get("file"), ".cl", "kernel file")
     if found is not None:
@@ -629,8 +632,7 @@ def _load_kernel(doc, rep, base, ctype: ComponentType, spec,
     else:
         ctype.cover = cover
     gspec = _expect_map(doc, rep, base + ("gpu",), spec.get("gpu"), "gpu")
-    _unknown_keys(doc, rep, base + ("gpu",), gspec,
-                  ("tiles", "block_z", "prefer", "max_threads", "square"), "gpu")
+    _unknown_keys(doc, rep, base + ("gpu",), gspec, GPU_KEYS, "gpu")
     decl = GpuDecl()
     tiles = gspec.get("tiles", list(decl.tiles))
     block_z = gspec.get("block_z", list(decl.block_z))
@@ -721,7 +723,7 @@ def _load_python(doc, rep, base, ctype: ComponentType, spec) -> None:
     if not pspec:
         rep.error(ctype.pos, f"standard type '{ctype.name}' needs 'python: {{file, class}}'")
         return
-    _unknown_keys(doc, rep, base + ("python",), pspec, ("file", "class"), "python")
+    _unknown_keys(doc, rep, base + ("python",), pspec, PYTHON_KEYS, "python")
     found = _resolve_file(doc, rep, base + ("python", "file"), ctype.decl_file.parent,
                           pspec.get("file"), ".py", "Python file")
     if found is not None:
