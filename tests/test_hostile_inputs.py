@@ -350,6 +350,8 @@ BAD_TINT = [
     (KERNEL.replace("const int image_height", "const uint image_height"), "is uint, not int"),
     (KERNEL.replace("const int tile", "__global int *tile"), "must be a scalar"),
     (KERNEL.replace("{\n}", ";"), "is declared but never defined"),
+    ("#define K \\\n" + KERNEL.replace("\n", " \\\n"), "defines no"),
+    ("#if 0\n#endif\nint tint(int a) {}\n", "defines no"),
 ]
 
 
@@ -398,6 +400,17 @@ def test_every_library_kernel_follows_the_convention():
             assert found.name == ctype.kernel_function
             checked += 1
     assert checked == 4
+
+
+@pytest.mark.parametrize("hostile", [
+    "f(" * (1 << 19), "tint(" * (1 << 18), "__kernel void tint(" * (1 << 16), "(" * (1 << 20),
+    "/*" * (1 << 19), '"' * (1 << 20), "__attribute__((" * (1 << 16),
+    "typedef " + "a " * (1 << 19), "kernel " * (1 << 17)])
+def test_hostile_kernel_sources_take_linear_time(hostile):
+    start = time.monotonic()
+    with pytest.raises(signature.SignatureError):
+        signature.find_definition(hostile, "tint")
+    assert time.monotonic() - start < 15
 
 
 def test_strip_keeps_lines_and_removes_comments_and_strings():

@@ -11,6 +11,7 @@ address space, constness, pointer and type, and compared with
 from __future__ import annotations
 
 import re
+from collections.abc import Iterator
 from dataclasses import dataclass
 
 from .convention import KernelParam, kernel_parameters
@@ -29,7 +30,6 @@ SPELLINGS = {("unsigned", "char"): "uchar", ("signed", "char"): "char",
              ("long", "int"): "long"}
 IDENT = re.compile(r"[A-Za-z_]\w*")
 ATTRIBUTE = re.compile(r"\b__attribute__\s*\(\(")
-PREPROCESSOR = re.compile(r"^[ \t]*#(?:[^\n]*\\\n)*[^\n]*", re.MULTILINE)  # with continuations
 
 
 class SignatureError(ValueError):
@@ -63,36 +63,36 @@ class Definition:
 
 
 def strip(source: str) -> str:
-    """The source with comments, string and character literals replaced by spaces; line
-    breaks are kept so positions still hold."""
+    """The source with comments, string and character literals and preprocessor lines
+    (``#define ...``, with their continuations) replaced by spaces; line breaks are kept
+    so positions still hold."""
     out: list[str] = []
     i, n = 0, len(source)
+    line_start = True  # only blanks since the last line break
     while i < n:
         c = source[i]
         two = source[i:i + 2]
-        if two == "//":
+        if two == "//" or (c == "#" and line_start):
             j = i
             while j < n and source[j] != "\n":
-                if source[j] == "\\" and source[j + 1:j + 2] == "\n":  # continued comment
+                if source[j] == "\\" and source[j + 1:j + 2] == "\n":  # continued line
                     j += 1
                 j += 1
-            out.append(_blank(source[i:j]))
-            i = j
         elif two == "/*":
             j = source.find("*/", i + 2)
             j = n if j < 0 else j + 2
-            out.append(_blank(source[i:j]))
-            i = j
         elif c in "\"'":
             j = i + 1
             while j < n and source[j] != c and source[j] != "\n":
                 j += 2 if source[j] == "\\" else 1
             j = min(j + 1, n)
-            out.append(_blank(source[i:j]))
-            i = j
         else:
             out.append(c)
+            line_start = c == "\n" or (line_start and c in " \t")
             i += 1
+            continue
+        out.append(_blank(source[i:j]))
+        i = j
     return "".join(out)
 
 
@@ -101,31 +101,23 @@ def _blank(text: str) -> str:
 
 
 def find_definition(source: str, name: str) -> Definition:
-    """The definition of kernel name; raise SignatureError when there is none."""
+    """The definition of kernel name; raise SignatureError when there is none.
+
+    One pass over the tokens: a hostile file of any shape takes linear time."""
     code = strip(source)
-    typedefs = _typedefs(code)
     declared_only = None
     other_kernels: list[str] = []
-    for m in re.finditer(r"\b([A-Za-z_]\w*)\s*\(", code):
-        start = _statement_start(code, m.start())
-        prefix = ATTRIBUTE.sub(" ", _drop_attributes(code[start:m.start()]))
-        words = IDENT.findall(prefix)
-        if not words or not ({"__kernel", "kernel"} & set(words)) or words[-1] != "void":
+    for kname, at, open_at, close_at, defined in _kernel_declarators(code):
+        if kname != name:
+            if defined and len(other_kernels) < 10:
+                other_kernels.append(kname)
             continue
-        close = _matching(code, m.end() - 1)
-        if close < 0:
+        line = code.count("\n", 0, at) + 1
+        if not defined:
+            declared_only = declared_only or line
             continue
-        after = _drop_attributes(code[close + 1:close + 400]).lstrip()
-        if m[1] != name:
-            if after.startswith("{"):
-                other_kernels.append(m[1])
-            continue
-        line = code.count("\n", 0, m.start(1)) + 1
-        if not after.startswith("{"):
-            declared_only = line
-            continue
-        params = _params(code[m.end():close], typedefs, line)
-        return Definition(name, line, params)
+        return Definition(name, line, _params(code[open_at + 1:close_at], _typedefs(code),
+                                              line))
     if declared_only is not None:
         raise SignatureError(f"'__kernel void {name}(...)' is declared "
                              "but never defined", "give the kernel its body", declared_only)
@@ -135,23 +127,48 @@ def find_definition(source: str, name: str) -> Definition:
     raise SignatureError(f"defines no '__kernel void {name}(...)'", hint)
 
 
-def _statement_start(code: str, end: int) -> int:
-    """Where the declaration that ends at end begins: after the last ';', '{' or '}' at
-    parenthesis depth zero (attributes hold parentheses, never those), and after the last
-    preprocessor line before it."""
-    i, depth, start = end - 1, 0, 0
-    while i >= 0:
-        c = code[i]
-        if c == ")":
-            depth += 1
-        elif c == "(":
-            depth -= 1
-        elif c in ";{}" and depth <= 0:
-            start = i + 1
-            break
-        i -= 1
-    directives = list(PREPROCESSOR.finditer(code, start, end))
-    return directives[-1].end() if directives else start
+TOKEN = re.compile(r"[A-Za-z_]\w*|[(){};]")
+
+
+def _kernel_declarators(code: str) -> Iterator[tuple[str, int, int, int, bool]]:
+    """(name, offset of the name, of '(', of ')', whether a body follows) of every
+    ``[__]kernel ... void NAME(...)`` outside parentheses in code (comments, strings and
+    preprocessor lines already blanked)."""
+    depth = 0
+    has_kernel, last_word, before_last, last_at = False, "", "", 0  # this declaration's
+    candidate: tuple[str, int, int] | None = None  # a kernel declarator awaiting its ')'
+    closed: tuple[str, int, int, int] | None = None  # what follows decides: body or not
+    for m in TOKEN.finditer(code):
+        tok = m.group()
+        if depth > 0:
+            if tok == "(":
+                depth += 1
+            elif tok == ")":
+                depth -= 1
+                if depth == 0 and candidate is not None:
+                    closed, candidate = (*candidate, m.start()), None
+            continue
+        if tok == "(":
+            if last_word != "__attribute__" and closed is None and has_kernel and \
+                    before_last == "void":
+                candidate = (last_word, last_at, m.start())
+            depth = 1
+            continue
+        if tok == "__attribute__":  # attributes may stand before the body, or anywhere
+            last_word = tok
+            continue
+        if closed is not None:
+            yield (*closed, tok == "{")
+            closed = None
+        if tok in ("{", "}", ";", ")"):
+            has_kernel, last_word, before_last = False, "", ""
+        else:
+            has_kernel |= tok in ("kernel", "__kernel")
+            if last_word != "__attribute__":
+                before_last = last_word
+            last_word, last_at = tok, m.start()
+    if closed is not None:
+        yield (*closed, False)
 
 
 def _drop_attributes(text: str) -> str:
@@ -179,7 +196,8 @@ def _matching(code: str, open_at: int) -> int:
 def _typedefs(code: str) -> dict[str, str]:
     """Simple typedefs of scalar types: ``typedef unsigned char pixel;``."""
     found = {}
-    for m in re.finditer(r"\btypedef\s+([A-Za-z_][\w\s]*?)\s+([A-Za-z_]\w*)\s*;", code):
+    for m in re.finditer(r"\btypedef\s+([A-Za-z_][\w \t]{0,100}?)\s+([A-Za-z_]\w*)\s*;",
+                         code):
         words = tuple(m[1].split())
         found[m[2]] = SPELLINGS.get(words, " ".join(words))
     return found
