@@ -160,7 +160,8 @@ def main(argv: list[str] | None = None) -> int:
         model = getattr(args, "model", None)
         if model is not None and not model.is_file():
             # The command line names no model file: a usage error, like argparse's own.
-            what = "is a directory, not a model file" if model.is_dir() else "no such file"
+            what = "is a directory, not a model file" if model.is_dir() else \
+                "not a regular file" if model.exists() else "no such file"
             print(f"gpucompgen {args.command}: error: {model}: {what}", file=sys.stderr)
             return 2
         return COMMANDS[args.command](args)

@@ -15,8 +15,18 @@ from pathlib import Path
 from typing import Any
 
 from . import sizeexpr
-from .errors import Pos, Reporter, did_you_mean
-from .loader import Document, load_file
+from .backend.opencl import signature
+from .errors import Diagnostic, GpucompgenError, Pos, Reporter, did_you_mean
+from .loader import (
+    MAX_FILE_BYTES,
+    MAX_SOURCE_BYTES,
+    Document,
+    FileProblem,
+    load_file,
+    load_text,
+    read_text,
+    starts_with_key,
+)
 from .names import CLASS_RESERVED, MODULE_NAMES, fold, member_names, name_problem, snake
 
 DTYPES = {  # element type → (numpy name, OpenCL C type, bytes)
@@ -108,6 +118,10 @@ class ComponentType:
     python_file: Path | None = None
     python_class: str = ""
     gpu: GpuDecl = field(default_factory=GpuDecl)
+    # the kernel's and the Python file's text, as checked (build writes this text, never
+    # a file read again later)
+    kernel_text: str = ""
+    python_text: str = ""
 
     @property
     def gpu_aware(self) -> bool:
@@ -226,12 +240,18 @@ TYPE_KEYS = ("kind", "description", "params", "inputs", "outputs", "requires", "
              "python", "gpu")
 PORT_KEYS = ("memory", "dtype", "channels", "height", "width", "description")
 PARAM_KEYS = ("type", "default", "min", "max", "description")
+REQUIRE_KEYS = ("check", "message")
+KERNEL_KEYS = ("file", "function", "grid", "cover")
+GPU_KEYS = ("tiles", "block_z", "prefer", "max_threads", "square")
+PYTHON_KEYS = ("file", "class")
 
 
-def load_types_file(path: Path, display: str, origin: str, rep: Reporter
-                    ) -> dict[str, ComponentType]:
-    """Load one file of component types: ``component_types: {Name: {...}, ...}``."""
-    doc = load_file(path, display)
+def load_types_file(path: Path, display: str, origin: str, rep: Reporter,
+                    doc: Document | None = None) -> dict[str, ComponentType]:
+    """Load one file of component types: ``component_types: {Name: {...}, ...}`` (doc:
+    the file, already loaded)."""
+    if doc is None:
+        doc = load_file(path, display)
     if doc.data is None:
         rep.error(doc.pos(), "the component-type file is empty",
                   "start it with 'component_types:' and one or more types")
@@ -253,6 +273,7 @@ def load_types_file(path: Path, display: str, origin: str, rep: Reporter
 def _load_type(doc: Document, rep: Reporter, path: Path, origin: str, tname: str,
                spec: Any) -> ComponentType | None:
     base = ("component_types", tname)
+    seen = len(rep.diagnostics)
     # a GPU-aware type becomes a class of the generated program: a module-level name
     problem = name_problem(tname, "component type name", top_level=True)
     if problem:
@@ -274,15 +295,14 @@ def _load_type(doc: Document, rep: Reporter, path: Path, origin: str, tname: str
         pos=doc.key_pos(*base))
     # parameters
     params = _expect_map(doc, rep, base + ("params",), spec.get("params"), "params")
-    for pname, pspec in params.items():
+    for pname, written in params.items():
         ppath = base + ("params", pname)
         problem = name_problem(pname, "parameter name")
         if problem:
             rep.error(doc.key_pos(*ppath), problem)
             continue
-        if isinstance(pspec, str):
-            pspec = {"type": pspec}
-        pspec = _expect_map(doc, rep, ppath, pspec, f"parameter '{pname}'")
+        pspec = _expect_map(doc, rep, ppath, {"type": written} if isinstance(written, str)
+                            else written, f"parameter '{pname}'")
         _unknown_keys(doc, rep, ppath, pspec, PARAM_KEYS, f"parameter '{pname}'")
         ptype = pspec.get("type")
         if not _named(ptype, PARAM_TYPES):
@@ -307,6 +327,10 @@ def _load_type(doc: Document, rep: Reporter, path: Path, origin: str, tname: str
                 bound = None
             bounds[key] = bound
         default = pspec.get("default")
+        if "default" in pspec and default is None:
+            rep.error(doc.pos(*ppath, "default"), f"default of '{pname}' is empty (null)",
+                      f"give {'an' if ptype == 'int' else 'a'} {ptype} default, or remove "
+                      "'default:' to make the parameter required")
         problem = None if default is None else _param_value_problem(
             default, ParamDecl(pname, ptype, minimum=bounds["min"], maximum=bounds["max"]),
             kind == "gpu-aware")
@@ -350,22 +374,24 @@ def _load_type(doc: Document, rep: Reporter, path: Path, origin: str, tname: str
     if not isinstance(requires, list):
         rep.error(doc.pos(*base, "requires"), "requires must be a list of conditions")
         requires = []
-    for i, req in enumerate(requires):
+    for i, written in enumerate(requires):
         rpath = base + ("requires", i)
-        message = ""
-        if isinstance(req, dict):
-            _unknown_keys(doc, rep, rpath, req, ("check", "message"), "a requirement")
-            message = _text(doc, rep, rpath + ("message",), req.get("message"), "message")
-            req = req.get("check")
+        message, req = "", written
+        if isinstance(written, dict):
+            _unknown_keys(doc, rep, rpath, written, REQUIRE_KEYS, "a requirement")
+            message = _text(doc, rep, rpath + ("message",), written.get("message"), "message")
+            req = written.get("check")
         try:
-            tree = sizeexpr.parse(req, set(ctype.inputs), set(_int_params(ctype)))
+            tree = sizeexpr.parse(req, set(ctype.inputs), set(_int_params(ctype)),
+                                  condition=True)
         except sizeexpr.SizeExprError as exc:
             rep.error(doc.pos(*rpath), f"requirement of '{tname}': {exc}")
             continue
         ctype.requires.append((tree, message or f"requires {ast.unparse(tree.body)}"))
     # implementation
     if kind == "gpu-aware":
-        _load_kernel(doc, rep, base, ctype, spec)
+        # a type with problems in its ports or parameters has no convention to check yet
+        _load_kernel(doc, rep, base, ctype, spec, signature_check=len(rep.diagnostics) == seen)
         if "python" in spec:
             rep.error(doc.key_pos(*base, "python"),
                       "a GPU-aware type is implemented by its OpenCL kernel, not 'python'",
@@ -519,44 +545,78 @@ def _port_sizes(doc, rep, path, ctype, port: PortDecl, quiet: bool = False) -> P
                     trees.get("height"), trees.get("width"), port.pos)
 
 
-def _resolve_file(doc, rep, path, decl_dir: Path, value: Any, suffix: str) -> Path | None:
+def _resolve_file(doc, rep, path, decl_dir: Path, value: Any, suffix: str,
+                  what: str) -> tuple[Path, str] | None:
+    """A kernel or Python file of a type and its text, or None after reporting why not.
+
+    The file must be a regular file inside the folder of the type file, also after
+    resolving symbolic links, at most MAX_SOURCE_BYTES long and UTF-8 text."""
     if not isinstance(value, str) or not value:
         rep.error(doc.pos(*path), f"expected a file name ending in {suffix}")
         return None
     rel = Path(value)
-    if rel.is_absolute() or ".." in rel.parts or rel.suffix != suffix:
+    if "\0" in value or rel.is_absolute() or ".." in rel.parts or rel.suffix != suffix:
         rep.error(doc.pos(*path), f"file {value!r} must be a relative path ending in {suffix}, "
                   "inside the folder of the type file", "move the file next to the type file")
         return None
     full = decl_dir / rel
-    if not full.is_file():
-        rep.error(doc.pos(*path), f"file {value!r} not found (looked in {decl_dir.name}/)",
-                  "paths are relative to the component-type file")
+    try:
+        real = full.resolve()
+        inside = real.is_relative_to(decl_dir.resolve())
+    except (OSError, RuntimeError):  # a loop of links
+        inside = False
+    if not inside:
+        rep.error(doc.pos(*path), f"file {value!r} is a link to a file outside the folder "
+                  "of the type file", "copy the file next to the type file instead of "
+                  "linking to it")
         return None
-    return full
+    shown = str(Path(doc.file).parent / rel)
+    try:
+        text = read_text(full, MAX_SOURCE_BYTES, f"{what} {value!r}")
+    except FileProblem as exc:
+        if exc.line:  # not UTF-8: say where in that file
+            rep.diagnostics.append(Diagnostic(shown, exc.line, exc.col, "error", exc.message,
+                                              exc.hint))
+        elif exc.message.endswith("not found"):
+            rep.error(doc.pos(*path), f"file {value!r} not found (looked in {decl_dir.name}/)",
+                      "paths are relative to the component-type file")
+        else:
+            rep.error(doc.pos(*path), exc.message, exc.hint)
+        return None
+    return full, text
 
 
-def _load_kernel(doc, rep, base, ctype: ComponentType, spec) -> None:
+def _check_signature(doc, rep, base, ctype: ComponentType, kspec: dict) -> None:
+    """The kernel's real definition takes what the calling convention passes."""
+    pos = doc.pos(*base, "kernel", "function") if "function" in kspec else \
+        doc.key_pos(*base, "kernel")
+    shown = str(Path(doc.file).parent / kspec["file"])
+    try:
+        signature.check(ctype, ctype.kernel_text, ctype.kernel_function)
+    except signature.SignatureError as exc:
+        where = f"{shown}:{exc.line}" if exc.line else shown
+        rep.error(pos, f"kernel file {where}: {exc.message}", exc.hint)
+
+
+def _load_kernel(doc, rep, base, ctype: ComponentType, spec,
+                 signature_check: bool = True) -> None:
     kspec = _expect_map(doc, rep, base + ("kernel",), spec.get("kernel"), "kernel")
     if not kspec:
         rep.error(ctype.pos, f"GPU-aware type '{ctype.name}' needs 'kernel: {{file, function}}'")
         return
-    _unknown_keys(doc, rep, base + ("kernel",), kspec, ("file", "function", "grid", "cover"),
-                  "kernel")
-    ctype.kernel_file = _resolve_file(doc, rep, base + ("kernel", "file"),
-                                      ctype.decl_file.parent, kspec.get("file"), ".cl")
+    _unknown_keys(doc, rep, base + ("kernel",), kspec, KERNEL_KEYS, "kernel")
+    found = _resolve_file(doc, rep, base + ("kernel", "file"), ctype.decl_file.parent,
+                          kspec.get("file"), ".cl", "kernel file")
+    if found is not None:
+        ctype.kernel_file, ctype.kernel_text = found
     function = kspec.get("function", ctype.snake)
     problem = name_problem(function, "kernel function name")
     if problem:
         rep.error(doc.pos(*base, "kernel", "function"), problem)
     else:
         ctype.kernel_function = function
-        if ctype.kernel_file is not None and not re.search(
-                rf"__kernel\s+void\s+{function}\s*\(|kernel\s+void\s+{function}\s*\(",
-                ctype.kernel_file.read_text(encoding="utf-8", errors="replace")):
-            rep.error(doc.pos(*base, "kernel", "function"),
-                      f"kernel file {ctype.kernel_file.name} defines no "
-                      f"'__kernel void {function}(...)'", "check the function name")
+        if found is not None and signature_check:
+            _check_signature(doc, rep, base, ctype, kspec)
     grid = kspec.get("grid", next(iter(ctype.outputs), ""))
     if not _named(grid, ctype.outputs):
         rep.error(doc.pos(*base, "kernel", "grid") if "grid" in kspec else ctype.pos,
@@ -572,8 +632,7 @@ def _load_kernel(doc, rep, base, ctype: ComponentType, spec) -> None:
     else:
         ctype.cover = cover
     gspec = _expect_map(doc, rep, base + ("gpu",), spec.get("gpu"), "gpu")
-    _unknown_keys(doc, rep, base + ("gpu",), gspec,
-                  ("tiles", "block_z", "prefer", "max_threads", "square"), "gpu")
+    _unknown_keys(doc, rep, base + ("gpu",), gspec, GPU_KEYS, "gpu")
     decl = GpuDecl()
     tiles = gspec.get("tiles", list(decl.tiles))
     block_z = gspec.get("block_z", list(decl.block_z))
@@ -605,20 +664,78 @@ def _load_kernel(doc, rep, base, ctype: ComponentType, spec) -> None:
                         max_threads, square)
 
 
+def _check_class(doc, rep, base, ctype: ComponentType, pspec: dict) -> None:
+    """The Python file defines the class at module level: read with ast, never imported."""
+    shown = str(Path(doc.file).parent / pspec["file"])
+    try:
+        module = ast.parse(ctype.python_text, shown)
+    except SyntaxError as exc:
+        rep.diagnostics.append(Diagnostic(shown, exc.lineno or 1, exc.offset or 1, "error",
+                                          f"syntax error in Python file: {exc.msg}",
+                                          "fix the module: the generated program imports it"))
+        return
+    except (ValueError, RecursionError, MemoryError) as exc:
+        rep.error(doc.pos(*base, "python", "file"),
+                  f"Python file {pspec['file']!r} cannot be read as Python: "
+                  f"{type(exc).__name__}", "fix the module: the generated program imports it")
+        return
+    defined = module_names(module.body)
+    if ctype.python_class not in defined:
+        classes = [n for n, kind in defined.items() if kind == "class"]
+        pos = doc.pos(*base, "python", "class") if "class" in pspec else \
+            doc.key_pos(*base, "python")
+        rep.error(pos, f"class '{ctype.python_class}' is not defined in {shown}",
+                  did_you_mean(ctype.python_class, classes) if classes else
+                  f"define 'class {ctype.python_class}:' at the top level of {pspec['file']}")
+
+
+def module_names(body: list[ast.stmt]) -> dict[str, str]:
+    """Names a module's top level binds: name -> "class" | "other" (also inside if/try/with
+    blocks at module level, never inside functions or classes)."""
+    names: dict[str, str] = {}
+    for node in body:
+        if isinstance(node, ast.ClassDef):
+            names[node.name] = "class"
+        elif isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+            names.setdefault(node.name, "other")
+        elif isinstance(node, (ast.Import, ast.ImportFrom)):
+            for alias in node.names:
+                if alias.name != "*":
+                    names.setdefault(alias.asname or alias.name.split(".")[0], "other")
+        elif isinstance(node, (ast.Assign, ast.AnnAssign, ast.AugAssign)):
+            targets = node.targets if isinstance(node, ast.Assign) else [node.target]
+            for target in targets:
+                for sub in ast.walk(target):
+                    if isinstance(sub, ast.Name):
+                        names.setdefault(sub.id, "other")
+        elif isinstance(node, (ast.If, ast.Try, ast.With, ast.For, ast.While)):
+            blocks = [node.body, getattr(node, "orelse", []), getattr(node, "finalbody", [])]
+            blocks += [h.body for h in getattr(node, "handlers", [])]
+            for block in blocks:
+                for name, kind in module_names(block).items():
+                    if names.get(name) != "class":
+                        names[name] = kind
+    return names
+
+
 def _load_python(doc, rep, base, ctype: ComponentType, spec) -> None:
     pspec = _expect_map(doc, rep, base + ("python",), spec.get("python"), "python")
     if not pspec:
         rep.error(ctype.pos, f"standard type '{ctype.name}' needs 'python: {{file, class}}'")
         return
-    _unknown_keys(doc, rep, base + ("python",), pspec, ("file", "class"), "python")
-    ctype.python_file = _resolve_file(doc, rep, base + ("python", "file"),
-                                      ctype.decl_file.parent, pspec.get("file"), ".py")
+    _unknown_keys(doc, rep, base + ("python",), pspec, PYTHON_KEYS, "python")
+    found = _resolve_file(doc, rep, base + ("python", "file"), ctype.decl_file.parent,
+                          pspec.get("file"), ".py", "Python file")
+    if found is not None:
+        ctype.python_file, ctype.python_text = found
     cls = pspec.get("class", ctype.name)
     problem = name_problem(cls, "class name", top_level=True)  # imported at module level
     if problem:
         rep.error(doc.pos(*base, "python", "class"), problem)
     else:
         ctype.python_class = cls
+        if found is not None:
+            _check_class(doc, rep, base, ctype, pspec)
     if ctype.python_file is not None and ctype.origin == "user":
         problem = name_problem(ctype.python_file.stem, "Python module name")
         if problem:
@@ -653,6 +770,53 @@ INSTANCE_KEYS = ("type", "params", "description")
 CONNECTION_RE = re.compile(r"^\s*([^\s.]+)\.([^\s.]+)\s*->\s*([^\s.]+)\.([^\s.]+)\s*$")
 
 
+TYPE_FILE_SUFFIXES = (".yaml", ".yml")
+
+
+def _load_user_types(doc: Document, rep: Reporter, path: Path, display: str, i: int,
+                     rel: Any) -> dict[str, ComponentType] | None:
+    """The types of entry i of the model's 'types:' list, or None after reporting why not.
+
+    A type file is any .yaml/.yml file, relative to the model (``../shared/types.yaml``)
+    or absolute, so models can share type files.  Nothing of a file that does not start
+    as a component-type file (``component_types:``) is ever quoted in a message."""
+    pos = doc.pos("types", i)
+    if not isinstance(rel, str) or not rel:
+        rep.error(pos, "expected the path of a component-type .yaml file")
+        return None
+    if "\0" in rel or not rel.endswith(TYPE_FILE_SUFFIXES):
+        rep.error(pos, f"component-type file {rel!r} must be a .yaml or .yml file",
+                  "component types are declared in YAML files that start with "
+                  "'component_types:'")
+        return None
+    tpath = path.parent / rel
+    shown = str(Path(display).parent / rel)
+    what = f"component-type file {rel!r}"
+    try:
+        text = read_text(tpath, MAX_FILE_BYTES, what)
+    except FileProblem as exc:
+        if exc.line and starts_with_key(exc.prefix, "component_types"):
+            rep.diagnostics.append(Diagnostic(shown, exc.line, exc.col, "error",
+                                              exc.message, exc.hint))
+        elif exc.line:
+            rep.error(pos, f"{what} is not a component-type file (it is not UTF-8 text)",
+                      "a component-type file starts with 'component_types:'")
+        else:
+            rep.error(pos, exc.message, "paths are relative to the model file"
+                      if exc.message.endswith("not found") else exc.hint)
+        return None
+    if not starts_with_key(text, "component_types"):
+        rep.error(pos, f"{what} is not a component-type file",
+                  "a component-type file starts with 'component_types:' (its content is "
+                  "not shown)")
+        return None
+    try:
+        return load_types_file(tpath.resolve(), shown, "user", rep, load_text(text, shown))
+    except GpucompgenError as exc:
+        rep.diagnostics.extend(exc.diagnostics)
+        return None
+
+
 def load_system(path: Path, display: str | None = None) -> SystemModel:
     """Load a system model and everything it refers to; raise GpucompgenError on problems."""
     import hashlib
@@ -685,22 +849,11 @@ def load_system(path: Path, display: str | None = None) -> SystemModel:
     if not isinstance(type_files, list):
         rep.error(doc.pos("types"), "types must be a list of component-type files")
         type_files = []
+    types_failed = False  # a type file could not be read: its types are not "unknown"
     for i, rel in enumerate(type_files):
-        if not isinstance(rel, str) or not rel:
-            rep.error(doc.pos("types", i), "expected the path of a component-type .yaml file")
-            continue
-        tpath = (path.parent / rel)
-        shown = str(Path(display).parent / rel)
-        if not tpath.is_file():
-            rep.error(doc.pos("types", i), f"component-type file {rel!r} not found",
-                      "paths are relative to the model file")
-            continue
-        from .errors import GpucompgenError
-        try:
-            user = load_types_file(tpath.resolve(), shown, "user", rep)
-        except GpucompgenError as exc:
-            rep.diagnostics.extend(exc.diagnostics)
-            continue
+        user = _load_user_types(doc, rep, path, display, i, rel)
+        types_failed |= user is None
+        user = user or {}
         for tname, ctype in user.items():
             clash = next((t for t in types if fold(t) == fold(tname)), None)
             if clash is not None:
@@ -717,9 +870,9 @@ def load_system(path: Path, display: str | None = None) -> SystemModel:
     overrides: dict[str, tuple[dict[str, int], Pos]] = {}
     settings = _expect_map(doc, rep, ("platform", "gpu_settings"), platform.get("gpu_settings"),
                            "gpu_settings")
-    for cname, sspec in settings.items():
+    for cname, written in settings.items():
         spath = ("platform", "gpu_settings", cname)
-        sspec = _expect_map(doc, rep, spath, sspec, f"gpu_settings of '{cname}'")
+        sspec = _expect_map(doc, rep, spath, written, f"gpu_settings of '{cname}'")
         _unknown_keys(doc, rep, spath, sspec, SETTING_KEYS, f"gpu_settings of '{cname}'")
         values = {}
         for key in SETTING_KEYS:
@@ -753,7 +906,7 @@ def load_system(path: Path, display: str | None = None) -> SystemModel:
     # imports (a GPU-aware type's own class, or a standard type's Python class)
     class_names = {t.python_class or t.name: t.name for t in types.values()}
     class_names.update({t.name: t.name for t in types.values()})
-    for order, (cname, cspec) in enumerate(comps.items()):
+    for order, (cname, written) in enumerate(comps.items()):
         cpath = ("components", cname)
         problem = name_problem(cname, "component name", top_level=True)
         if problem:
@@ -765,12 +918,13 @@ def load_system(path: Path, display: str | None = None) -> SystemModel:
                       "names must differ by more than case and underscores")
             continue
         folded[fold(cname)] = cname
-        if isinstance(cspec, str):
-            cspec = {"type": cspec}
-        cspec = _expect_map(doc, rep, cpath, cspec, f"component '{cname}'")
+        cspec = _expect_map(doc, rep, cpath, {"type": written} if isinstance(written, str)
+                            else written, f"component '{cname}'")
         _unknown_keys(doc, rep, cpath, cspec, INSTANCE_KEYS, f"component '{cname}'")
         tname = cspec.get("type")
         if not _named(tname, types):
+            if types_failed and isinstance(tname, str):
+                continue
             rep.error(doc.pos(*cpath, "type") if "type" in cspec else doc.key_pos(*cpath),
                       f"unknown component type {tname!r} for '{cname}'",
                       did_you_mean(str(tname), types))
@@ -847,9 +1001,7 @@ def _instance_params(doc, rep, cpath, ctype: ComponentType, given) -> dict[str, 
             rep.error(doc.pos(*cpath, "params", pname),
                       f"parameter '{pname}' of '{ctype.name}' {problem}", hint)
             continue
-        if decl.type == "float":
-            value = float(value)
-        params[pname] = value
+        params[pname] = float(value) if decl.type == "float" else value
     for pname, decl in ctype.params.items():
         if pname not in params and pname not in given:
             if decl.required:

@@ -177,7 +177,7 @@ def render(system: System, source: str) -> list[OutputFile]:
             continue
         written.add(name)
         if t.gpu_aware:
-            text = t.kernel_file.read_text(encoding="utf-8")
+            text = t.kernel_text  # as checked (size, UTF-8, inside its folder)
             files.append(OutputFile(PurePosixPath(lib, name),
                                     f"// {header}\n// Kernel of component type {t.name}.\n\n"
                                     f"{text}"))
@@ -185,7 +185,7 @@ def render(system: System, source: str) -> list[OutputFile]:
             users = sorted(u.name for u in used_types(system)
                            if not u.gpu_aware and u.origin == "user"
                            and lib_key(u) == lib_key(t))
-            text = t.python_file.read_text(encoding="utf-8")
+            text = t.python_text  # as checked
             files.append(OutputFile(PurePosixPath(lib, name),
                                     f"# {header}\n# Copied from the component type file of "
                                     f"{', '.join(users)}.\n\n{text}"))
