@@ -118,3 +118,16 @@ def test_every_library_type_shows_in_full(capsys, name):
     assert code == 0
     assert "Forms:" in out and ("GPU kernel" in out or "CPU (python)" in out)
     assert all(len(line) <= 100 for line in out.splitlines()), name
+
+
+def test_docs_show_the_current_listing_and_every_imgproc_type(capsys):
+    """docs/library.md quotes `gpucompgen types` and has a row for every library type."""
+    text = (ROOT / "docs" / "library.md").read_text()
+    _, out, _ = run(capsys)
+    assert f"$ gpucompgen types\n{out}```" in text, "docs/library.md: re-paste the listing"
+    _, out, _ = run(capsys, "InRange")
+    assert f"$ gpucompgen types InRange\n{out}```" in text
+    rows = " ".join(line for line in text.splitlines() if line.startswith("| "))
+    for name, ctype in library_types().items():
+        if ctype.decl_file.name == "imgproc.yaml":
+            assert re.search(rf"\b{name}\b", rows), name
