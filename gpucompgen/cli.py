@@ -1,4 +1,4 @@
-"""gpucompgen's command line: build, run, check, plan, graph, bench, devices, schema.
+"""gpucompgen's command line: build, run, check, plan, graph, bench, devices, types, schema.
 
 Exit codes as in black and datamodel-codegen: 0 ok, 1 problems found (or stale output with
 --check), 2 usage or internal error.  A user sees a traceback only with --debug.
@@ -144,6 +144,16 @@ def parser() -> argparse.ArgumentParser:
                     "device can compile kernels.")
     dv.add_argument("-q", "--quiet", action="store_true",
                     help="print nothing; only the exit code says whether a device is usable")
+
+    ty = sub.add_parser(
+        "types", help="list the component types a model can use, or show one in full",
+        description="List every component type available to a model: the library's, plus the "
+                    "model's own with --model (name, kind, one line of description). With "
+                    "NAME: its ports, parameters (types, defaults, ranges), requirements, the "
+                    "forms it runs in and its description, as gst-inspect does for GStreamer.")
+    ty.add_argument("name", nargs="?", metavar="NAME", help="the type to show in full")
+    ty.add_argument("--model", type=Path, metavar="MODEL",
+                    help="also the types this system model declares (its 'types:' files)")
 
     sc = sub.add_parser("schema", help="print the JSON Schema of model files",
                         description="Print the JSON Schema of system models (or, with "
@@ -356,5 +366,29 @@ def cmd_schema(args) -> int:
     return 0
 
 
+def cmd_types(args) -> int:
+    """The types available (library, and the model's own with --model), or one in full."""
+    from .errors import did_you_mean
+    from .model import library_types, load_system
+    from .typeinfo import details, listing
+
+    types = load_system(args.model).types if args.model else library_types()
+    if args.name is None:
+        lines = listing(types)
+    elif args.name in types:
+        lines = details(types[args.name])
+    else:
+        where = f"available to {args.model}" if args.model else "in the library"
+        hint = did_you_mean(args.name, types)
+        if not args.model:
+            hint += " (a model's own types are listed with --model MODEL)"
+        print(f"gpucompgen types: error: no component type '{args.name}' {where}\n"
+              f"  hint: {hint}", file=sys.stderr)
+        return 1
+    print("\n".join(lines))
+    return 0
+
+
 COMMANDS = {"build": cmd_build, "run": cmd_run, "check": cmd_check, "plan": cmd_plan,
-            "graph": cmd_graph, "bench": cmd_bench, "devices": cmd_devices, "schema": cmd_schema}
+            "graph": cmd_graph, "bench": cmd_bench, "devices": cmd_devices, "schema": cmd_schema,
+            "types": cmd_types}
