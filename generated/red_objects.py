@@ -9,18 +9,28 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 """
 
 # System plan:
-#   step  name                 stage  queue  runs  GPU settings            threads  buffers                              bytes
-#   1     camera (Camera)      1      -      CPU   -                       -        image 200x301x3 uint8                180,600
-#   2     adapter1_cpu2gpu     1      -      copy  -                       -        device camera.image 200x301x3 uint8  180,600
-#   3     hsv (RgbToHsv)       2      -      GPU   tile 16, block 16x16x1  16,384   hsv 200x301x3 uint8                  180,600
-#   4     red (InRange)        3      -      GPU   tile 16, block 16x16x1  16,384   mask 200x301x1 uint8                 60,200
-#   5     erode (ErodeGray)    4      -      GPU   tile 16, block 16x16x1  16,384   eroded 200x301x1 uint8               60,200
-#   6     dilate (DilateGray)  5      -      GPU   tile 16, block 16x16x1  16,384   dilated 200x301x1 uint8              60,200
-#   7     adapter2_gpu2cpu     5      -      copy  -                       -        host dilate.dilated 200x301x1 uint8  60,200
-#   8     writer (MaskWriter)  6      -      CPU   -                       -        -                                    -
+#   step  name                 stage  queue  runs  GPU settings            threads
+#   1     camera (Camera)      1      -      CPU   -                       -
+#   2     adapter1_cpu2gpu     1      -      copy  -                       -
+#   3     hsv (RgbToHsv)       2      -      GPU   tile 16, block 16x16x1  16,384
+#   4     red (InRange)        3      -      GPU   tile 16, block 16x16x1  16,384
+#   5     erode (ErodeGray)    4      -      GPU   tile 16, block 16x16x1  16,384
+#   6     dilate (DilateGray)  5      -      GPU   tile 16, block 16x16x1  16,384
+#   7     adapter2_gpu2cpu     5      -      copy  -                       -
+#   8     writer (MaskWriter)  6      -      CPU   -                       -
+#
+#   buffer                             memory  size               bytes
+#   camera.image                       host    200x301x3 uint8  180,600
+#   adapter1_cpu2gpu (camera.image)    device  200x301x3 uint8  180,600
+#   hsv.hsv                            device  200x301x3 uint8  180,600
+#   red.mask                           device  200x301x1 uint8   60,200
+#   erode.eroded                       device  200x301x1 uint8   60,200
+#   dilate.dilated                     device  200x301x1 uint8   60,200
+#   adapter2_gpu2cpu (dilate.dilated)  host    200x301x1 uint8   60,200
 #
 #   device: portable OpenCL 1.2 device
-#   peak device memory: 541,800 bytes; peak host memory: 240,800 bytes (all allocated at start)
+#   peak device memory: 541,800 bytes; peak host memory: 240,800 bytes
+#   (every buffer is allocated once, at start)
 #   bytes copied between CPU and GPU per frame: 240,800
 #   zero-copy adapters: off (auto: device has no unified host memory)
 #   execution: parallel, 1 queue
@@ -36,306 +46,99 @@ import sys
 from pathlib import Path
 
 import numpy as np
-import pyopencl as cl
 
 from gpucompgen import runtime
 from gpucompgen.library.camera import Camera
 from gpucompgen.library.mask_writer import MaskWriter
 from gpucompgen.runtime import Size
 
-DESCRIPTION = 'Finds red objects in a folder of photographs (HSV range, 3x3 opening) and saves masks and annotated images'
+DESCRIPTION = (
+    'Finds red objects in a folder of photographs (HSV range, 3x3 opening) and saves masks and '
+    'annotated images'
+)
 LIB_DIR = Path(__file__).resolve().with_name('red_objects_lib')
 
 
-class CpuToGpuAdapter:
-    """Generated CPU-to-GPU adapter (paper, Figure 6): one device buffer, one copy a frame."""
-
-    def __init__(self, context, queue):
-        self.context = context
-        self.queue = queue
-        self.buffer = None
-        self.profile = None  # a runtime.Profile with --profile
-        self.event = None
-
-    def initialize(self, size, dtype):
-        self.nbytes = size.nbytes(dtype)
-        self.buffer = cl.Buffer(self.context, cl.mem_flags.READ_ONLY, self.nbytes)
-
-    def transfer(self, host, wait_for=None):
-        if host.nbytes != self.nbytes:
-            raise runtime.PipelineError(
-                f"frame of {host.nbytes} bytes where {self.nbytes} were expected")
-        # not blocking: the copy's event keeps `host` alive until the device has read it
-        self.event = cl.enqueue_copy(self.queue, self.buffer, np.ascontiguousarray(host),
-                                     is_blocking=False, wait_for=wait_for)
-        if self.profile is not None:
-            self.profile.copy(self, "cpu2gpu", self.event, self.nbytes)
-        return self.buffer
-
-    def free_memory(self):
-        if self.buffer is not None:
-            self.buffer.release()
-            self.buffer = None
-
-
-class GpuToCpuAdapter:
-    """Generated GPU-to-CPU adapter (paper, Figure 7): one host array, one copy a frame."""
-
-    def __init__(self, context, queue):
-        self.context = context
-        self.queue = queue
-        self.host = None
-        self.profile = None  # a runtime.Profile with --profile
-        self.event = None
-
-    def initialize(self, size, dtype):
-        self.host = np.empty(size.shape, dtype)
-
-    def transfer(self, buffer, wait_for=None):
-        # blocking: the host reads it next
-        self.event = cl.enqueue_copy(self.queue, self.host, buffer, wait_for=wait_for)
-        if self.profile is not None:
-            self.profile.copy(self, "gpu2cpu", self.event, self.host.nbytes)
-        return self.host
-
-    def free_memory(self):
-        self.host = None
-
-
-class DilateGray:
-    """GPU-aware component DilateGray, kernel dilate_gray() in dilate_gray.cl.
+class DilateGray(runtime.KernelComponent):
+    """GPU-aware component DilateGray: kernel dilate_gray() in dilate_gray.cl.
 
     One work-group of block_x * block_y * block_z threads covers a tile x tile square
     of 'dilated'.
     """
-    # Each element becomes the maximum of its 3x3 neighbourhood (a 3x3 rectangle, one iteration; chain two for iterations=2), pixels outside the frame ignored. OpenCV: cv2.dilate(image, np.ones((3, 3), np.uint8)), bit-exact.
+    # Each element becomes the maximum of its 3x3 neighbourhood (a 3x3 rectangle, one iteration;
+    # chain two for iterations=2), pixels outside the frame ignored. OpenCV: cv2.dilate(image,
+    # np.ones((3, 3), np.uint8)), bit-exact.
 
-    def __init__(self, context, queue, program):
-        self.context = context
-        self.queue = queue
-        self.kernel = cl.Kernel(program, 'dilate_gray')
-        self.profile = None  # a runtime.Profile with --profile
-        self.event = None  # of the last kernel enqueued
-        self.dilated = None
+    function = 'dilate_gray'
+    inputs = (('image', np.uint8),)
+    outputs = (('dilated', np.uint8),)
 
-    def initialize(self, image):
-        """Input sizes in, output sizes out; output memory is allocated once, here."""
-        self.image_size = image
-        self.dilated_size = Size(image.height, image.width, 1)
-        self.dilated = cl.Buffer(
-            self.context, cl.mem_flags.READ_WRITE, self.dilated_size.nbytes(np.uint8))
-        return self.dilated_size
-
-    def config_gpu(self, tile, block_x, block_y, block_z):
-        """GPU settings chosen by the system, used for every frame."""
-        grid = self.dilated_size
-        self.local_size = (block_x, block_y, block_z)
-        self.global_size = (-(-grid.width // tile) * block_x,
-                            -(-grid.height // tile) * block_y,
-                            block_z)
-        runtime.check_work_group(self.kernel, self.queue.device, self.local_size,
-                                 'DilateGray')
-        # kernel arguments after the buffers: sizes of every port, parameters, tile
-        self.scalar_args = (
-            np.int32(self.image_size.height),
-            np.int32(self.image_size.width),
-            np.int32(self.dilated_size.height),
-            np.int32(self.dilated_size.width),
-            np.int32(tile),
-        )
-
-    def execute(self, image, wait_for=None):
-        self.kernel.set_args(image, self.dilated, *self.scalar_args)
-        self.event = cl.enqueue_nd_range_kernel(self.queue, self.kernel, self.global_size,
-                                                self.local_size, wait_for=wait_for)
-        if self.profile is not None:
-            self.profile.kernel(self, self.event)
-        return self.dilated
-
-    def free_memory(self):
-        if self.dilated is not None:
-            self.dilated.release()
-            self.dilated = None
+    def output_sizes(self, image):
+        """Input sizes in, output sizes out (the type's size expressions)."""
+        return [
+            Size(image.height, image.width, 1),
+        ]
 
 
-class ErodeGray:
-    """GPU-aware component ErodeGray, kernel erode_gray() in erode_gray.cl.
+class ErodeGray(runtime.KernelComponent):
+    """GPU-aware component ErodeGray: kernel erode_gray() in erode_gray.cl.
 
     One work-group of block_x * block_y * block_z threads covers a tile x tile square
     of 'eroded'.
     """
-    # Each element becomes the minimum of its 3x3 neighbourhood (a 3x3 rectangle, one iteration; chain two for iterations=2), pixels outside the frame ignored. OpenCV: cv2.erode(image, np.ones((3, 3), np.uint8)), bit-exact.
+    # Each element becomes the minimum of its 3x3 neighbourhood (a 3x3 rectangle, one iteration;
+    # chain two for iterations=2), pixels outside the frame ignored. OpenCV: cv2.erode(image,
+    # np.ones((3, 3), np.uint8)), bit-exact.
 
-    def __init__(self, context, queue, program):
-        self.context = context
-        self.queue = queue
-        self.kernel = cl.Kernel(program, 'erode_gray')
-        self.profile = None  # a runtime.Profile with --profile
-        self.event = None  # of the last kernel enqueued
-        self.eroded = None
+    function = 'erode_gray'
+    inputs = (('image', np.uint8),)
+    outputs = (('eroded', np.uint8),)
 
-    def initialize(self, image):
-        """Input sizes in, output sizes out; output memory is allocated once, here."""
-        self.image_size = image
-        self.eroded_size = Size(image.height, image.width, 1)
-        self.eroded = cl.Buffer(
-            self.context, cl.mem_flags.READ_WRITE, self.eroded_size.nbytes(np.uint8))
-        return self.eroded_size
-
-    def config_gpu(self, tile, block_x, block_y, block_z):
-        """GPU settings chosen by the system, used for every frame."""
-        grid = self.eroded_size
-        self.local_size = (block_x, block_y, block_z)
-        self.global_size = (-(-grid.width // tile) * block_x,
-                            -(-grid.height // tile) * block_y,
-                            block_z)
-        runtime.check_work_group(self.kernel, self.queue.device, self.local_size,
-                                 'ErodeGray')
-        # kernel arguments after the buffers: sizes of every port, parameters, tile
-        self.scalar_args = (
-            np.int32(self.image_size.height),
-            np.int32(self.image_size.width),
-            np.int32(self.eroded_size.height),
-            np.int32(self.eroded_size.width),
-            np.int32(tile),
-        )
-
-    def execute(self, image, wait_for=None):
-        self.kernel.set_args(image, self.eroded, *self.scalar_args)
-        self.event = cl.enqueue_nd_range_kernel(self.queue, self.kernel, self.global_size,
-                                                self.local_size, wait_for=wait_for)
-        if self.profile is not None:
-            self.profile.kernel(self, self.event)
-        return self.eroded
-
-    def free_memory(self):
-        if self.eroded is not None:
-            self.eroded.release()
-            self.eroded = None
+    def output_sizes(self, image):
+        """Input sizes in, output sizes out (the type's size expressions)."""
+        return [
+            Size(image.height, image.width, 1),
+        ]
 
 
-class InRange:
-    """GPU-aware component InRange, kernel in_range() in in_range.cl.
+class InRange(runtime.KernelComponent):
+    """GPU-aware component InRange: kernel in_range() in in_range.cl.
 
     One work-group of block_x * block_y * block_z threads covers a tile x tile square
     of 'mask'.
     """
-    # Mask of the pixels inside a box of colours: 255 where every channel c is within lowerb_c..upperb_c (inclusive), else 0. OpenCV: cv2.inRange(image, lowerb, upperb), bit-exact.
+    # Mask of the pixels inside a box of colours: 255 where every channel c is within
+    # lowerb_c..upperb_c (inclusive), else 0. OpenCV: cv2.inRange(image, lowerb, upperb), bit-exact.
 
-    def __init__(self, context, queue, program, lowerb_0, lowerb_1, lowerb_2, upperb_0, upperb_1, upperb_2):
-        self.context = context
-        self.queue = queue
-        self.kernel = cl.Kernel(program, 'in_range')
-        self.profile = None  # a runtime.Profile with --profile
-        self.event = None  # of the last kernel enqueued
-        self.lowerb_0 = lowerb_0
-        self.lowerb_1 = lowerb_1
-        self.lowerb_2 = lowerb_2
-        self.upperb_0 = upperb_0
-        self.upperb_1 = upperb_1
-        self.upperb_2 = upperb_2
-        self.mask = None
+    function = 'in_range'
+    inputs = (('image', np.uint8),)
+    outputs = (('mask', np.uint8),)
 
-    def initialize(self, image):
-        """Input sizes in, output sizes out; output memory is allocated once, here."""
-        self.image_size = image
-        self.mask_size = Size(image.height, image.width, 1)
-        self.mask = cl.Buffer(
-            self.context, cl.mem_flags.READ_WRITE, self.mask_size.nbytes(np.uint8))
-        return self.mask_size
-
-    def config_gpu(self, tile, block_x, block_y, block_z):
-        """GPU settings chosen by the system, used for every frame."""
-        grid = self.mask_size
-        self.local_size = (block_x, block_y, block_z)
-        self.global_size = (-(-grid.width // tile) * block_x,
-                            -(-grid.height // tile) * block_y,
-                            block_z)
-        runtime.check_work_group(self.kernel, self.queue.device, self.local_size,
-                                 'InRange')
-        # kernel arguments after the buffers: sizes of every port, parameters, tile
-        self.scalar_args = (
-            np.int32(self.image_size.height),
-            np.int32(self.image_size.width),
-            np.int32(self.mask_size.height),
-            np.int32(self.mask_size.width),
-            np.int32(self.lowerb_0),
-            np.int32(self.lowerb_1),
-            np.int32(self.lowerb_2),
-            np.int32(self.upperb_0),
-            np.int32(self.upperb_1),
-            np.int32(self.upperb_2),
-            np.int32(tile),
-        )
-
-    def execute(self, image, wait_for=None):
-        self.kernel.set_args(image, self.mask, *self.scalar_args)
-        self.event = cl.enqueue_nd_range_kernel(self.queue, self.kernel, self.global_size,
-                                                self.local_size, wait_for=wait_for)
-        if self.profile is not None:
-            self.profile.kernel(self, self.event)
-        return self.mask
-
-    def free_memory(self):
-        if self.mask is not None:
-            self.mask.release()
-            self.mask = None
+    def output_sizes(self, image):
+        """Input sizes in, output sizes out (the type's size expressions)."""
+        return [
+            Size(image.height, image.width, 1),
+        ]
 
 
-class RgbToHsv:
-    """GPU-aware component RgbToHsv, kernel rgb_to_hsv() in rgb_to_hsv.cl.
+class RgbToHsv(runtime.KernelComponent):
+    """GPU-aware component RgbToHsv: kernel rgb_to_hsv() in rgb_to_hsv.cl.
 
     One work-group of block_x * block_y * block_z threads covers a tile x tile square
     of 'hsv'.
     """
-    # HSV from RGB, 8-bit: hue 0..179 (degrees / 2), saturation and value 0..255. OpenCV: cv2.cvtColor(image, cv2.COLOR_RGB2HSV), bit-exact.
+    # HSV from RGB, 8-bit: hue 0..179 (degrees / 2), saturation and value 0..255. OpenCV:
+    # cv2.cvtColor(image, cv2.COLOR_RGB2HSV), bit-exact.
 
-    def __init__(self, context, queue, program):
-        self.context = context
-        self.queue = queue
-        self.kernel = cl.Kernel(program, 'rgb_to_hsv')
-        self.profile = None  # a runtime.Profile with --profile
-        self.event = None  # of the last kernel enqueued
-        self.hsv = None
+    function = 'rgb_to_hsv'
+    inputs = (('image', np.uint8),)
+    outputs = (('hsv', np.uint8),)
 
-    def initialize(self, image):
-        """Input sizes in, output sizes out; output memory is allocated once, here."""
-        self.image_size = image
-        self.hsv_size = Size(image.height, image.width, 3)
-        self.hsv = cl.Buffer(
-            self.context, cl.mem_flags.READ_WRITE, self.hsv_size.nbytes(np.uint8))
-        return self.hsv_size
-
-    def config_gpu(self, tile, block_x, block_y, block_z):
-        """GPU settings chosen by the system, used for every frame."""
-        grid = self.hsv_size
-        self.local_size = (block_x, block_y, block_z)
-        self.global_size = (-(-grid.width // tile) * block_x,
-                            -(-grid.height // tile) * block_y,
-                            block_z)
-        runtime.check_work_group(self.kernel, self.queue.device, self.local_size,
-                                 'RgbToHsv')
-        # kernel arguments after the buffers: sizes of every port, parameters, tile
-        self.scalar_args = (
-            np.int32(self.image_size.height),
-            np.int32(self.image_size.width),
-            np.int32(self.hsv_size.height),
-            np.int32(self.hsv_size.width),
-            np.int32(tile),
-        )
-
-    def execute(self, image, wait_for=None):
-        self.kernel.set_args(image, self.hsv, *self.scalar_args)
-        self.event = cl.enqueue_nd_range_kernel(self.queue, self.kernel, self.global_size,
-                                                self.local_size, wait_for=wait_for)
-        if self.profile is not None:
-            self.profile.kernel(self, self.event)
-        return self.hsv
-
-    def free_memory(self):
-        if self.hsv is not None:
-            self.hsv.release()
-            self.hsv = None
+    def output_sizes(self, image):
+        """Input sizes in, output sizes out (the type's size expressions)."""
+        return [
+            Size(image.height, image.width, 3),
+        ]
 
 
 def run(frames=None, context=None, monitor=None, profile=False):
@@ -352,6 +155,7 @@ def run(frames=None, context=None, monitor=None, profile=False):
     # without waiting; a command waits for another queue's event (wait_for=[...]) only
     # where it reads that queue's data, and the host waits only where it reads a result.
     queue = runtime.create_queue(context, profile)
+    # every device buffer, with its bytes: checked against the device before allocating
     runtime.check_device_memory(context.devices[0], {
         'adapter1_cpu2gpu (camera.image)': 180_600,
         'hsv.hsv': 180_600,
@@ -363,10 +167,8 @@ def run(frames=None, context=None, monitor=None, profile=False):
         context, LIB_DIR / 'dilate_gray.cl', 'dilate (DilateGray)')
     erode_gray_program = runtime.build_program(
         context, LIB_DIR / 'erode_gray.cl', 'erode (ErodeGray)')
-    in_range_program = runtime.build_program(
-        context, LIB_DIR / 'in_range.cl', 'red (InRange)')
-    rgb_to_hsv_program = runtime.build_program(
-        context, LIB_DIR / 'rgb_to_hsv.cl', 'hsv (RgbToHsv)')
+    in_range_program = runtime.build_program(context, LIB_DIR / 'in_range.cl', 'red (InRange)')
+    rgb_to_hsv_program = runtime.build_program(context, LIB_DIR / 'rgb_to_hsv.cl', 'hsv (RgbToHsv)')
 
     # every component and adapter, filled in as it is constructed; freed in reverse order
     parts = dict.fromkeys([
@@ -384,42 +186,91 @@ def run(frames=None, context=None, monitor=None, profile=False):
         camera = parts['camera'] = Camera(
             width=301, height=200, seed=1, buoys=2, frames=0, folder='models/photos', video='')
         # camera.image -> hsv.image
-        adapter1_cpu2gpu = parts['adapter1_cpu2gpu'] = CpuToGpuAdapter(context, queue)
+        adapter1_cpu2gpu = parts['adapter1_cpu2gpu'] = runtime.CpuToGpuAdapter(
+            context, queue, nbytes=180_600, blocking=False)
         hsv = parts['hsv'] = RgbToHsv(context, queue, rgb_to_hsv_program)
         red = parts['red'] = InRange(
-            context, queue, in_range_program, lowerb_0=0, lowerb_1=140, lowerb_2=60, upperb_0=6, upperb_1=255, upperb_2=255)
+            context, queue, in_range_program, lowerb_0=0, lowerb_1=140, lowerb_2=60, upperb_0=6,
+            upperb_1=255, upperb_2=255)
         erode = parts['erode'] = ErodeGray(context, queue, erode_gray_program)
         dilate = parts['dilate'] = DilateGray(context, queue, dilate_gray_program)
         # dilate.dilated -> writer.mask
-        adapter2_gpu2cpu = parts['adapter2_gpu2cpu'] = GpuToCpuAdapter(context, queue)
+        adapter2_gpu2cpu = parts['adapter2_gpu2cpu'] = runtime.GpuToCpuAdapter(
+            context, queue, nbytes=60_200)
         writer = parts['writer'] = MaskWriter(min_area=150, folder='', print_objects=True)
         monitor.attach(parts)
         profiler = runtime.Profile(parts) if profile else None
 
         camera_image_size = camera.initialize()
-        runtime.expect_size("camera.image", camera_image_size, Size(200, 301, 3))
-        adapter1_cpu2gpu.initialize(camera_image_size, np.uint8)
-        hsv_hsv_size = hsv.initialize(camera_image_size)
-        runtime.expect_size("hsv.hsv", hsv_hsv_size, Size(200, 301, 3))
+        runtime.expect_size('camera.image', camera_image_size, Size(200, 301, 3))
+        camera_image_gpu_size = adapter1_cpu2gpu.initialize(camera_image_size, np.uint8)
+        hsv_hsv_size = hsv.initialize(camera_image_gpu_size)
+        runtime.expect_size('hsv.hsv', hsv_hsv_size, Size(200, 301, 3))
         red_mask_size = red.initialize(hsv_hsv_size)
-        runtime.expect_size("red.mask", red_mask_size, Size(200, 301, 1))
+        runtime.expect_size('red.mask', red_mask_size, Size(200, 301, 1))
         erode_eroded_size = erode.initialize(red_mask_size)
-        runtime.expect_size("erode.eroded", erode_eroded_size, Size(200, 301, 1))
+        runtime.expect_size('erode.eroded', erode_eroded_size, Size(200, 301, 1))
         dilate_dilated_size = dilate.initialize(erode_eroded_size)
-        runtime.expect_size("dilate.dilated", dilate_dilated_size, Size(200, 301, 1))
-        adapter2_gpu2cpu.initialize(dilate_dilated_size, np.uint8)
-        writer.initialize(camera_image_size, dilate_dilated_size)
+        runtime.expect_size('dilate.dilated', dilate_dilated_size, Size(200, 301, 1))
+        dilate_dilated_cpu_size = adapter2_gpu2cpu.initialize(dilate_dilated_size, np.uint8)
+        writer.initialize(camera_image_size, dilate_dilated_cpu_size)
 
-        hsv.config_gpu(tile=16, block_x=16, block_y=16, block_z=1)  # preferred, 16,384 threads
-        red.config_gpu(tile=16, block_x=16, block_y=16, block_z=1)  # preferred, 16,384 threads
-        erode.config_gpu(tile=16, block_x=16, block_y=16, block_z=1)  # preferred, 16,384 threads
-        dilate.config_gpu(tile=16, block_x=16, block_y=16, block_z=1)  # preferred, 16,384 threads
+        # hsv: settings preferred, 16,384 resident threads; kernel arguments in the calling
+        # convention's order (a port's name stands for its buffer)
+        hsv.config_gpu(
+            tile=16, local_size=(16, 16, 1), global_size=(304, 208, 1),
+            settings_source='preferred', arguments=[
+                'image', 'hsv',  # buffers: inputs, then outputs
+                np.int32(200), np.int32(301),  # image: height, width
+                np.int32(200), np.int32(301),  # hsv: height, width
+                np.int32(16),  # tile
+            ])
+
+        # red: settings preferred, 16,384 resident threads; kernel arguments in the calling
+        # convention's order (a port's name stands for its buffer)
+        red.config_gpu(
+            tile=16, local_size=(16, 16, 1), global_size=(304, 208, 1),
+            settings_source='preferred', arguments=[
+                'image', 'mask',  # buffers: inputs, then outputs
+                np.int32(200), np.int32(301),  # image: height, width
+                np.int32(200), np.int32(301),  # mask: height, width
+                np.int32(0),  # lowerb_0
+                np.int32(140),  # lowerb_1
+                np.int32(60),  # lowerb_2
+                np.int32(6),  # upperb_0
+                np.int32(255),  # upperb_1
+                np.int32(255),  # upperb_2
+                np.int32(16),  # tile
+            ])
+
+        # erode: settings preferred, 16,384 resident threads; kernel arguments in the calling
+        # convention's order (a port's name stands for its buffer)
+        erode.config_gpu(
+            tile=16, local_size=(16, 16, 1), global_size=(304, 208, 1),
+            settings_source='preferred', arguments=[
+                'image', 'eroded',  # buffers: inputs, then outputs
+                np.int32(200), np.int32(301),  # image: height, width
+                np.int32(200), np.int32(301),  # eroded: height, width
+                np.int32(16),  # tile
+            ])
+
+        # dilate: settings preferred, 16,384 resident threads; kernel arguments in the calling
+        # convention's order (a port's name stands for its buffer)
+        dilate.config_gpu(
+            tile=16, local_size=(16, 16, 1), global_size=(304, 208, 1),
+            settings_source='preferred', arguments=[
+                'image', 'dilated',  # buffers: inputs, then outputs
+                np.int32(200), np.int32(301),  # image: height, width
+                np.int32(200), np.int32(301),  # dilated: height, width
+                np.int32(16),  # tile
+            ])
 
         frame = 0
         while frames is None or frame < frames:
             camera_image = camera.execute()
             if camera_image is None:
                 break  # end of stream
+            runtime.check_frame('camera.image', camera_image, (200, 301, 3), np.uint8)
             camera_image_gpu = adapter1_cpu2gpu.transfer(camera_image)
             hsv_hsv = hsv.execute(camera_image_gpu)
             red_mask = red.execute(hsv_hsv)
