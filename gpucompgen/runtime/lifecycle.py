@@ -42,6 +42,9 @@ def load_module(path: Path, module_name: str, fresh: bool = True):
     sys.modules[module_name] = module
     try:
         spec.loader.exec_module(module)
+    except PipelineError:  # already says which file (a user module the program loads)
+        sys.modules.pop(module_name, None)
+        raise
     except (Exception, SystemExit) as exc:
         sys.modules.pop(module_name, None)
         raise PipelineError(_import_problem(path, exc)) from exc
