@@ -24,7 +24,8 @@ from .runtime import add_program_options
 EPILOG = """\
 exit codes: 0 ok; 1 problems in the model, stale output with --check, or a failed run;
 2 usage or internal error (and a missing Graphviz for graph).
-A run stopped by SIGINT or SIGTERM exits 130 or 143.
+A run stopped by SIGINT or SIGTERM exits 130 or 143; a program killed by a signal
+exits 128 + its number (139 for SIGSEGV), and 'run' names the signal.
 
 examples:
   gpucompgen build models/vision_system.yaml              write generated/vision_system.py

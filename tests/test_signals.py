@@ -396,3 +396,17 @@ def test_second_requests_are_ignored():
     stopper.request_stop(signal.SIGTERM)
     stopper.request_stop(signal.SIGINT)
     assert stopper.signum == signal.SIGTERM
+
+
+def test_free_all_frees_the_rest_before_a_free_memory_that_exits():
+    freed = []
+
+    class Exits(_Part):
+        def free_memory(self):
+            freed.append(self.name)
+            raise SystemExit(4)
+
+    parts = {"a": _Part("a", freed), "b": Exits("b", freed), "c": _Part("c", freed)}
+    with pytest.raises(SystemExit):
+        free_all(parts)
+    assert freed == ["c", "b", "a"]

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import faulthandler
 import functools
+import os
 import sys
 import threading
 import traceback
@@ -13,7 +14,7 @@ from collections.abc import Callable
 from .errors import PipelineError, Stopped
 from .lifecycle import Result
 from .monitor import Monitor
-from .signals import GRACE_SECONDS, StopOnSignals
+from .signals import GRACE_SECONDS, StopOnSignals, running_kernels
 
 
 def add_program_options(parser: argparse.ArgumentParser) -> None:
@@ -71,6 +72,14 @@ def main(run: Callable[..., Result], description: str, argv: list[str] | None = 
     except Stopped as exc:
         print(f"stopped by {exc} after {monitor.frames} frame(s); every component was freed",
               file=sys.stderr)
+        running = running_kernels(monitor.parts)
+        if running:  # a driver may wait for it as the interpreter releases the queue
+            print(f"note: the last command of {', '.join(running)} is still running on the "
+                  "device (a kernel that never ends?); exiting without waiting for it",
+                  file=sys.stderr)
+            sys.stdout.flush()
+            sys.stderr.flush()
+            os._exit(128 + exc.signum)
         return 128 + exc.signum
     except KeyboardInterrupt:  # raised by a component itself: SIGINT is handled above
         print(f"interrupted after {monitor.frames} frame(s)", file=sys.stderr)

@@ -159,6 +159,7 @@ def free_all(parts: dict[str, Any]) -> None:
     """
     freeing()  # a signal from now on does not cut freeing short
     failed = []
+    escaping: BaseException | None = None  # SystemExit, KeyboardInterrupt: after the rest
     for name in reversed(list(parts)):
         if parts[name] is None:  # never constructed
             continue
@@ -166,6 +167,10 @@ def free_all(parts: dict[str, Any]) -> None:
             parts[name].free_memory()
         except Exception as exc:
             failed.append(f"{name}.free_memory() failed: {type(exc).__name__}: {exc}")
+        except BaseException as exc:
+            escaping = escaping or exc
+    if escaping is not None:
+        raise escaping
     if not failed:
         return
     if sys.exc_info()[1] is not None:
