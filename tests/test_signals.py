@@ -410,3 +410,56 @@ def test_free_all_frees_the_rest_before_a_free_memory_that_exits():
     with pytest.raises(SystemExit):
         free_all(parts)
     assert freed == ["c", "b", "a"]
+
+
+# -- run_program ('gpucompgen run' waiting on a program), with stand-in programs -------------
+
+def _supervise(child: str, signum: int | None, kill_after: float = 10.0, delay: float = 1.0):
+    """Run child (Python code) under run_program in a process of its own; signal that."""
+    driver = ("import sys\nfrom gpucompgen.cli import run_program\n"
+              f"sys.exit(run_program([sys.executable, '-c', {child!r}], "
+              f"kill_after={kill_after}))\n")
+    proc = start([sys.executable, "-c", driver])
+    if signum is not None:
+        assert proc.stdout.readline() == "ready\n"  # the child runs: the driver waits on it
+    time.sleep(delay)
+    started = time.monotonic()
+    if signum is not None:
+        proc.send_signal(signum)
+    _, err = proc.communicate(timeout=60)
+    return proc.returncode, err, time.monotonic() - started
+
+
+def test_run_program_kills_a_program_that_does_not_stop():
+    child = ("import signal, time\nsignal.signal(signal.SIGTERM, signal.SIG_IGN)\n"
+             "print('ready', flush=True)\ntime.sleep(60)")
+    code, err, seconds = _supervise(child, signal.SIGTERM, kill_after=1.0)
+    assert code == 143, err
+    assert "gpucompgen run: error: the program did not stop within 1 s of SIGTERM; killed it" \
+        in err
+    assert 1.0 <= seconds < 5
+
+
+def test_run_program_says_a_program_was_stopped_while_starting():
+    code, err, _ = _supervise("import time\nprint('ready', flush=True)\ntime.sleep(60)",
+                              signal.SIGTERM, delay=0)
+    assert code == 143, err
+    assert "the program was stopped by SIGTERM (15) while starting" in err
+
+
+def test_run_program_resends_sigint_until_the_program_takes_it_over():
+    """The program starts with SIGINT ignored; it installs a handler only later."""
+    child = ("import signal, sys, time\n"
+             "assert signal.getsignal(signal.SIGINT) is signal.SIG_IGN\n"
+             "print('ready', flush=True)\n"
+             "time.sleep(1.5)\n"  # the first SIGINT comes now, and is lost
+             "signal.signal(signal.SIGINT, lambda *a: sys.exit(42))\n"
+             "time.sleep(30)\n")
+    code, err, seconds = _supervise(child, signal.SIGINT, delay=0.5)
+    assert code == 42, err
+    assert seconds < 5
+
+
+def test_run_program_passes_exit_codes_through():
+    code, err, _ = _supervise("import sys\nsys.exit(3)", None, delay=0)
+    assert code == 3 and err == ""

@@ -6,7 +6,7 @@ import os
 from typing import Any, NamedTuple
 
 from .errors import PipelineError
-from .programs import quiet_compiler
+from .programs import _captured_stderr, quiet_compiler
 
 # A kernel every OpenCL C compiler must accept: whether a device can build it is whether
 # the device is usable at all.
@@ -42,7 +42,7 @@ def probe_device(device) -> str | None:
 
     try:
         context = cl.Context([device])
-        with quiet_compiler():
+        with _captured_stderr(), quiet_compiler():  # no stray '1 error generated.'
             cl.Program(context, _PROBE_SOURCE).build()
     except Exception as exc:  # any failure means: not usable
         return _build_problem(exc)
