@@ -232,10 +232,20 @@ def cmd_build(args) -> int:
 def cmd_run(args) -> int:
     from .build import write
 
+    def stop_building(signum, frame):
+        # SIGTERM while building: remove the temporary folder on the way out (SIGINT
+        # raises KeyboardInterrupt, which does the same)
+        print("gpucompgen run: stopped by SIGTERM while building", file=sys.stderr)
+        raise SystemExit(128 + signum)
+
     with tempfile.TemporaryDirectory(prefix="gpucompgen-run-") as tmp:
         out = Path(tmp)
-        result = _compile(args, out)
-        write(result, out)
+        previous = signal.signal(signal.SIGTERM, stop_building)
+        try:
+            result = _compile(args, out)
+            write(result, out)
+        finally:
+            signal.signal(signal.SIGTERM, previous)
         program = out / f"{result.system.model.name}.py"
         cmd = [sys.executable, str(program)]
         for flag, value in (("--frames", args.frames), ("--stats-json", args.stats_json),

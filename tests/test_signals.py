@@ -195,6 +195,18 @@ def test_a_python_component_looping_forever_is_stopped_and_everything_freed(tmp_
     assert log.read_text().splitlines()[-2:] == ["free tally", "free misbehave"]
 
 
+def test_a_stop_says_which_component_could_not_be_freed(tmp_path):
+    require_opencl()
+    program, _, log = hostile_model(tmp_path, "Misbehave", at=-1, fail_free=True)
+    proc = start([sys.executable, str(program)])
+    wait_for_line(log, "init tally", proc)
+    err, _ = signal_and_time(proc, signal.SIGINT)
+    assert proc.returncode == 130, err
+    assert "note: middle.free_memory() failed: OSError: injected failure to free" in err
+    assert "; every other component was freed" in err
+    assert log.read_text().splitlines()[-2:] == ["free tally", "free misbehave"]
+
+
 def test_a_component_blocked_outside_python_is_given_up_after_the_grace(tmp_path):
     require_opencl()
     program, _, log = hostile_model(tmp_path, "Misbehave", at=1, what="sleep", seconds=60.0)
@@ -463,3 +475,28 @@ def test_run_program_resends_sigint_until_the_program_takes_it_over():
 def test_run_program_passes_exit_codes_through():
     code, err, _ = _supervise("import sys\nsys.exit(3)", None, delay=0)
     assert code == 3 and err == ""
+
+
+@pytest.mark.parametrize("signum,code,said", [
+    (signal.SIGTERM, 143, "gpucompgen run: stopped by SIGTERM while building"),
+    (signal.SIGINT, 130, "interrupted")])
+def test_a_signal_while_gpucompgen_run_builds_leaves_no_temporary_folder(tmp_path, signum,
+                                                                         code, said):
+    temp = tmp_path / "temp"
+    temp.mkdir()
+    proc = subprocess.Popen([sys.executable, "-m", "gpucompgen", "run",
+                             str(ROOT / "models" / "vision_system.yaml")],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            env=dict(os.environ, TMPDIR=str(temp)), cwd=tmp_path)
+    try:
+        end = time.monotonic() + 60
+        while not any(temp.glob("gpucompgen-run-*")) and time.monotonic() < end:
+            time.sleep(0.005)
+        assert proc.poll() is None
+    finally:
+        err, _ = signal_and_time(proc, signum)
+    assert proc.returncode == code, err
+    # while building, or (on a fast machine) just after the program started
+    assert said in err or f"stopped by {signal.Signals(signum).name}" in err, err
+    assert "Traceback" not in err
+    assert not list(temp.glob("gpucompgen-run-*"))

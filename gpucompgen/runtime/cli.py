@@ -70,8 +70,9 @@ def main(run: Callable[..., Result], description: str, argv: list[str] | None = 
         else:  # signal handlers can only be set in the main thread
             result = call()
     except Stopped as exc:
-        print(f"stopped by {exc} after {monitor.frames} frame(s); every component was freed",
-              file=sys.stderr)
+        freed = ("every other component was freed" if getattr(exc, "free_failures", 0)
+                 else "every component was freed")
+        print(f"stopped by {exc} after {monitor.frames} frame(s); {freed}", file=sys.stderr)
         running = running_kernels(monitor.parts)
         if running:  # a driver may wait for it as the interpreter releases the queue
             print(f"note: the last command of {', '.join(running)} is still running on the "

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import importlib.util
 import sys
 import traceback
@@ -173,8 +174,11 @@ def free_all(parts: dict[str, Any]) -> None:
         raise escaping
     if not failed:
         return
-    if sys.exc_info()[1] is not None:
+    in_flight = sys.exc_info()[1]
+    if in_flight is not None:
         for line in failed:
             print(f"note: {line}", file=sys.stderr)
+        with contextlib.suppress(AttributeError):  # for the report of a stop (runtime.main)
+            in_flight.free_failures = len(failed)
         return
     raise PipelineError("; ".join(failed) + " (every other component was freed)")

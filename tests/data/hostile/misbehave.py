@@ -11,8 +11,9 @@ def _log(path, line):
 
 
 class Misbehave:
-    def __init__(self, at=0, what="kill", signum=11, seconds=60.0, log=""):
+    def __init__(self, at=0, what="kill", signum=11, seconds=60.0, log="", fail_free=False):
         self.at, self.what, self.signum, self.seconds, self.log = at, what, signum, seconds, log
+        self.fail_free = fail_free
         self.frame = 0
 
     def initialize(self, image):
@@ -36,6 +37,8 @@ class Misbehave:
 
     def free_memory(self):
         _log(self.log, "free misbehave")
+        if self.fail_free:
+            raise OSError("injected failure to free")
 
 
 class Tally:
