@@ -195,6 +195,19 @@ def test_a_python_component_looping_forever_is_stopped_and_everything_freed(tmp_
     assert log.read_text().splitlines()[-2:] == ["free tally", "free misbehave"]
 
 
+def test_a_thread_a_component_left_running_does_not_keep_a_stopped_program_alive(tmp_path):
+    require_opencl()
+    program, _, log = hostile_model(tmp_path, "Misbehave", at=1, what="thread")
+    proc = start([sys.executable, str(program)])
+    wait_for_line(log, "init tally", proc)
+    time.sleep(1.0)
+    err, seconds = signal_and_time(proc, signal.SIGTERM)
+    assert proc.returncode == 143, err
+    assert seconds < DEADLINE
+    assert "stopped by SIGTERM after " in err and "every component was freed" in err
+    assert "note: thread(s) busy-worker started by a component are still running" in err
+
+
 def test_a_stop_says_which_component_could_not_be_freed(tmp_path):
     require_opencl()
     program, _, log = hostile_model(tmp_path, "Misbehave", at=-1, fail_free=True)

@@ -73,14 +73,7 @@ def main(run: Callable[..., Result], description: str, argv: list[str] | None = 
         freed = ("every other component was freed" if getattr(exc, "free_failures", 0)
                  else "every component was freed")
         print(f"stopped by {exc} after {monitor.frames} frame(s); {freed}", file=sys.stderr)
-        running = running_kernels(monitor.parts)
-        if running:  # a driver may wait for it as the interpreter releases the queue
-            print(f"note: the last command of {', '.join(running)} is still running on the "
-                  "device (a kernel that never ends?); exiting without waiting for it",
-                  file=sys.stderr)
-            sys.stdout.flush()
-            sys.stderr.flush()
-            os._exit(128 + exc.signum)
+        _exit_now_if_something_would_wait(monitor, 128 + exc.signum)
         return 128 + exc.signum
     except KeyboardInterrupt:  # raised by a component itself: SIGINT is handled above
         print(f"interrupted after {monitor.frames} frame(s)", file=sys.stderr)
@@ -101,3 +94,24 @@ def main(run: Callable[..., Result], description: str, argv: list[str] | None = 
     if not args.quiet:
         print(f"processed {result.frames} frame(s)", file=sys.stderr)
     return 0
+
+
+def _exit_now_if_something_would_wait(monitor: Monitor, code: int) -> None:
+    """After a stop by a signal the program must end now: with a kernel still running (a
+    driver may wait for it as the interpreter releases the queue) or a thread a component
+    started and left running (the interpreter waits for those), exit without waiting."""
+    running = running_kernels(monitor.parts)
+    threads = [t.name for t in threading.enumerate()
+               if t is not threading.current_thread() and not t.daemon and t.is_alive()]
+    if not running and not threads:
+        return
+    if running:
+        print(f"note: the last command of {', '.join(running)} is still running on the "
+              "device (a kernel that never ends?); exiting without waiting for it",
+              file=sys.stderr)
+    if threads:
+        print(f"note: thread(s) {', '.join(threads)} started by a component are still "
+              "running; exiting without waiting for them", file=sys.stderr)
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(code)

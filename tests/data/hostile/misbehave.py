@@ -1,6 +1,7 @@
 """Standard components that misbehave on purpose (see types.yaml)."""
 
 import os
+import threading
 import time
 
 
@@ -8,6 +9,11 @@ def _log(path, line):
     if path:
         with open(path, "a", encoding="utf-8") as f:
             f.write(line + "\n")
+
+
+def _forever():
+    while True:
+        time.sleep(0.05)
 
 
 class Misbehave:
@@ -30,6 +36,8 @@ class Misbehave:
             elif self.what == "loop":
                 while True:
                     pass
+            elif self.what == "thread":  # a thread that never ends, not a daemon
+                threading.Thread(target=_forever, name="busy-worker", daemon=False).start()
             elif self.what == "raise":
                 raise RuntimeError(f"injected failure at frame {self.frame}")
         self.frame += 1
