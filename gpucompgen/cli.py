@@ -24,7 +24,8 @@ from .runtime import add_program_options
 EPILOG = """\
 exit codes: 0 ok; 1 problems in the model, stale output with --check, or a failed run;
 2 usage or internal error (and a missing Graphviz for graph).
-A run stopped by SIGINT or SIGTERM exits 130 or 143.
+A run stopped by SIGINT or SIGTERM exits 130 or 143; a program killed by a signal
+exits 128 + its number (139 for SIGSEGV), and 'run' names the signal.
 
 examples:
   gpucompgen build models/vision_system.yaml              write generated/vision_system.py
@@ -243,10 +244,20 @@ def cmd_build(args) -> int:
 def cmd_run(args) -> int:
     from .build import write
 
+    def stop_building(signum, frame):
+        # SIGTERM while building: remove the temporary folder on the way out (SIGINT
+        # raises KeyboardInterrupt, which does the same)
+        print("gpucompgen run: stopped by SIGTERM while building", file=sys.stderr)
+        raise SystemExit(128 + signum)
+
     with tempfile.TemporaryDirectory(prefix="gpucompgen-run-") as tmp:
         out = Path(tmp)
-        result = _compile(args, out)
-        write(result, out)
+        previous = signal.signal(signal.SIGTERM, stop_building)
+        try:
+            result = _compile(args, out)
+            write(result, out)
+        finally:
+            signal.signal(signal.SIGTERM, previous)
         program = out / f"{result.system.name}.py"
         cmd = [sys.executable, str(program)]
         for flag, value in (("--frames", args.frames), ("--stats-json", args.stats_json),
@@ -260,19 +271,102 @@ def cmd_run(args) -> int:
             cmd.append("--debug")
         if args.profile:
             cmd.append("--profile")
-        # The program stops cleanly on SIGINT (which a terminal sends it too) and SIGTERM
-        # (forwarded here); wait for it to free everything and take its exit code.
-        with subprocess.Popen(cmd, env=dict(os.environ)) as proc:
-            previous = signal.signal(signal.SIGTERM,
-                                     lambda signum, frame: proc.send_signal(signum))
-            try:
-                while True:
-                    try:
-                        return proc.wait()
-                    except KeyboardInterrupt:
+        return run_program(cmd)
+
+
+FORWARDED_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+# A program still running this long after a forwarded signal is killed: its own limit is
+# 1.5 s once its runtime has taken the signal over, after a start that can take seconds.
+KILL_AFTER_SECONDS = 10.0
+
+# What a program killed by a signal most likely met, for the message of 'gpucompgen run'.
+_DEATHS = {
+    signal.SIGSEGV: "a kernel (or other native code) accessed memory out of bounds; see "
+                    "'Finding an out-of-bounds kernel' in the README",
+    signal.SIGBUS: "a kernel (or other native code) accessed memory out of bounds; see "
+                   "'Finding an out-of-bounds kernel' in the README",
+    signal.SIGILL: "native code (a kernel or the OpenCL driver) crashed",
+    signal.SIGFPE: "native code (a kernel or the OpenCL driver) crashed",
+    signal.SIGABRT: "native code (the OpenCL driver?) aborted",
+    signal.SIGKILL: "killed from outside, often by the out-of-memory killer (see "
+                    "'dmesg')",
+}
+
+
+def _signal_name(signum: int) -> str:
+    try:
+        return f"{signal.Signals(signum).name} ({signum})"
+    except ValueError:
+        return f"signal {signum}"
+
+
+def run_program(cmd: list[str], kill_after: float = KILL_AFTER_SECONDS) -> int:
+    """Run a generated program, forward SIGINT and SIGTERM to it, take its exit code.
+
+    The program stops cleanly on either (freeing everything, within about 2 s even when
+    a kernel never ends) and ignores repeats while it stops: a terminal's Ctrl-C reaches
+    it directly and through here. It starts with SIGINT ignored until its runtime takes
+    the signal over (no KeyboardInterrupt traceback while it imports), so a signal is
+    forwarded again every half second until it ends, and after kill_after seconds it is
+    killed. A program killed by a signal is reported with the signal's name; the exit
+    code is then 128 + its number, as a shell gives.
+    """
+    import contextlib
+    import time
+
+    received: list[int] = []
+    sent_at = 0.0
+
+    def forward(signum, frame):
+        nonlocal sent_at
+        if not received:
+            received.append(signum)
+            sent_at = time.monotonic()
+        with contextlib.suppress(OSError):
+            proc.send_signal(signum)
+
+    previous = {s: signal.getsignal(s) for s in FORWARDED_SIGNALS}
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # inherited by the program
+    try:
+        proc = subprocess.Popen(cmd, env=dict(os.environ))
+    finally:
+        signal.signal(signal.SIGINT, previous[signal.SIGINT])
+    killed = False
+    with proc:
+        for s in FORWARDED_SIGNALS:
+            signal.signal(s, forward)
+        try:
+            while True:
+                try:
+                    code = proc.wait(timeout=0.5)
+                    break
+                except subprocess.TimeoutExpired:
+                    if not received:
                         continue
-            finally:
-                signal.signal(signal.SIGTERM, previous)
+                    if time.monotonic() - sent_at > kill_after:
+                        proc.kill()
+                        code, killed = proc.wait(), True
+                        break
+                    with contextlib.suppress(OSError):
+                        proc.send_signal(received[0])
+        finally:
+            for s, h in previous.items():
+                signal.signal(s, h)
+    if killed:
+        print(f"gpucompgen run: error: the program did not stop within {kill_after:g} s of "
+              f"{signal.Signals(received[0]).name}; killed it", file=sys.stderr)
+        return 128 + received[0]
+    if code >= 0:
+        return code
+    signum = -code
+    if received and signum == received[0]:  # it had not taken the signal over yet
+        print(f"gpucompgen run: the program was stopped by {_signal_name(signum)} while "
+              "starting", file=sys.stderr)
+    else:
+        why = _DEATHS.get(signum, "")
+        print(f"gpucompgen run: error: the program was killed by signal "
+              f"{_signal_name(signum)}" + (f": {why}" if why else ""), file=sys.stderr)
+    return 128 + signum
 
 
 def cmd_check(args) -> int:

@@ -9,7 +9,6 @@ scalars as values).  This class allocates, launches and frees.
 
 from __future__ import annotations
 
-import inspect
 from typing import Any, ClassVar
 
 from .devices import check_work_group
@@ -131,8 +130,6 @@ class KernelComponent:
 
 def _check_work_group(kernel, device, local_size, component: str, settings_source: str):
     # settings_source says who chose the settings ("model" for gpu_settings), so that a
-    # run-time limit error says what to change; passed where check_work_group takes it
-    if settings_source and "settings_source" in inspect.signature(check_work_group).parameters:
-        return check_work_group(kernel, device, local_size, component,
-                                settings_source=settings_source)
-    return check_work_group(kernel, device, local_size, component)
+    # run-time limit error says what to change
+    return check_work_group(kernel, device, local_size, component,
+                            settings_source=settings_source)
