@@ -242,36 +242,40 @@ def cmd_build(args) -> int:
 
 
 def cmd_run(args) -> int:
-    from .build import write
-
     def stop_building(signum, frame):
         # SIGTERM while building: remove the temporary folder on the way out (SIGINT
         # raises KeyboardInterrupt, which does the same)
         print("gpucompgen run: stopped by SIGTERM while building", file=sys.stderr)
         raise SystemExit(128 + signum)
 
-    with tempfile.TemporaryDirectory(prefix="gpucompgen-run-") as tmp:
-        out = Path(tmp)
-        previous = signal.signal(signal.SIGTERM, stop_building)
-        try:
-            result = _compile(args, out)
-            write(result, out)
-        finally:
-            signal.signal(signal.SIGTERM, previous)
-        program = out / f"{result.system.name}.py"
-        cmd = [sys.executable, str(program)]
-        for flag, value in (("--frames", args.frames), ("--stats-json", args.stats_json),
-                            ("--decisions", args.decisions),
-                            ("--save-images", args.save_images)):
-            if value is not None:
-                cmd += [flag, str(value)]
-        if args.quiet:
-            cmd.append("--quiet")
-        if args.debug:
-            cmd.append("--debug")
-        if args.profile:
-            cmd.append("--profile")
-        return run_program(cmd)
+    # installed before the folder exists and kept until run_program forwards SIGTERM
+    previous = signal.signal(signal.SIGTERM, stop_building)
+    try:
+        with tempfile.TemporaryDirectory(prefix="gpucompgen-run-") as tmp:
+            return _build_and_run(args, Path(tmp))
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def _build_and_run(args, out: Path) -> int:
+    from .build import write
+
+    result = _compile(args, out)
+    write(result, out)
+    program = out / f"{result.system.name}.py"
+    cmd = [sys.executable, str(program)]
+    for flag, value in (("--frames", args.frames), ("--stats-json", args.stats_json),
+                        ("--decisions", args.decisions),
+                        ("--save-images", args.save_images)):
+        if value is not None:
+            cmd += [flag, str(value)]
+    if args.quiet:
+        cmd.append("--quiet")
+    if args.debug:
+        cmd.append("--debug")
+    if args.profile:
+        cmd.append("--profile")
+    return run_program(cmd)
 
 
 FORWARDED_SIGNALS = (signal.SIGINT, signal.SIGTERM)
@@ -316,25 +320,32 @@ def run_program(cmd: list[str], kill_after: float = KILL_AFTER_SECONDS) -> int:
 
     received: list[int] = []
     sent_at = 0.0
+    proc = None
 
     def forward(signum, frame):
         nonlocal sent_at
         if not received:
             received.append(signum)
             sent_at = time.monotonic()
-        with contextlib.suppress(OSError):
-            proc.send_signal(signum)
+        if proc is not None:  # else sent once it exists (the loop below re-sends)
+            with contextlib.suppress(OSError):
+                proc.send_signal(signum)
 
     previous = {s: signal.getsignal(s) for s in FORWARDED_SIGNALS}
+    signal.signal(signal.SIGTERM, forward)
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # inherited by the program
     try:
         proc = subprocess.Popen(cmd, env=dict(os.environ))
-    finally:
-        signal.signal(signal.SIGINT, previous[signal.SIGINT])
+    except BaseException:
+        for s, h in previous.items():
+            signal.signal(s, h)
+        raise
+    signal.signal(signal.SIGINT, forward)
+    if received:
+        with contextlib.suppress(OSError):
+            proc.send_signal(received[0])
     killed = False
     with proc:
-        for s in FORWARDED_SIGNALS:
-            signal.signal(s, forward)
         try:
             while True:
                 try:

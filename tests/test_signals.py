@@ -513,3 +513,22 @@ def test_a_signal_while_gpucompgen_run_builds_leaves_no_temporary_folder(tmp_pat
     assert said in err or f"stopped by {signal.Signals(signum).name}" in err, err
     assert "Traceback" not in err
     assert not list(temp.glob("gpucompgen-run-*"))
+
+
+@pytest.mark.parametrize("zero_copy", ["on", "off"])
+def test_a_stop_at_any_moment_leaves_every_adapter_freeable(tmp_path, zero_copy):
+    """A stop lands where the frame ends, not right after the OpenCL call the host waited
+    in (where a zero-copy adapter had unmapped its buffer but not yet recorded it, and
+    freeing unmapped it again: 'clEnqueueUnmapMemObject failed: INVALID_VALUE')."""
+    require_opencl()
+    out = tmp_path / "out"
+    write(compile_model(ROOT / "models" / "vision_system.yaml", out, zero_copy=zero_copy), out)
+    for delay in (0.0, 0.05, 0.13, 0.31):
+        proc = start([sys.executable, str(out / "vision_system.py")])
+        try:
+            assert proc.stdout.readline().startswith("frame ")
+            time.sleep(delay)
+        finally:
+            err, _ = signal_and_time(proc, signal.SIGINT)
+        assert proc.returncode == 130, err
+        assert "note:" not in err and "every component was freed" in err, (delay, err)

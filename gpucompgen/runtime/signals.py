@@ -6,10 +6,15 @@ enqueue_copy, wait_for_events, queue.finish) never sees the signal.  Therefore m
 runs run() in a worker thread and the main thread only waits and handles signals
 (StopOnSignals.run):
 
-- the first SIGINT or SIGTERM asks the run to stop: Stopped is raised in the worker at its
-  next Python instruction, as a handler in the main thread used to raise it, and
-  monitor.frame_done() raises it too; run() then frees every component (free_all) and
-  the program reports "stopped by SIGINT after N frame(s); every component was freed";
+- the first SIGINT or SIGTERM asks the run to stop: monitor.frame_done() raises Stopped
+  at the end of the frame in flight, where every component and adapter is in a
+  consistent state; a run that has not got there INTERRUPT_SECONDS later (a component
+  looping in Python, a slow initialize) gets Stopped raised in the worker at its next
+  Python instruction, as a handler in the main thread would raise it. run() then frees
+  every component (free_all) and the program reports "stopped by SIGINT after N
+  frame(s); every component was freed". (Raising at once would land right after the
+  blocking OpenCL call the host was waiting in, in the middle of an adapter's
+  bookkeeping: an unmapped buffer still recorded as mapped, unmapped again when freed.)
 - a second signal while stopping is ignored (a terminal's Ctrl-C reaches both
   'gpucompgen run' and the program, which forwards it too), and so is one arriving while
   free_all() runs: freeing is never cut short;
@@ -39,6 +44,7 @@ from .errors import Stopped
 
 SIGNALS = (signal.SIGINT, signal.SIGTERM)
 GRACE_SECONDS = 1.5  # from the signal until the program gives up on a blocked run
+INTERRUPT_SECONDS = 0.5  # from the signal until a run not yet at frame_done is interrupted
 FREE_SECONDS = 0.4  # then, the time the main thread spends freeing what it can
 
 # Threads that may receive Stopped asynchronously now: a worker inside run(), not yet
@@ -111,9 +117,11 @@ class StopOnSignals:
 
     def __init__(self, monitor, *, grace: float = GRACE_SECONDS,
                  free_seconds: float = FREE_SECONDS, exit: Callable[[int], Any] = os._exit,
-                 stream=None):
+                 stream=None, interrupt: float = INTERRUPT_SECONDS):
         self.monitor = monitor
         self.grace, self.free_seconds, self.exit = grace, free_seconds, exit
+        self.interrupt = interrupt
+        self._interrupted = False
         self.stream = stream
         self.signum: int | None = None
         self._when = 0.0
@@ -144,11 +152,15 @@ class StopOnSignals:
         request = getattr(self.monitor, "request_stop", None)
         if request is not None:
             request(signum)
+
+    def _interrupt(self) -> None:
+        """Raise Stopped in the worker at its next Python instruction, unless it is freeing."""
+        self._interrupted = True
         worker = self._worker
         if worker is not None and worker.ident is not None:
             with _LOCK:
                 if worker.ident in _INTERRUPTIBLE:
-                    _set_async(worker.ident, _stopped_class(signum))
+                    _set_async(worker.ident, _stopped_class(self.signum))
 
     # -- the run ----------------------------------------------------------------------------
 
@@ -166,9 +178,12 @@ class StopOnSignals:
         worker.start()
         while worker.is_alive():
             if self.signum is None:
-                worker.join(0.5)  # a signal's handler runs during the wait
+                worker.join(0.2)  # a signal's handler runs during the wait
                 continue
-            left = self._when + self.grace - time.monotonic()
+            now = time.monotonic()
+            if not self._interrupted and now >= self._when + self.interrupt:
+                self._interrupt()
+            left = self._when + self.grace - now
             if left <= 0:
                 self._give_up(worker)
                 return None  # only where exit() returned (tests)
