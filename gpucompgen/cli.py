@@ -16,7 +16,7 @@ import traceback
 from pathlib import Path
 
 from . import __version__
-from .errors import GpucompgenError, OutputError
+from .errors import GpucompgenError, OutputError, UsageError
 from .ir import MODES
 from .model import EXECUTIONS, ZERO_COPY
 from .runtime import add_program_options
@@ -52,6 +52,22 @@ def _common(p: argparse.ArgumentParser,
                    help="zero-copy adapters (map host-visible memory instead of copying): auto "
                         "follows the device's unified host memory (default: the model's "
                         "platform.zero_copy, else auto)")
+    p.add_argument("--place", action="append", type=_place, default=[], metavar="NAME=SIDE",
+                   help="run flexible component NAME on SIDE: gpu, cpu or auto (chosen with "
+                        "the others by the cost model); repeatable; overrides the model")
+
+
+def _place(text: str) -> tuple[str, str]:
+    name, sep, side = text.partition("=")
+    if not sep or not name.strip() or side.strip() not in ("gpu", "cpu", "auto"):
+        raise argparse.ArgumentTypeError(
+            f"{text!r}: write COMPONENT=gpu, COMPONENT=cpu or COMPONENT=auto")
+    return name.strip(), side.strip()
+
+
+def places(args) -> dict[str, str]:
+    """--place options as {component: side}; the last one for a component wins."""
+    return dict(getattr(args, "place", None) or [])
 
 
 def _sub(sub, name: str, summary: str, description: str) -> argparse.ArgumentParser:
@@ -164,7 +180,7 @@ def main(argv: list[str] | None = None) -> int:
             print(f"gpucompgen {args.command}: error: {model}: {what}", file=sys.stderr)
             return 2
         return COMMANDS[args.command](args)
-    except OutputError as exc:
+    except (OutputError, UsageError) as exc:
         print(f"gpucompgen {args.command}: error: {exc}", file=sys.stderr)
         return 2
     except GpucompgenError as exc:
@@ -200,7 +216,7 @@ def _compile(args, out_dir: Path):
             print(text, file=sys.stderr)
     result = compile_model(args.model, out_dir, args.mode, args.device, dump,
                            execution=args.execution, zero_copy=args.zero_copy,
-                           verify=True if args.debug else None)
+                           verify=True if args.debug else None, places=places(args))
     for w in result.warnings:
         print(w.format(), file=sys.stderr)
     return result

@@ -28,7 +28,7 @@ from .adapters import (
     ZeroCopyGpuToCpuAdapter,
 )
 from .cli import add_program_options, main
-from .components import KernelComponent
+from .components import CpuFunctionComponent, KernelComponent
 from .devices import (
     NO_DEVICE_HINT,
     DeviceLimits,
@@ -54,6 +54,7 @@ from .lifecycle import (
     failing_component,
     free_all,
     load_class,
+    load_function,
     load_module,
 )
 from .monitor import Monitor
@@ -64,6 +65,7 @@ from .sizes import Size
 
 __all__ = [
     "NO_DEVICE_HINT",
+    "CpuFunctionComponent",
     "CpuToGpuAdapter",
     "DeviceLimits",
     "DeviceStatus",
@@ -93,6 +95,7 @@ __all__ = [
     "free_all",
     "kernel_limits",
     "load_class",
+    "load_function",
     "load_module",
     "main",
     "probe_device",

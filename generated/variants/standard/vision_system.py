@@ -27,6 +27,10 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 #   detector.mask         device  480x1280x1 uint8    614,400
 #   detector.mask (host)  host    480x1280x1 uint8    614,400
 #
+#   placement of flexible components:
+#     merger: GPU (by default)
+#     detector: GPU (by default)
+#
 #   device: portable OpenCL 1.2 device
 #   peak device memory: 6,144,000 bytes; peak host memory: 4,300,800 bytes
 #   (every buffer is allocated once, at start)
