@@ -127,6 +127,19 @@ def parser() -> argparse.ArgumentParser:
               "between CPU and GPU per frame.")
     _common(pl)
 
+    tu = _sub(sub, "tune", "time flexible components on the CPU and the device (profile)",
+              "Run every flexible component of MODEL at the model's sizes, its CPU function\n"
+              "and its kernel on the OpenCL device (PYOPENCL_CTX), for a few frames each, and\n"
+              "time one copy between host and device. Writes the profile that\n"
+              "'placement: auto' reads: the model's platform.profile, else\n"
+              "tune/<system>.yaml beside the model.")
+    tu.add_argument("model", type=Path, metavar="MODEL", help="the system model (.yaml)")
+    tu.add_argument("-o", "--output", type=Path, metavar="FILE",
+                    help="where to write the profile (default: the model's platform.profile, "
+                         "else tune/<system>.yaml beside the model)")
+    tu.add_argument("--frames", type=int, default=20, metavar="N",
+                    help="frames timed per component and side (default: 20)")
+
     g = _sub(sub, "graph", "draw the architecture (.dot, .svg, .png)",
              "Draw MODEL's architecture as in the paper's Figure 3: components (GPU-aware\n"
              "ones and their GPU ports marked), the generated adapters as nodes of their own,\n"
@@ -306,6 +319,30 @@ def cmd_plan(args) -> int:
     return 0
 
 
+def cmd_tune(args) -> int:
+    from .model import load_system
+    from .runtime import PipelineError
+    from .tune import default_profile_path, tune
+
+    if args.frames < 1:
+        print("gpucompgen tune: error: --frames must be 1 or more", file=sys.stderr)
+        return 2
+    try:
+        text, rows = tune(args.model, args.frames, str(args.model))
+    except PipelineError as exc:
+        print(f"gpucompgen tune: error: {exc}", file=sys.stderr)
+        return 2
+    out = args.output or default_profile_path(args.model, load_system(args.model))
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(text, encoding="utf-8")
+    width = max([len(r[0]) for r in rows] + [9])
+    print(f"{'component':<{width}}  {'CPU us':>10}  {'GPU us':>10}")
+    for name, _, _, cpu_us, gpu_us in rows:
+        print(f"{name:<{width}}  {cpu_us:>10,.1f}  {gpu_us:>10,.1f}")
+    print(f"wrote {out}")
+    return 0
+
+
 def cmd_graph(args) -> int:
     from .graph import FORMATS, GraphvizMissing, write_graph
 
@@ -372,4 +409,5 @@ def cmd_schema(args) -> int:
 
 
 COMMANDS = {"build": cmd_build, "run": cmd_run, "check": cmd_check, "plan": cmd_plan,
+            "tune": cmd_tune,
             "graph": cmd_graph, "bench": cmd_bench, "devices": cmd_devices, "schema": cmd_schema}

@@ -975,10 +975,11 @@ def placement_problem(rep: Reporter, pos: Pos, cname: str, ctype: ComponentType,
         return ""
     side = {"gpu-aware": "gpu", "standard": "cpu"}.get(ctype.kind)
     if side is not None and where != side:
-        shown = "either side ('auto')" if where == "auto" else f"the {where.upper()}"
-        rep.error(pos, f"'{cname}' cannot be placed on {shown}: its type '{ctype.name}' is "
-                  f"{ctype.kind} and runs on the {side.upper()} only", "only flexible types (kind: flexible, with a kernel "
-                  "and a 'cpu:' function) can be placed; remove 'placement:'")
+        shown = "automatically ('auto')" if where == "auto" else f"on the {where.upper()}"
+        rep.error(pos, f"'{cname}' cannot be placed {shown}: its type '{ctype.name}' is "
+                  f"{ctype.kind} and runs on the {side.upper()} only",
+                  "only flexible types (kind: flexible, with a kernel and a 'cpu:' function) "
+                  "can be placed; remove 'placement:'")
         return ""
     return where
 
