@@ -874,12 +874,8 @@ def load_system(path: Path, display: str | None = None) -> SystemModel:
         if not isinstance(rel, str) or not rel.endswith((".yaml", ".yml")):
             rep.error(ppos, "platform.profile must be the path of a .yaml profile",
                       "e.g. 'profile: tune/my_system.yaml', written by 'gpucompgen tune'")
-        else:
+        else:  # read (and found missing) only where a placement is 'auto'
             profile = path.parent / rel
-            if not profile.is_file():
-                rep.error(ppos, f"profile {rel!r} not found (paths are relative to the model)",
-                          f"write it with 'gpucompgen tune {display}'")
-                profile = None
     # components
     components: dict[str, Instance] = {}
     comps = _expect_map(doc, rep, ("components",), root.get("components"), "components")

@@ -257,7 +257,8 @@ def _run(tmp_path: Path, model: Path, places: dict, frames: int):
     module.VisionManager.execute = spy
     try:
         from gpucompgen import runtime
-        ran = module.run(frames=frames, monitor=runtime.Monitor(progress=False))
+        ran = module.run(frames=frames, monitor=runtime.Monitor(progress=False,
+                                                               options={"quiet": True}))
     finally:
         module.VisionManager.execute = original
     assert ran.frames == frames
@@ -328,3 +329,27 @@ def test_a_cpu_function_returning_the_wrong_shape_is_named(tmp_path):
     with pytest.raises(ValueError, match=r"mirror\.mirrored: the CPU function <lambda>\(\) "
                                          r"returned uint8 \(4, 5, 3\), not uint8 \(4, 6, 3\)"):
         comp.execute(np.zeros((4, 6, 3), np.uint8))
+
+
+def test_tune_writes_the_profile_that_auto_reads(tmp_path, capsys):
+    require_opencl()
+    import shutil
+
+    import yaml
+
+    model = tmp_path / "vision_system.yaml"
+    shutil.copy(VISION, model)
+    assert cli.main(["tune", str(model), "--frames", "2"]) == 0
+    profile = tmp_path / "tune" / "vision_system.yaml"  # where the model's profile points
+    assert f"wrote {profile}" in capsys.readouterr().out
+    data = yaml.safe_load(profile.read_text())
+    assert set(data["components"]) == {"merger", "detector"}
+    assert data["components"]["detector"]["sizes"] == "480x1280x3 -> 480x1280x1"
+    for entry in data["components"].values():
+        assert entry["cpu_us"] > 0 and entry["gpu_us"] > 0
+    assert data["transfer"]["bandwidth_mb_s"] > 0
+    system, warnings = _passes(model, {"merger": "auto", "detector": "auto"})
+    assert warnings == []
+    assert {c.source for c in system.placement.costs.values()} == {"profile"}
+    merger = data["components"]["merger"]
+    assert system.placement.costs["merger"].cpu_s == pytest.approx(merger["cpu_us"] * 1e-6)

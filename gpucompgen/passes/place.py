@@ -206,6 +206,11 @@ def read_profile(system: System, rep: Reporter) -> dict | None:
     path: Path | None = model.profile
     if path is None:
         return None
+    if not path.is_file():
+        rel = os.path.relpath(path, model.file.parent)
+        rep.error(model.profile_pos, f"profile {rel!r} not found (paths are relative to the "
+                  "model)", f"write it with 'gpucompgen tune {model.display}'")
+        return None
     shown = str(Path(model.display).parent / os.path.relpath(path, model.file.parent))
     doc = load_file(path, shown)
     data = doc.data
