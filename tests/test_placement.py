@@ -353,3 +353,59 @@ def test_tune_writes_the_profile_that_auto_reads(tmp_path, capsys):
     assert {c.source for c in system.placement.costs.values()} == {"profile"}
     merger = data["components"]["merger"]
     assert system.placement.costs["merger"].cpu_s == pytest.approx(merger["cpu_us"] * 1e-6)
+
+
+def test_a_users_flexible_type_runs_on_either_side(tmp_path):
+    """A user's flexible type: its kernel and its CPU function copied beside the program."""
+    require_opencl()
+    user = ROOT / "tests" / "data" / "user_model"
+    import shutil
+
+    shutil.copy(user / "brighten.cl", tmp_path)
+    (tmp_path / "brighten_cpu.py").write_text(textwrap.dedent("""\
+        import numpy as np
+
+        def brighten(image, gain):
+            return np.minimum(image.astype(np.int32) + gain, 255).astype(np.uint8)
+        """))
+    (tmp_path / "types.yaml").write_text(textwrap.dedent("""\
+        component_types:
+          Brighten:
+            kind: flexible
+            params:
+              gain: {type: int, default: 40, min: 0, max: 255}
+            inputs:
+              image: {dtype: uint8, channels: 3}
+            outputs:
+              brighter: {dtype: uint8, channels: 3}
+            kernel: {file: brighten.cl, function: brighten}
+            cpu: {file: brighten_cpu.py, function: brighten}
+        """))
+    model = tmp_path / "bright.yaml"
+    model.write_text(textwrap.dedent("""\
+        system: bright
+        types: [types.yaml]
+        components:
+          source: {type: StillImage, params: {width: 90, height: 70, seed: 3}}
+          brighten: {type: Brighten, params: {gain: 70}}
+          sink: {type: FrameSink}
+        connections:
+          - source.image -> brighten.image
+          - brighten.brighter -> sink.image
+        """))
+    from gpucompgen import runtime
+    from gpucompgen.library.still_image import StillImage
+
+    source = StillImage(width=90, height=70, seed=3)
+    source.initialize()
+    frame = source.execute()
+    expected = np.minimum(frame.astype(int) + 70, 255).astype(np.uint8)
+    for side in ("gpu", "cpu"):
+        out = tmp_path / side
+        result = compile_model(model, out, places={"brighten": side})
+        write(result, out)
+        lib = sorted(p.name for p in (out / "bright_lib").iterdir())
+        assert lib == (["brighten.cl"] if side == "gpu" else ["brighten_cpu.py"])
+        module = load_generated(out / "bright.py", f"bright_{side}")
+        ran = module.run(frames=3, monitor=runtime.Monitor(progress=False))
+        np.testing.assert_array_equal(ran.components["sink"].last, expected, err_msg=side)
