@@ -30,6 +30,13 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 #   mirror5.mirrored                     device  864x1152x3 uint8  2,985,984
 #   adapter2_gpu2cpu (mirror5.mirrored)  host    864x1152x3 uint8  2,985,984
 #
+#   placement of flexible components:
+#     mirror1: GPU (by default)
+#     mirror2: GPU (by default)
+#     mirror3: GPU (by default)
+#     mirror4: GPU (by default)
+#     mirror5: GPU (by default)
+#
 #   device: portable OpenCL 1.2 device
 #   peak device memory: 17,915,904 bytes; peak host memory: 5,971,968 bytes
 #   (every buffer is allocated once, at start)

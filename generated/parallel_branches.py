@@ -32,6 +32,12 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 #   detector.mask                     device  480x1280x1 uint8    614,400
 #   adapter3_gpu2cpu (detector.mask)  host    480x1280x1 uint8    614,400
 #
+#   placement of flexible components:
+#     blur1: GPU (by default)
+#     blur2: GPU (by default)
+#     merger: GPU (by default)
+#     detector: GPU (by default)
+#
 #   device: portable OpenCL 1.2 device
 #   peak device memory: 6,144,000 bytes; peak host memory: 2,457,600 bytes
 #   (every buffer is allocated once, at start)

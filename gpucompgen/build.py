@@ -37,7 +37,8 @@ class BuildResult:
 def compile_model(model_path: Path, out_dir: Path, mode: str = "gpu-aware",
                   device: str | None = None, dump: Callable[[str], None] | None = None,
                   display: str | None = None, execution: str | None = None,
-                  zero_copy: str | None = None, verify: bool | None = None) -> BuildResult:
+                  zero_copy: str | None = None, verify: bool | None = None,
+                  places: dict[str, str] | None = None) -> BuildResult:
     """Everything but writing: raises GpucompgenError with all problems found.
 
     execution ("parallel" | "sequential") and zero_copy ("auto" | "on" | "off") override
@@ -53,7 +54,8 @@ def compile_model(model_path: Path, out_dir: Path, mode: str = "gpu-aware",
     facts = device_mod.resolve(spec, model.device_pos, rep,
                                model.device_positions if device is None else None)
     rep.raise_if_errors()
-    system, warnings = run_passes(model, facts, mode, dump, execution, zero_copy, verify)
+    system, warnings = run_passes(model, facts, mode, dump, execution, zero_copy, verify,
+                                  places)
     files = render(system, source_path(model_path, out_dir))
     _must_compile(files[0])
     return BuildResult(system, files, warnings)

@@ -16,7 +16,7 @@ import traceback
 from pathlib import Path
 
 from . import __version__
-from .errors import GpucompgenError, OutputError
+from .errors import GpucompgenError, OutputError, UsageError
 from .ir import MODES
 from .model import EXECUTIONS, ZERO_COPY
 from .runtime import add_program_options
@@ -53,6 +53,22 @@ def _common(p: argparse.ArgumentParser,
                    help="zero-copy adapters (map host-visible memory instead of copying): auto "
                         "follows the device's unified host memory (default: the model's "
                         "platform.zero_copy, else auto)")
+    p.add_argument("--place", action="append", type=_place, default=[], metavar="NAME=SIDE",
+                   help="run flexible component NAME on SIDE: gpu, cpu or auto (chosen with "
+                        "the others by the cost model); repeatable; overrides the model")
+
+
+def _place(text: str) -> tuple[str, str]:
+    name, sep, side = text.partition("=")
+    if not sep or not name.strip() or side.strip() not in ("gpu", "cpu", "auto"):
+        raise argparse.ArgumentTypeError(
+            f"{text!r}: write COMPONENT=gpu, COMPONENT=cpu or COMPONENT=auto")
+    return name.strip(), side.strip()
+
+
+def places(args) -> dict[str, str]:
+    """--place options as {component: side}; the last one for a component wins."""
+    return dict(getattr(args, "place", None) or [])
 
 
 def _sub(sub, name: str, summary: str, description: str) -> argparse.ArgumentParser:
@@ -111,6 +127,19 @@ def parser() -> argparse.ArgumentParser:
               "each output's size, the adapters, the GPU settings and the bytes that cross\n"
               "between CPU and GPU per frame.")
     _common(pl)
+
+    tu = _sub(sub, "tune", "time flexible components on the CPU and the device (profile)",
+              "Run every flexible component of MODEL at the model's sizes, its CPU function\n"
+              "and its kernel on the OpenCL device (PYOPENCL_CTX), for a few frames each, and\n"
+              "time one copy between host and device. Writes the profile that\n"
+              "'placement: auto' reads: the model's platform.profile, else\n"
+              "tune/<system>.yaml beside the model.")
+    tu.add_argument("model", type=Path, metavar="MODEL", help="the system model (.yaml)")
+    tu.add_argument("-o", "--output", type=Path, metavar="FILE",
+                    help="where to write the profile (default: the model's platform.profile, "
+                         "else tune/<system>.yaml beside the model)")
+    tu.add_argument("--frames", type=int, default=20, metavar="N",
+                    help="frames timed per component and side (default: 20)")
 
     g = _sub(sub, "graph", "draw the architecture (.dot, .svg, .png)",
              "Draw MODEL's architecture as in the paper's Figure 3: components (GPU-aware\n"
@@ -176,7 +205,7 @@ def main(argv: list[str] | None = None) -> int:
             print(f"gpucompgen {args.command}: error: {model}: {what}", file=sys.stderr)
             return 2
         return COMMANDS[args.command](args)
-    except OutputError as exc:
+    except (OutputError, UsageError) as exc:
         print(f"gpucompgen {args.command}: error: {exc}", file=sys.stderr)
         return 2
     except GpucompgenError as exc:
@@ -212,7 +241,7 @@ def _compile(args, out_dir: Path):
             print(text, file=sys.stderr)
     result = compile_model(args.model, out_dir, args.mode, args.device, dump,
                            execution=args.execution, zero_copy=args.zero_copy,
-                           verify=True if args.debug else None)
+                           verify=True if args.debug else None, places=places(args))
     for w in result.warnings:
         print(w.format(), file=sys.stderr)
     return result
@@ -406,6 +435,30 @@ def cmd_plan(args) -> int:
     return 0
 
 
+def cmd_tune(args) -> int:
+    from .model import load_system
+    from .runtime import PipelineError
+    from .tune import default_profile_path, tune
+
+    if args.frames < 1:
+        print("gpucompgen tune: error: --frames must be 1 or more", file=sys.stderr)
+        return 2
+    try:
+        text, rows = tune(args.model, args.frames, str(args.model))
+    except PipelineError as exc:
+        print(f"gpucompgen tune: error: {exc}", file=sys.stderr)
+        return 2
+    out = args.output or default_profile_path(args.model, load_system(args.model))
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(text, encoding="utf-8")
+    width = max([len(r[0]) for r in rows] + [9])
+    print(f"{'component':<{width}}  {'CPU us':>10}  {'GPU us':>10}")
+    for name, _, _, cpu_us, gpu_us in rows:
+        print(f"{name:<{width}}  {cpu_us:>10,.1f}  {gpu_us:>10,.1f}")
+    print(f"wrote {out}")
+    return 0
+
+
 def cmd_graph(args) -> int:
     from .graph import FORMATS, GraphvizMissing, write_graph
 
@@ -495,5 +548,5 @@ def cmd_types(args) -> int:
 
 
 COMMANDS = {"build": cmd_build, "run": cmd_run, "check": cmd_check, "plan": cmd_plan,
-            "graph": cmd_graph, "bench": cmd_bench, "devices": cmd_devices, "schema": cmd_schema,
-            "types": cmd_types}
+            "tune": cmd_tune, "types": cmd_types,
+            "graph": cmd_graph, "bench": cmd_bench, "devices": cmd_devices, "schema": cmd_schema}

@@ -40,7 +40,9 @@ DTYPES = {  # element type → (numpy name, OpenCL C type, bytes)
 }
 MEMORIES = ("gpu", "cpu")
 PARAM_TYPES = {"int": int, "float": float, "bool": bool, "str": str}
-KINDS = ("standard", "gpu-aware")
+KINDS = ("standard", "gpu-aware", "flexible")
+# where a component runs: "auto" lets the place pass choose (flexible types only)
+PLACEMENTS = ("gpu", "cpu", "auto")
 SETTING_KEYS = ("tile", "block_x", "block_y", "block_z")
 # How a kernel's work-groups cover its grid port: a tile x tile square of pixels each (the
 # paper's contract), or `tile` whole rows each (kernels that copy rows, e.g. VerticalMirror).
@@ -63,7 +65,7 @@ class ParamDecl:
 class PortDecl:
     name: str
     direction: str  # "in" | "out"
-    memory: str  # "gpu" | "cpu"
+    memory: str  # "gpu" | "cpu" | "any" (a flexible type's port: where it is placed)
     dtype: str
     channels: int
     height: ast.Expression | None = None  # outputs only
@@ -122,10 +124,20 @@ class ComponentType:
     # a file read again later)
     kernel_text: str = ""
     python_text: str = ""
+    # a flexible type's CPU implementation: a function in a Python file (never imported
+    # by the generator: checked with ast)
+    cpu_file: Path | None = None
+    cpu_function: str = ""
 
     @property
     def gpu_aware(self) -> bool:
-        return self.kind == "gpu-aware"
+        """The type has a GPU implementation (a kernel): gpu-aware or flexible."""
+        return self.kind in ("gpu-aware", "flexible")
+
+    @property
+    def flexible(self) -> bool:
+        """The type runs on either side: its kernel on the GPU, cpu.function on the CPU."""
+        return self.kind == "flexible"
 
     @property
     def snake(self) -> str:
@@ -142,6 +154,8 @@ class Instance:
     params: dict[str, Any]
     pos: Pos
     order: int
+    placement: str = ""  # "gpu" | "cpu" | "auto" as the model says; "" when it says nothing
+    placement_pos: Pos | None = None
 
 
 @dataclass(frozen=True)
@@ -182,6 +196,12 @@ class SystemModel:
     zero_copy: str = "auto"
     thread_budget_pos: Pos | None = None
     platform_pos: Pos = Pos("")
+    # platform.placement: where flexible components without their own 'placement:' run
+    # ("gpu" by default, "cpu", or "auto"); platform.profile: a `gpucompgen tune` file
+    placement: str = "gpu"
+    placement_pos: Pos | None = None
+    profile: Path | None = None
+    profile_pos: Pos | None = None
 
 
 # --------------------------------------------------------------------------- helpers
@@ -237,13 +257,14 @@ def _positive_int(doc: Document, rep: Reporter, path: tuple, value: Any, what: s
 # --------------------------------------------------------------------------- types
 
 TYPE_KEYS = ("kind", "description", "params", "inputs", "outputs", "requires", "kernel",
-             "python", "gpu")
+             "python", "gpu", "cpu")
 PORT_KEYS = ("memory", "dtype", "channels", "height", "width", "description")
 PARAM_KEYS = ("type", "default", "min", "max", "description")
 REQUIRE_KEYS = ("check", "message")
 KERNEL_KEYS = ("file", "function", "grid", "cover")
 GPU_KEYS = ("tiles", "block_z", "prefer", "max_threads", "square")
 PYTHON_KEYS = ("file", "class")
+CPU_KEYS = ("file", "function")
 
 
 def load_types_file(path: Path, display: str, origin: str, rep: Reporter,
@@ -284,8 +305,9 @@ def _load_type(doc: Document, rep: Reporter, path: Path, origin: str, tname: str
     kind = spec.get("kind")
     if kind not in KINDS:
         rep.error(doc.pos(*base, "kind") if "kind" in spec else doc.key_pos(*base),
-                  f"component type '{tname}' needs kind 'standard' or 'gpu-aware', "
-                  f"not {kind!r}", "add 'kind: gpu-aware' or 'kind: standard'")
+                  f"component type '{tname}' needs kind 'standard', 'gpu-aware' or "
+                  f"'flexible', not {kind!r}",
+                  "add 'kind: gpu-aware', 'kind: standard' or 'kind: flexible'")
         return None
     ctype = ComponentType(
         name=tname, kind=kind,
@@ -333,7 +355,7 @@ def _load_type(doc: Document, rep: Reporter, path: Path, origin: str, tname: str
                       "'default:' to make the parameter required")
         problem = None if default is None else _param_value_problem(
             default, ParamDecl(pname, ptype, minimum=bounds["min"], maximum=bounds["max"]),
-            kind == "gpu-aware")
+            kind in ("gpu-aware", "flexible"))
         if problem:
             rep.error(doc.pos(*ppath, "default"), f"default of '{pname}' {problem}",
                       f"give a {ptype} default within min and max, or none to make "
@@ -363,7 +385,7 @@ def _load_type(doc: Document, rep: Reporter, path: Path, origin: str, tname: str
     if not ctype.inputs and not ctype.outputs:
         rep.error(ctype.pos, f"component type '{tname}' has no ports",
                   "declare 'inputs:' and/or 'outputs:'")
-    if kind == "gpu-aware":
+    if kind in ("gpu-aware", "flexible"):
         _check_class_members(doc, rep, base, ctype)
     # output sizes need the input ports, so parse them after all ports are known
     for pname, port in list(ctype.outputs.items()):
@@ -389,20 +411,32 @@ def _load_type(doc: Document, rep: Reporter, path: Path, origin: str, tname: str
             continue
         ctype.requires.append((tree, message or f"requires {ast.unparse(tree.body)}"))
     # implementation
-    if kind == "gpu-aware":
-        # a type with problems in its ports or parameters has no convention to check yet
+    if kind == "flexible":
         _load_kernel(doc, rep, base, ctype, spec, signature_check=len(rep.diagnostics) == seen)
+        _load_cpu(doc, rep, base, ctype, spec)
+        if "python" in spec:
+            rep.error(doc.key_pos(*base, "python"),
+                      "a flexible type's CPU side is a function, 'cpu: {file, function}', "
+                      "not 'python'", "write 'cpu: {file: x.py, function: f}'")
+    elif kind == "gpu-aware":
+        _load_kernel(doc, rep, base, ctype, spec, signature_check=len(rep.diagnostics) == seen)
+        if "cpu" in spec:
+            rep.error(doc.key_pos(*base, "cpu"),
+                      f"'cpu' is only for flexible types; '{tname}' is gpu-aware",
+                      "set 'kind: flexible' (and remove 'memory:' from its ports) or "
+                      "remove 'cpu:'")
         if "python" in spec:
             rep.error(doc.key_pos(*base, "python"),
                       "a GPU-aware type is implemented by its OpenCL kernel, not 'python'",
                       "remove 'python:' or make the type 'kind: standard'")
     else:
         _load_python(doc, rep, base, ctype, spec)
-        for key in ("kernel", "gpu"):
+        for key in ("kernel", "gpu", "cpu"):
             if key in spec:
                 rep.error(doc.key_pos(*base, key),
-                          f"'{key}' is only for GPU-aware types; '{tname}' is standard",
-                          "set 'kind: gpu-aware' or remove the key")
+                          f"'{key}' is only for GPU-aware or flexible types; '{tname}' is "
+                          "standard", "set 'kind: gpu-aware' or 'kind: flexible', or remove "
+                          "the key")
     return ctype
 
 
@@ -436,7 +470,7 @@ def _check_class_members(doc: Document, rep: Reporter, base: tuple,
 
 
 def gpu_kernel_param_problem(kind: str, ptype: str) -> bool:
-    return kind == "gpu-aware" and ptype == "str"
+    return kind in ("gpu-aware", "flexible") and ptype == "str"
 
 
 def _int_params(ctype: ComponentType) -> list[str]:
@@ -486,8 +520,16 @@ def _load_port(doc, rep, path, ctype, direction, pname, pspec) -> PortDecl | Non
         return None
     pspec = _expect_map(doc, rep, path, pspec, f"port '{pname}'")
     _unknown_keys(doc, rep, path, pspec, PORT_KEYS, f"port '{pname}'")
-    memory = pspec.get("memory", "cpu")
-    if memory not in MEMORIES:
+    if ctype.kind == "flexible":
+        if "memory" in pspec:
+            rep.error(doc.key_pos(*path, "memory"),
+                      f"port '{pname}' of flexible type '{ctype.name}' has no memory of its "
+                      "own: it lives where the component is placed",
+                      "remove 'memory:'; the system inserts the adapters its neighbours need")
+        memory = "any"
+    else:
+        memory = pspec.get("memory", "cpu")
+    if memory != "any" and memory not in MEMORIES:
         rep.error(doc.pos(*path, "memory"), f"port '{pname}': memory must be 'gpu' or 'cpu', "
                   f"not {memory!r}")
         return None
@@ -743,6 +785,84 @@ def _load_python(doc, rep, base, ctype: ComponentType, spec) -> None:
                       "rename the file to a valid module name")
 
 
+def _load_cpu(doc, rep, base, ctype: ComponentType, spec) -> None:
+    """A flexible type's CPU side: ``cpu: {file: x.py, function: f}``.
+
+    The function takes every input port (a numpy array) and every parameter as keywords
+    and returns the output array (a tuple of them for several outputs, in the type's
+    order).  Its file is parsed with ast, never imported: it must define the function at
+    module level, and the function must accept those keywords.
+    """
+    path = base + ("cpu",)
+    cspec = _expect_map(doc, rep, path, spec.get("cpu"), "cpu")
+    if not cspec:
+        if "cpu" not in spec:
+            rep.error(ctype.pos, f"flexible type '{ctype.name}' needs "
+                      "'cpu: {file, function}', its CPU implementation",
+                      "write a numpy function taking the inputs and parameters as keywords "
+                      "and returning the output(s)")
+        return
+    _unknown_keys(doc, rep, path, cspec, CPU_KEYS, "cpu")
+    found = _resolve_file(doc, rep, path + ("file",), ctype.decl_file.parent,
+                          cspec.get("file"), ".py", "Python file")
+    cpu_text = ""
+    if found is not None:
+        ctype.cpu_file, cpu_text = found
+    function = cspec.get("function", ctype.snake)
+    fpos = doc.pos(*path, "function") if "function" in cspec else doc.key_pos(*path)
+    problem = name_problem(function, "function name")
+    if problem:
+        rep.error(fpos, problem)
+        return
+    ctype.cpu_function = function
+    if ctype.cpu_file is None:
+        return
+    if ctype.origin == "user":
+        problem = name_problem(ctype.cpu_file.stem, "Python module name")
+        if problem:
+            rep.error(doc.pos(*path, "file"), problem, "rename the file to a valid module name")
+    try:
+        tree = ast.parse(cpu_text, str(ctype.cpu_file))
+    except SyntaxError as exc:
+        rep.error(doc.pos(*path, "file"), f"{ctype.cpu_file.name}:{exc.lineno}: {exc.msg}",
+                  "fix the Python syntax of the CPU implementation")
+        return
+    found = next((n for n in tree.body if isinstance(n, (ast.FunctionDef, ast.AsyncFunctionDef))
+                  and n.name == function), None)
+    if found is None:
+        defined = [n.name for n in tree.body if isinstance(n, ast.FunctionDef)]
+        rep.error(fpos, f"{ctype.cpu_file.name} defines no function '{function}' at module "
+                  "level", did_you_mean(function, defined) or
+                  f"define 'def {function}({', '.join(ctype.inputs)}, ...)' there")
+        return
+    if isinstance(found, ast.AsyncFunctionDef):
+        rep.error(fpos, f"'{function}' in {ctype.cpu_file.name} is async", "make it a plain def")
+        return
+    a = found.args
+    named = [x.arg for x in a.posonlyargs + a.args + a.kwonlyargs]
+    wanted = list(ctype.inputs) + list(ctype.params)
+    positional_only = {x.arg for x in a.posonlyargs}
+    missing = [w for w in wanted if w not in named or w in positional_only]
+    if missing and a.kwarg is None:
+        rep.error(fpos, f"function '{function}' in {ctype.cpu_file.name} does not take "
+                  + ", ".join(f"'{m}'" for m in missing) + " as keyword"
+                  + ("s" if len(missing) > 1 else ""),
+                  f"it is called as {function}("
+                  + ", ".join(f"{w}=..." for w in wanted) + "): add the missing parameters")
+    # parameters it has that the call never passes must have defaults
+    n_pos = len(a.posonlyargs) + len(a.args)
+    pos_defaults = n_pos - len(a.defaults)
+    unfilled = [x.arg for i, x in enumerate(a.posonlyargs + a.args)
+                if i < pos_defaults and x.arg not in wanted]
+    unfilled += [x.arg for x, d in zip(a.kwonlyargs, a.kw_defaults)
+                 if d is None and x.arg not in wanted]
+    if unfilled:
+        rep.error(fpos, f"function '{function}' in {ctype.cpu_file.name} needs "
+                  + ", ".join(f"'{u}'" for u in unfilled) + f", which is no input or "
+                  f"parameter of '{ctype.name}'",
+                  "give it a default, or declare it as a parameter of the type")
+
+
 _LIBRARY_CACHE: dict[str, ComponentType] | None = None
 
 
@@ -763,10 +883,11 @@ def library_types() -> dict[str, ComponentType]:
 # --------------------------------------------------------------------------- systems
 
 SYSTEM_KEYS = ("system", "description", "types", "platform", "components", "connections")
-PLATFORM_KEYS = ("device", "gpu_settings", "thread_budget", "execution", "zero_copy")
+PLATFORM_KEYS = ("device", "gpu_settings", "thread_budget", "execution", "zero_copy",
+                 "placement", "profile")
 EXECUTIONS = ("parallel", "sequential")
 ZERO_COPY = ("auto", "on", "off")
-INSTANCE_KEYS = ("type", "params", "description")
+INSTANCE_KEYS = ("type", "params", "description", "placement")
 CONNECTION_RE = re.compile(r"^\s*([^\s.]+)\.([^\s.]+)\s*->\s*([^\s.]+)\.([^\s.]+)\s*$")
 
 
@@ -895,6 +1016,21 @@ def load_system(path: Path, display: str | None = None) -> SystemModel:
         rep.error(doc.pos("platform", "zero_copy"),
                   f"platform.zero_copy must be 'auto', 'on' or 'off', not {zero_copy!r}")
         zero_copy = "auto"
+    placement = platform.get("placement", "gpu")
+    if not _named(placement, PLACEMENTS):
+        rep.error(doc.pos("platform", "placement"),
+                  f"platform.placement must be 'gpu', 'cpu' or 'auto', not {placement!r}",
+                  "it places the flexible components that say nothing themselves")
+        placement = "gpu"
+    profile = None
+    if "profile" in platform:
+        rel = platform["profile"]
+        ppos = doc.pos("platform", "profile")
+        if not isinstance(rel, str) or not rel.endswith((".yaml", ".yml")):
+            rep.error(ppos, "platform.profile must be the path of a .yaml profile",
+                      "e.g. 'profile: tune/my_system.yaml', written by 'gpucompgen tune'")
+        else:  # read (and found missing) only where a placement is 'auto'
+            profile = path.parent / rel
     # components
     components: dict[str, Instance] = {}
     comps = _expect_map(doc, rep, ("components",), root.get("components"), "components")
@@ -940,7 +1076,12 @@ def load_system(path: Path, display: str | None = None) -> SystemModel:
                       f"component after its role, e.g. '{snake(clash)}1'")
             continue
         params = _instance_params(doc, rep, cpath, ctype, cspec.get("params"))
-        components[cname] = Instance(cname, ctype, params, doc.key_pos(*cpath), order)
+        where, where_pos = cspec.get("placement", ""), None
+        if "placement" in cspec:
+            where_pos = doc.pos(*cpath, "placement")
+            where = placement_problem(rep, where_pos, cname, ctype, where)
+        components[cname] = Instance(cname, ctype, params, doc.key_pos(*cpath), order,
+                                     where, where_pos)
     for cname, (_, pos) in overrides.items():
         if cname not in components and cname in comps:
             continue
@@ -969,10 +1110,30 @@ def load_system(path: Path, display: str | None = None) -> SystemModel:
                        thread_budget=budget,
                        thread_budget_pos=doc.pos("platform", "thread_budget"), types=types, execution=execution,
                        zero_copy=zero_copy, platform_pos=doc.pos("platform"),
+                       placement=placement, placement_pos=doc.pos("platform", "placement"),
+                       profile=profile, profile_pos=doc.pos("platform", "profile"),
                        device_positions={k: (doc.key_pos("platform", "device", k),
                                              doc.pos("platform", "device", k))
                                          for k in (device if isinstance(device, dict) else {})
                                          if isinstance(k, str)})
+
+
+def placement_problem(rep: Reporter, pos: Pos, cname: str, ctype: ComponentType,
+                      where: Any) -> str:
+    """The placement asked for a component, or "" after reporting why it cannot be."""
+    if not _named(where, PLACEMENTS):
+        rep.error(pos, f"placement of '{cname}' must be 'gpu', 'cpu' or 'auto', not {where!r}",
+                  did_you_mean(str(where), PLACEMENTS))
+        return ""
+    side = {"gpu-aware": "gpu", "standard": "cpu"}.get(ctype.kind)
+    if side is not None and where != side:
+        shown = "automatically ('auto')" if where == "auto" else f"on the {where.upper()}"
+        rep.error(pos, f"'{cname}' cannot be placed {shown}: its type '{ctype.name}' is "
+                  f"{ctype.kind} and runs on the {side.upper()} only",
+                  "only flexible types (kind: flexible, with a kernel and a 'cpu:' function) "
+                  "can be placed; remove 'placement:'")
+        return ""
+    return where
 
 
 def _instance_params(doc, rep, cpath, ctype: ComponentType, given) -> dict[str, Any]:

@@ -22,7 +22,7 @@ def run(capsys, *args) -> tuple[int, str, str]:
 def test_listing_names_every_library_type_once_with_its_kind(capsys):
     code, out, err = run(capsys)
     assert code == 0 and err == ""
-    rows = {m.group(1): m.group(2) for m in re.finditer(r"^  (\w+) +(gpu-aware|standard) ",
+    rows = {m.group(1): m.group(2) for m in re.finditer(r"^  (\w+) +(gpu-aware|standard|flexible) ",
                                                          out, re.MULTILINE)}
     types = library_types()
     assert rows == {name: t.kind for name, t in types.items()}

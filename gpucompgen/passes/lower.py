@@ -72,32 +72,55 @@ def lib_files(system: System) -> dict[str, str]:
     names: dict[str, str] = {}  # source path -> lib file name
     taken: set[str] = set()
     for t in used_types(system):
-        if t.gpu_aware:
-            key, wanted = f"kernel:{t.name}", f"{t.snake}.cl"
-        elif t.origin == "user":
-            key, wanted = str(t.python_file.resolve()), t.python_file.name
-        else:
-            continue
-        if key in names:
-            continue
-        name, stem, suffix, i = wanted, wanted.rsplit(".", 1)[0], wanted.rsplit(".", 1)[1], 2
-        while name.lower() in taken:
-            name, i = f"{stem}_{i}.{suffix}", i + 1
-        taken.add(name.lower())
-        names[key] = name
+        keys = []
+        if t in gpu_used_types(system):
+            keys.append((f"kernel:{t.name}", f"{t.snake}.cl"))
+        if t.flexible and t.origin == "user" and t in cpu_used_types(system):
+            keys.append((cpu_lib_key(t), t.cpu_file.name))
+        if not t.gpu_aware and t.origin == "user":
+            keys.append((str(t.python_file.resolve()), t.python_file.name))
+        for key, wanted in keys:
+            _name_lib_file(names, taken, key, wanted)
     return names
+
+
+def _name_lib_file(names: dict[str, str], taken: set[str], key: str, wanted: str) -> None:
+    """names[key]: wanted, or wanted with a numbered suffix when another file took it."""
+    if key in names:
+        return
+    name, stem, suffix, i = wanted, wanted.rsplit(".", 1)[0], wanted.rsplit(".", 1)[1], 2
+    while name.lower() in taken:
+        name, i = f"{stem}_{i}.{suffix}", i + 1
+    taken.add(name.lower())
+    names[key] = name
 
 
 def lib_key(t: ComponentType) -> str:
     return f"kernel:{t.name}" if t.gpu_aware else str(t.python_file.resolve())
 
 
-def used_types(system: System) -> list[ComponentType]:
+def cpu_lib_key(t: ComponentType) -> str:
+    """A flexible type's CPU file in the lib folder (a user's; the library's is imported)."""
+    return f"cpu:{t.cpu_file.resolve()}"
+
+
+def used_types(system: System, side: str | None = None) -> list[ComponentType]:
+    """The types of the system's components (those placed on side, when given)."""
     found: dict[str, ComponentType] = {}
     for node in system.nodes.values():
-        if isinstance(node, ComponentNode):
+        if isinstance(node, ComponentNode) and side in (None, node.placement):
             found.setdefault(node.type.name, node.type)
     return [found[k] for k in sorted(found)]
+
+
+def gpu_used_types(system: System) -> list[ComponentType]:
+    """Types with a kernel that some component runs on the GPU."""
+    return [t for t in used_types(system, "gpu") if t.gpu_aware]
+
+
+def cpu_used_types(system: System) -> list[ComponentType]:
+    """Flexible types that some component runs on the CPU (through its function)."""
+    return [t for t in used_types(system, "cpu") if t.flexible]
 
 
 def np_name(dtype: str) -> str:
@@ -163,8 +186,15 @@ def lower(system: System) -> ProgramPlan:
     model = system.model
     files = lib_files(system)
     types = used_types(system)
-    gpu_types = [t for t in types if t.gpu_aware]
+    gpu_types = gpu_used_types(system)
     taken = set(system.nodes)
+    functions: dict[str, str] = {}  # flexible type on the CPU -> its function's variable
+    for t in cpu_used_types(system):
+        var = f"{t.snake}_on_cpu"
+        while var in taken:
+            var += "_"
+        functions[t.name] = var
+        taken.add(var)
     programs: dict[str, str] = {}
     for t in gpu_types:
         var = f"{t.snake}_program"
@@ -239,10 +269,18 @@ def lower(system: System) -> ProgramPlan:
         else:
             for p, port in node.outputs.items():
                 buffers.append(Buffer(name, p, f"{name}.{p}", "host", port.data))
-        parts.append(Part(name, "component", t.name, t.name, "GPU" if node.on_gpu else "CPU",
-                          system.stages[name], queue_of(name) if node.on_gpu else None,
-                          programs.get(t.name) if node.on_gpu else None, params,
-                          tuple(options), init_inputs=in_vars, init_outputs=outs))
+        if t.flexible and not node.on_gpu:
+            parts.append(Part(name, "component", "runtime.CpuFunctionComponent", t.name, "CPU",
+                              system.stages[name], params=params, init_inputs=in_vars,
+                              init_outputs=outs, function=functions[t.name],
+                              ports=tuple(tuple((p, np_name(d.dtype)) for p, d in ports.items())
+                                          for ports in (t.inputs, t.outputs))))
+        else:
+            parts.append(Part(name, "component", t.name, t.name,
+                              "GPU" if node.on_gpu else "CPU", system.stages[name],
+                              queue_of(name) if node.on_gpu else None,
+                              programs.get(t.name) if node.on_gpu else None, params,
+                              tuple(options), init_inputs=in_vars, init_outputs=outs))
         steps.append(Step("execute", name,
                           tuple(system.input_var(Endpoint(name, p)) for p in node.inputs),
                           tuple(system.output_vars[Endpoint(name, p)] for p in node.outputs),
@@ -270,6 +308,13 @@ def lower(system: System) -> ProgramPlan:
             pending_checks = []
 
     imports, user_classes = [], []
+    for t in cpu_used_types(system):
+        if t.origin == "library":
+            imports.append((f"gpucompgen.library.{t.cpu_file.stem}", t.cpu_function,
+                            functions[t.name]))
+        else:
+            user_classes.append(UserClass(functions[t.name], files[cpu_lib_key(t)],
+                                          t.cpu_function, "function"))
     for t in types:
         if t.gpu_aware:
             continue
@@ -280,7 +325,8 @@ def lower(system: System) -> ProgramPlan:
             user_classes.append(UserClass(t.name, files[lib_key(t)], t.python_class))
     users = {t.name: ", ".join(n for n in system.order
                                if isinstance(system.nodes[n], ComponentNode)
-                               and system.nodes[n].type is t) for t in gpu_types}
+                               and system.nodes[n].type is t and system.nodes[n].on_gpu)
+             for t in gpu_types}
     asked = model.thread_budget
     budget_source = ("platform.thread_budget" if asked and asked <= system.thread_budget else
                      "device total" if not asked else
@@ -299,4 +345,5 @@ def lower(system: System) -> ProgramPlan:
         thread_budget=system.thread_budget, thread_budget_source=budget_source,
         concurrent=tuple((g, sum(resident_threads(system, n) for n in g))
                          for g in system.concurrent),
-        lib_files={v: k for k, v in files.items()})
+        lib_files={v: k for k, v in files.items()},
+        placement=tuple(system.placement.lines()) if system.placement else ())

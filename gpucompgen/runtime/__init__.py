@@ -29,7 +29,7 @@ from .adapters import (
     ZeroCopyGpuToCpuAdapter,
 )
 from .cli import add_program_options, main
-from .components import KernelComponent
+from .components import CpuFunctionComponent, KernelComponent
 from .devices import (
     NO_DEVICE_HINT,
     DeviceLimits,
@@ -56,6 +56,7 @@ from .lifecycle import (
     failing_component,
     free_all,
     load_class,
+    load_function,
     load_module,
 )
 from .monitor import Monitor
@@ -66,6 +67,7 @@ from .sizes import Size
 
 __all__ = [
     "NO_DEVICE_HINT",
+    "CpuFunctionComponent",
     "CpuToGpuAdapter",
     "DeviceLimits",
     "DeviceStatus",
@@ -95,6 +97,7 @@ __all__ = [
     "free_all",
     "kernel_limits",
     "load_class",
+    "load_function",
     "load_module",
     "main",
     "probe_device",

@@ -109,6 +109,15 @@ def load_class(path: Path, name: str) -> type:
         raise SystemExit(1) from None
 
 
+def load_function(path: Path, name: str):
+    """Load a flexible type's CPU function from a file copied beside the program."""
+    module = load_module(path, f"gpucompgen_user_{Path(path).stem}", fresh=False)
+    function = getattr(module, name, None)
+    if not callable(function):
+        raise PipelineError(f"{path.name} defines no function {name}")
+    return function
+
+
 class Result(NamedTuple):
     """What run() returns: frames processed and the (freed) components, for inspection."""
 

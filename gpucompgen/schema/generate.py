@@ -98,10 +98,15 @@ def model_schema() -> dict[str, Any]:
                            "sequential: one queue, blocking copies"),
         "zero_copy": _enum(model.ZERO_COPY, "zero-copy adapters: auto follows the device's "
                            "unified host memory (default)"),
+        "placement": _enum(model.PLACEMENTS, "where flexible components run unless they say "
+                           "(default gpu); auto chooses for the least estimated time"),
+        "profile": dict(TEXT, description="a profile file written by 'gpucompgen tune', "
+                        "relative to this model"),
     })
     type_name = dict(NAME, description="component type")
     instance = _object(model.INSTANCE_KEYS, {
-        "type": type_name, "params": _named_map(VALUE), "description": TEXT}, ("type",))
+        "type": type_name, "params": _named_map(VALUE), "description": TEXT,
+        "placement": _enum(model.PLACEMENTS, "where a flexible component runs")}, ("type",))
     connection = {"oneOf": [
         {"type": "string", "pattern": f"^\\s*{ENDPOINT}\\s*->\\s*{ENDPOINT}\\s*$",
          "description": "producer.output -> consumer.input"},
@@ -156,6 +161,8 @@ def types_schema() -> dict[str, Any]:
                        "(rows)")}, ("file",))
     python = _object(model.PYTHON_KEYS, {"file": _local_file(".py"), "class": NAME},
                      ("file",))
+    cpu = _object(model.CPU_KEYS, {"file": _local_file(".py"), "function": NAME},
+                  ("file", "function"))
     sizes = {"type": "array", "items": POSITIVE, "minItems": 1}
     gpu = _object(model.GPU_KEYS, {
         "tiles": sizes, "block_z": sizes, "prefer": _settings(),
@@ -166,7 +173,7 @@ def types_schema() -> dict[str, Any]:
     ctype = _object(model.TYPE_KEYS, {
         "kind": _enum(model.KINDS), "description": TEXT, "params": _named_map(param),
         "inputs": inputs, "outputs": outputs, "requires": requires, "kernel": kernel,
-        "python": python, "gpu": gpu}, ("kind",), allOf=[
+        "python": python, "gpu": gpu, "cpu": cpu}, ("kind",), allOf=[
         {"if": {"properties": {"kind": {"const": kind_gpu}}},
          "then": {"required": ["kernel"], "not": {"required": ["python"]}}},
         {"if": {"properties": {"kind": {"const": kind_standard}}},

@@ -35,6 +35,12 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 #   detector.mask         device  480x1280x1 uint8    614,400
 #   detector.mask (host)  host    480x1280x1 uint8    614,400
 #
+#   placement of flexible components:
+#     blur1: GPU (by default)
+#     blur2: GPU (by default)
+#     merger: GPU (by default)
+#     detector: GPU (by default)
+#
 #   device: portable OpenCL 1.2 device
 #   peak device memory: 9,830,400 bytes; peak host memory: 6,144,000 bytes
 #   (every buffer is allocated once, at start)

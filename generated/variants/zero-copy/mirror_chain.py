@@ -30,6 +30,13 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 #   adapter1_cpu2gpu (source.image)      host view           864x1152x3 uint8          0
 #   adapter2_gpu2cpu (mirror5.mirrored)  mapped device view  864x1152x3 uint8          0
 #
+#   placement of flexible components:
+#     mirror1: GPU (by default)
+#     mirror2: GPU (by default)
+#     mirror3: GPU (by default)
+#     mirror4: GPU (by default)
+#     mirror5: GPU (by default)
+#
 #   device: portable OpenCL 1.2 device
 #   peak device memory: 14,929,920 bytes; peak host memory: 2,985,984 bytes
 #   (every buffer is allocated once, at start)

@@ -32,6 +32,12 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 #   adapter2_cpu2gpu (camera2.image)  host view           480x640x3 uint8           0
 #   adapter3_gpu2cpu (detector.mask)  mapped device view  480x1280x1 uint8          0
 #
+#   placement of flexible components:
+#     blur1: GPU (by default)
+#     blur2: GPU (by default)
+#     merger: GPU (by default)
+#     detector: GPU (by default)
+#
 #   device: portable OpenCL 1.2 device
 #   peak device memory: 4,300,800 bytes; peak host memory: 1,843,200 bytes
 #   (every buffer is allocated once, at start)
