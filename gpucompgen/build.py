@@ -56,7 +56,8 @@ def compile_model(model_path: Path, out_dir: Path, mode: str = "gpu-aware",
     rep.raise_if_errors()
     system, warnings = run_passes(model, facts, mode, dump, execution, zero_copy, verify,
                                   places)
-    files = render(system, source_path(model_path, out_dir))
+    model_dir = Path(os.path.relpath(model_path.resolve().parent, out_dir.resolve())).as_posix()
+    files = render(system, source_path(model_path, out_dir), model_dir)
     _must_compile(files[0])
     return BuildResult(system, files, warnings)
 

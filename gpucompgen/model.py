@@ -39,7 +39,8 @@ DTYPES = {  # element type → (numpy name, OpenCL C type, bytes)
     "float32": ("float32", "float", 4),
 }
 MEMORIES = ("gpu", "cpu")
-PARAM_TYPES = {"int": int, "float": float, "bool": bool, "str": str}
+# "path": a string naming a file or folder; a relative one is relative to the model file
+PARAM_TYPES = {"int": int, "float": float, "bool": bool, "str": str, "path": str}
 KINDS = ("standard", "gpu-aware", "flexible")
 # where a component runs: "auto" lets the place pass choose (flexible types only)
 PLACEMENTS = ("gpu", "cpu", "auto")
@@ -470,7 +471,7 @@ def _check_class_members(doc: Document, rep: Reporter, base: tuple,
 
 
 def gpu_kernel_param_problem(kind: str, ptype: str) -> bool:
-    return kind in ("gpu-aware", "flexible") and ptype == "str"
+    return kind in ("gpu-aware", "flexible") and ptype in ("str", "path")
 
 
 def _int_params(ctype: ComponentType) -> list[str]:
@@ -1149,15 +1150,16 @@ def _instance_params(doc, rep, cpath, ctype: ComponentType, given) -> dict[str, 
         problem = _param_value_problem(value, decl, ctype.gpu_aware)
         if problem:
             hint = ""
-            if isinstance(value, bool) and decl.type == "str":
+            if isinstance(value, bool) and decl.type in ("str", "path"):
                 hint = "YAML 1.1 reads yes/no/on/off as booleans: quote the value"
             elif decl.type in ("int", "float") and _value_fits(value, decl.type):
                 hint = "give a value within the parameter's range"
             else:
                 example = decl.default if decl.default not in (None, "") else \
-                    {"int": 1, "float": 1.0, "bool": True, "str": "text"}[decl.type]
+                    {"int": 1, "float": 1.0, "bool": True, "str": "text", "path": "images"}[decl.type]
                 wanted = {"int": "an integer", "float": "a number", "bool": "true or false",
-                          "str": "a string (quoted if it looks like a number or boolean)"}
+                          "str": "a string (quoted if it looks like a number or boolean)",
+                          "path": "a path, relative to the model file or absolute"}
                 hint = f"give {wanted[decl.type]}, e.g. '{pname}: {py_yaml(example)}'"
             rep.error(doc.pos(*cpath, "params", pname),
                       f"parameter '{pname}' of '{ctype.name}' {problem}", hint)

@@ -58,6 +58,7 @@ from .lifecycle import (
     load_class,
     load_function,
     load_module,
+    model_path,
 )
 from .monitor import Monitor
 from .profiling import Profile
@@ -99,7 +100,7 @@ __all__ = [
     "load_class",
     "load_function",
     "load_module",
-    "main",
+    "main", "model_path",
     "probe_device",
     "quiet_compiler",
     "select_device",

@@ -192,3 +192,10 @@ def free_all(parts: dict[str, Any]) -> None:
             in_flight.free_failures = len(failed)
         return
     raise PipelineError("; ".join(failed) + " (every other component was freed)")
+
+
+def model_path(program_file: str, relative: str) -> str:
+    """A 'path' parameter of the model: written relative to the model's folder, stored in
+    the program relative to the program's folder, resolved here to an absolute path (so
+    errors name the path that was looked at, whatever the working directory)."""
+    return str((Path(program_file).resolve().parent / relative).resolve())

@@ -8,7 +8,10 @@ only between its tokens, never inside a literal.
 
 from __future__ import annotations
 
+import dataclasses
 import os
+import posixpath
+import re
 import textwrap
 from dataclasses import dataclass
 from importlib import resources
@@ -111,8 +114,15 @@ def comment_lines(text: str, indent: int) -> list[str]:
                                                    break_on_hyphens=False)] or ["#"]
 
 
+class ModelPath(str):
+    """A path parameter relative to the model's folder, as seen from the program's folder:
+    printed as a call that resolves it when the program runs, wherever it is started."""
+
+
 def py_literal(value) -> str:
     """A Python literal for a model value (escaped: no model text becomes code)."""
+    if isinstance(value, ModelPath):
+        return f"runtime.model_path(__file__, {str(value)!r})"
     if isinstance(value, (bool, int, float, str)) or value is None:
         return repr(value)
     if isinstance(value, tuple) and all(type(v) is int for v in value):
@@ -166,10 +176,31 @@ def source_path(model_file: Path, out_dir: Path) -> str:
     return PurePosixPath(Path(rel)).as_posix()
 
 
-def render(system: System, source: str) -> list[OutputFile]:
+URI = re.compile(r"[A-Za-z][A-Za-z0-9+.-]*:")  # e.g. a camera's device:0, not a path
+
+
+def with_model_paths(system: System, plan: ProgramPlan, model_dir: str) -> ProgramPlan:
+    """The plan with every relative 'path' parameter made relative to the program's folder
+    (model_dir: the model's folder as seen from there), so that it names the same file
+    whatever the working directory of the program."""
+    parts = []
+    for part in plan.parts:
+        node = system.nodes.get(part.name)
+        decls = getattr(getattr(node, "type", None), "params", {})
+        params = tuple(
+            (k, ModelPath(posixpath.normpath(posixpath.join(model_dir, v))))
+            if decls.get(k) is not None and decls[k].type == "path" and isinstance(v, str)
+            and v and not posixpath.isabs(v) and not URI.match(v) else (k, v)
+            for k, v in part.params)
+        parts.append(dataclasses.replace(part, params=params))
+    return dataclasses.replace(plan, parts=parts)
+
+
+def render(system: System, source: str, model_dir: str = ".") -> list[OutputFile]:
     """All files of one system, in a stable order: the program, then its lib folder (each
-    kernel and user Python file once, whatever number of types use it)."""
-    plan: ProgramPlan = system.plan
+    kernel and user Python file once, whatever number of types use it).  model_dir: the
+    model's folder relative to the output folder ('path' parameters start there)."""
+    plan: ProgramPlan = with_model_paths(system, system.plan, model_dir)
     env = environment()
     model = system.model
     lib = lib_dir_name(system.name)
