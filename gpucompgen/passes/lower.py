@@ -74,7 +74,7 @@ def lib_files(system: System) -> dict[str, str]:
     for t in used_types(system):
         keys = []
         if t in gpu_used_types(system):
-            keys.append((f"kernel:{t.name}", f"{t.snake}.cl"))
+            keys.append((kernel_key(t), t.kernel_file.name))
         if t.flexible and t.origin == "user" and t in cpu_used_types(system):
             keys.append((cpu_lib_key(t), t.cpu_file.name))
         if not t.gpu_aware and t.origin == "user":
@@ -95,8 +95,13 @@ def _name_lib_file(names: dict[str, str], taken: set[str], key: str, wanted: str
     names[key] = name
 
 
+def kernel_key(t: ComponentType) -> str:
+    """A kernel file in the lib folder: one per file, whatever number of types share it."""
+    return f"kernel:{t.kernel_file.resolve()}"
+
+
 def lib_key(t: ComponentType) -> str:
-    return f"kernel:{t.name}" if t.gpu_aware else str(t.python_file.resolve())
+    return kernel_key(t) if t.gpu_aware else str(t.python_file.resolve())
 
 
 def cpu_lib_key(t: ComponentType) -> str:

@@ -60,7 +60,7 @@ LIB_DIR = Path(__file__).resolve().with_name('red_objects_lib')
 
 
 class DilateGray(runtime.KernelComponent):
-    """GPU-aware component DilateGray: kernel dilate_gray() in dilate_gray.cl.
+    """GPU-aware component DilateGray: kernel dilate_gray() in filter.cl.
 
     One work-group of block_x * block_y * block_z threads covers a tile x tile square
     of 'dilated'.
@@ -81,7 +81,7 @@ class DilateGray(runtime.KernelComponent):
 
 
 class ErodeGray(runtime.KernelComponent):
-    """GPU-aware component ErodeGray: kernel erode_gray() in erode_gray.cl.
+    """GPU-aware component ErodeGray: kernel erode_gray() in filter.cl.
 
     One work-group of block_x * block_y * block_z threads covers a tile x tile square
     of 'eroded'.
@@ -122,7 +122,7 @@ class InRange(runtime.KernelComponent):
 
 
 class RgbToHsv(runtime.KernelComponent):
-    """GPU-aware component RgbToHsv: kernel rgb_to_hsv() in rgb_to_hsv.cl.
+    """GPU-aware component RgbToHsv: kernel rgb_to_hsv() in color.cl.
 
     One work-group of block_x * block_y * block_z threads covers a tile x tile square
     of 'hsv'.
@@ -163,11 +163,10 @@ def run(frames=None, context=None, monitor=None, profile=False):
         'dilate.dilated': 60_200,
     })
     dilate_gray_program = runtime.build_program(
-        context, LIB_DIR / 'dilate_gray.cl', 'dilate (DilateGray)')
-    erode_gray_program = runtime.build_program(
-        context, LIB_DIR / 'erode_gray.cl', 'erode (ErodeGray)')
+        context, LIB_DIR / 'filter.cl', 'dilate (DilateGray)')
+    erode_gray_program = runtime.build_program(context, LIB_DIR / 'filter.cl', 'erode (ErodeGray)')
     in_range_program = runtime.build_program(context, LIB_DIR / 'in_range.cl', 'red (InRange)')
-    rgb_to_hsv_program = runtime.build_program(context, LIB_DIR / 'rgb_to_hsv.cl', 'hsv (RgbToHsv)')
+    rgb_to_hsv_program = runtime.build_program(context, LIB_DIR / 'color.cl', 'hsv (RgbToHsv)')
 
     # every component and adapter, filled in as it is constructed; freed in reverse order
     parts = dict.fromkeys([

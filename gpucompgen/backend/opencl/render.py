@@ -24,6 +24,7 @@ from ...passes.lower import (
     cpu_lib_key,
     cpu_used_types,
     gpu_used_types,
+    kernel_key,
     lib_dir_name,
     lib_key,
     used_types,
@@ -209,11 +210,16 @@ def render(system: System, source: str, model_dir: str = ".") -> list[OutputFile
     written: set[str] = set()
     for t in used_types(system):
         if t in gpu_used_types(system):
-            name = plan.lib_files_of(f"kernel:{t.name}")
-            text = t.kernel_text  # as checked (size, UTF-8, inside its folder)
-            files.append(OutputFile(PurePosixPath(lib, name),
-                                    f"// {header}\n// Kernel of component type {t.name}.\n\n"
-                                    f"{text}"))
+            name = plan.lib_files_of(kernel_key(t))
+            if name not in written:  # a kernel file several types share is copied once
+                written.add(name)
+                users = sorted(u.name for u in gpu_used_types(system)
+                               if kernel_key(u) == kernel_key(t))
+                text = t.kernel_text  # as checked (size, UTF-8, inside its folder)
+                files.append(OutputFile(PurePosixPath(lib, name),
+                                        f"// {header}\n// Kernel of component type"
+                                        f"{'s' if len(users) > 1 else ''} {', '.join(users)}."
+                                        f"\n\n{text}"))
         if t.flexible and t.origin == "user" and t in cpu_used_types(system):
             name = plan.lib_files_of(cpu_lib_key(t))
             if name not in written:
