@@ -884,6 +884,11 @@ def library_types() -> dict[str, ComponentType]:
 # --------------------------------------------------------------------------- systems
 
 SYSTEM_KEYS = ("system", "description", "types", "platform", "components", "connections")
+# Bounds on a system's size: the passes look ports up by scanning, so checking and
+# building take time that grows with components x connections. Camera pipelines have tens
+# of components; at these bounds check and build take a few seconds (see the README).
+MAX_COMPONENTS = 500
+MAX_CONNECTIONS = 2000
 PLATFORM_KEYS = ("device", "gpu_settings", "thread_budget", "execution", "zero_copy",
                  "placement", "profile")
 EXECUTIONS = ("parallel", "sequential")
@@ -1038,6 +1043,11 @@ def load_system(path: Path, display: str | None = None) -> SystemModel:
     if not comps:
         rep.error(doc.pos("components") if "components" in root else doc.pos(),
                   "the system has no components", "add 'components:' with named instances")
+    elif len(comps) > MAX_COMPONENTS:
+        rep.error(doc.key_pos("components"),
+                  f"the system has {len(comps):,} components; at most {MAX_COMPONENTS:,} "
+                  "are allowed", "split it into several systems")
+        rep.raise_if_errors()
     folded: dict[str, str] = {}
     # a component is a variable of run(): it must not hide a class the program defines or
     # imports (a GPU-aware type's own class, or a standard type's Python class)
@@ -1099,6 +1109,11 @@ def load_system(path: Path, display: str | None = None) -> SystemModel:
         rep.error(doc.pos("connections"), "connections must be a list of "
                   "'producer.port -> consumer.port'")
         conns = []
+    elif len(conns) > MAX_CONNECTIONS:
+        rep.error(doc.key_pos("connections"),
+                  f"the system has {len(conns):,} connections; at most {MAX_CONNECTIONS:,} "
+                  "are allowed", "split it into several systems")
+        rep.raise_if_errors()
     for i, text in enumerate(conns):
         conn = _parse_connection(doc, rep, ("connections", i), text, comps, components)
         if conn is not None:

@@ -266,6 +266,44 @@ def test_a_file_of_only_aliases_stops_after_a_hundred_problems(tmp_path):
     assert proc.stderr.count("error:") == 101
 
 
+# ---------------------------------------------------------------- system size
+
+def _fan(n: int) -> str:
+    """A source feeding n mirrors, each into its own sink: 2n + 1 components."""
+    lines = ["system: fan", "components:", "  source: {type: StillImage, params: {width: 16, height: 16}}"]
+    lines += [f"  m{i}: VerticalMirror\n  s{i}: FrameSink" for i in range(n)]
+    lines += ["connections:"]
+    lines += [f"  - source.image -> m{i}.image\n  - m{i}.mirrored -> s{i}.image" for i in range(n)]
+    return "\n".join(lines) + "\n"
+
+
+def test_the_largest_system_allowed_builds(tmp_path):
+    (tmp_path / "m.yaml").write_text(_fan(249))  # 499 components, 498 connections
+    proc = gpucompgen("build", "m.yaml", "-o", "out", cwd=tmp_path, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    assert (tmp_path / "out" / "fan.py").read_text().count(" = VerticalMirror(") == 249
+
+
+def test_too_many_components_is_one_error_at_the_key(tmp_path):
+    # scanning ports made checking a 12,000-component chain (a 1 MiB file) take minutes
+    (tmp_path / "m.yaml").write_text(_fan(250))
+    proc = gpucompgen("check", "m.yaml", cwd=tmp_path)
+    assert proc.returncode == 1
+    assert proc.stderr.startswith("m.yaml:2:1: error: the system has 501 components; "
+                                  "at most 500 are allowed\n  hint: split it into several")
+    assert proc.stderr.count("error:") == 1
+
+
+def test_too_many_connections_is_one_error_at_the_key(tmp_path):
+    text = _fan(2) + "".join(f"  - source.image -> m{i % 2}.image\n" for i in range(1997))
+    (tmp_path / "m.yaml").write_text(text)
+    proc = gpucompgen("check", "m.yaml", cwd=tmp_path)
+    assert proc.returncode == 1
+    assert "m.yaml:8:1: error: the system has 2,001 connections; at most 2,000 are allowed" \
+        in proc.stderr
+    assert proc.stderr.count("error:") == 1
+
+
 # ---------------------------------------------------------------- user code
 
 def test_user_code_is_never_run_by_check_or_build(project):
