@@ -209,10 +209,13 @@ def main(argv: list[str] | None = None) -> int:
         print(f"gpucompgen {args.command}: error: {exc}", file=sys.stderr)
         return 2
     except GpucompgenError as exc:
-        for d in exc.diagnostics:
+        shown = _first(exc.diagnostics)
+        for d in shown:
             print(d.format(), file=sys.stderr)
-        print(_counts(len(exc.errors), len(exc.diagnostics) - len(exc.errors)),
-              file=sys.stderr)
+        counts = _counts(len(exc.errors), len(exc.diagnostics) - len(exc.errors))
+        if len(shown) < len(exc.diagnostics):
+            counts += f" ({len(exc.diagnostics) - len(shown):,} more not shown)"
+        print(counts, file=sys.stderr)
         return 1
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
@@ -225,10 +228,20 @@ def main(argv: list[str] | None = None) -> int:
         return 2
 
 
+MAX_SHOWN = 200  # diagnostics printed at most (a file stops at 100); the count line counts all
+
+
+def _first(diagnostics: list) -> list:
+    """The first MAX_SHOWN diagnostics in file order, errors before warnings."""
+    errors = [d for d in diagnostics if d.severity == "error"][:MAX_SHOWN]
+    warnings = [d for d in diagnostics if d.severity != "error"][:MAX_SHOWN - len(errors)]
+    return sorted(errors + warnings)
+
+
 def _counts(errors: int, warnings: int) -> str:
-    text = f"{errors} error{'s' if errors != 1 else ''} found"
+    text = f"{errors:,} error{'s' if errors != 1 else ''} found"
     if warnings:
-        text += f", {warnings} warning{'s' if warnings != 1 else ''}"
+        text += f", {warnings:,} warning{'s' if warnings != 1 else ''}"
     return text
 
 

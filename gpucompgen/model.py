@@ -48,6 +48,15 @@ SETTING_KEYS = ("tile", "block_x", "block_y", "block_z")
 # How a kernel's work-groups cover its grid port: a tile x tile square of pixels each (the
 # paper's contract), or `tile` whole rows each (kernels that copy rows, e.g. VerticalMirror).
 COVERS = ("squares", "rows")
+
+# Bounds on a system's size: the passes look ports up by scanning, so checking and
+# building take time that grows with components x connections. Camera pipelines have tens
+# of components; at these bounds check and build take a few seconds (see the README).
+MAX_COMPONENTS = 500
+MAX_CONNECTIONS = 2000
+MAX_PORTS = 64  # inputs, and outputs, of one component type
+MAX_PARAMS = 256  # parameters of one component type
+
 LIBRARY_DIR = Path(__file__).resolve().parent / "library"
 
 
@@ -318,6 +327,11 @@ def _load_type(doc: Document, rep: Reporter, path: Path, origin: str, tname: str
         pos=doc.key_pos(*base))
     # parameters
     params = _expect_map(doc, rep, base + ("params",), spec.get("params"), "params")
+    if len(params) > MAX_PARAMS:
+        rep.error(doc.key_pos(*base, "params"),
+                  f"component type '{tname}' has {len(params):,} parameters; at most "
+                  f"{MAX_PARAMS:,} are allowed", "pass fewer, larger values")
+        return None
     for pname, written in params.items():
         ppath = base + ("params", pname)
         problem = name_problem(pname, "parameter name")
@@ -371,6 +385,11 @@ def _load_type(doc: Document, rep: Reporter, path: Path, origin: str, tname: str
     failed_inputs = 0
     for direction, key in (("in", "inputs"), ("out", "outputs")):
         ports = _expect_map(doc, rep, base + (key,), spec.get(key), key)
+        if len(ports) > MAX_PORTS:
+            rep.error(doc.key_pos(*base, key),
+                      f"component type '{tname}' has {len(ports):,} {key}; at most "
+                      f"{MAX_PORTS:,} are allowed", "split the component")
+            return None
         for pname, pspec in ports.items():
             port = _load_port(doc, rep, base + (key, pname), ctype, direction, pname, pspec)
             if port is None:
@@ -884,11 +903,6 @@ def library_types() -> dict[str, ComponentType]:
 # --------------------------------------------------------------------------- systems
 
 SYSTEM_KEYS = ("system", "description", "types", "platform", "components", "connections")
-# Bounds on a system's size: the passes look ports up by scanning, so checking and
-# building take time that grows with components x connections. Camera pipelines have tens
-# of components; at these bounds check and build take a few seconds (see the README).
-MAX_COMPONENTS = 500
-MAX_CONNECTIONS = 2000
 PLATFORM_KEYS = ("device", "gpu_settings", "thread_budget", "execution", "zero_copy",
                  "placement", "profile")
 EXECUTIONS = ("parallel", "sequential")

@@ -304,6 +304,36 @@ def test_too_many_connections_is_one_error_at_the_key(tmp_path):
     assert proc.stderr.count("error:") == 1
 
 
+def test_a_flood_of_errors_shows_the_first_two_hundred_and_counts_all(tmp_path):
+    comps = "".join(f"  c{i}: Nope{i}\n" for i in range(450))
+    (tmp_path / "m.yaml").write_text("system: s\ncomponents:\n" + comps)
+    proc = gpucompgen("check", "m.yaml", cwd=tmp_path)
+    assert proc.returncode == 1
+    assert proc.stderr.count("error: unknown component type") == 200
+    assert "m.yaml:3:7: error: unknown component type 'Nope0' for 'c0'" in proc.stderr
+    assert proc.stderr.endswith("450 errors found (250 more not shown)\n")
+
+
+@pytest.mark.parametrize("key,count,message", [
+    ("params", 257, "component type 'Big' has 257 parameters; at most 256 are allowed"),
+    ("inputs", 65, "component type 'Big' has 65 inputs; at most 64 are allowed"),
+    ("outputs", 65, "component type 'Big' has 65 outputs; at most 64 are allowed"),
+])
+def test_a_type_with_too_many_ports_or_parameters(tmp_path, key, count, message):
+    entry = {"params": "      p{i}: {{type: int, default: 1}}",
+             "inputs": "      i{i}: {{memory: cpu, dtype: uint8}}",
+             "outputs": "      o{i}: {{memory: cpu, dtype: uint8, height: 2, width: 2}}"}[key]
+    lines = ["component_types:", "  Big:", "    kind: standard", f"    {key}:"]
+    lines += [entry.format(i=i) for i in range(count)]
+    lines += ["    python: {file: big.py, class: Big}"]
+    (tmp_path / "t.yaml").write_text("\n".join(lines) + "\n")
+    (tmp_path / "big.py").write_text("class Big:\n    pass\n")
+    (tmp_path / "m.yaml").write_text("system: s\ntypes: [t.yaml]\ncomponents:\n  a: Big\n")
+    proc = gpucompgen("check", "m.yaml", cwd=tmp_path)
+    assert proc.returncode == 1
+    assert f"t.yaml:4:5: error: {message}" in proc.stderr, proc.stderr
+
+
 # ---------------------------------------------------------------- user code
 
 def test_user_code_is_never_run_by_check_or_build(project):
