@@ -56,6 +56,8 @@ MAX_COMPONENTS = 500
 MAX_CONNECTIONS = 2000
 MAX_PORTS = 64  # inputs, and outputs, of one component type
 MAX_PARAMS = 256  # parameters of one component type
+MAX_TYPE_FILES = 32  # entries of a model's 'types:' list
+MAX_TYPE_BYTES = 1 << 20  # all the type files of one model together
 
 LIBRARY_DIR = Path(__file__).resolve().parent / "library"
 
@@ -915,7 +917,8 @@ TYPE_FILE_SUFFIXES = (".yaml", ".yml")
 
 
 def _load_user_types(doc: Document, rep: Reporter, path: Path, display: str, i: int,
-                     rel: Any) -> dict[str, ComponentType] | None:
+                     rel: Any, read: dict[Path, tuple[int, int]]
+                     ) -> dict[str, ComponentType] | None:
     """The types of entry i of the model's 'types:' list, or None after reporting why not.
 
     A type file is any .yaml/.yml file, relative to the model (``../shared/types.yaml``)
@@ -934,6 +937,14 @@ def _load_user_types(doc: Document, rep: Reporter, path: Path, display: str, i: 
     shown = str(Path(display).parent / rel)
     what = f"component-type file {rel!r}"
     try:
+        first = read.get(tpath.resolve())
+    except (OSError, RuntimeError):  # a link loop: read_text says what is wrong
+        first = None
+    if first is not None:
+        rep.error(pos, f"{what} is listed twice (also entry {first[0] + 1} of 'types:')",
+                  "list each type file once")
+        return {}
+    try:
         text = read_text(tpath, MAX_FILE_BYTES, what)
     except FileProblem as exc:
         if exc.line and starts_with_key(exc.prefix, "component_types"):
@@ -946,6 +957,13 @@ def _load_user_types(doc: Document, rep: Reporter, path: Path, display: str, i: 
             rep.error(pos, exc.message, "paths are relative to the model file"
                       if exc.message.endswith("not found") else exc.hint)
         return None
+    size = len(text.encode("utf-8", "surrogatepass"))
+    total = size + sum(n for _, n in read.values())
+    if total > MAX_TYPE_BYTES:
+        rep.error(pos, f"the model's type files come to {total:,} bytes with {rel!r}; at most "
+                  f"{MAX_TYPE_BYTES:,} are allowed", "keep only the types the model uses")
+        return None
+    read[tpath.resolve()] = (i, size)
     if not starts_with_key(text, "component_types"):
         rep.error(pos, f"{what} is not a component-type file",
                   "a component-type file starts with 'component_types:' (its content is "
@@ -990,13 +1008,19 @@ def load_system(path: Path, display: str | None = None) -> SystemModel:
     if not isinstance(type_files, list):
         rep.error(doc.pos("types"), "types must be a list of component-type files")
         type_files = []
+    elif len(type_files) > MAX_TYPE_FILES:
+        rep.error(doc.key_pos("types"), f"the model lists {len(type_files):,} type files; "
+                  f"at most {MAX_TYPE_FILES} are allowed", "put related types in one file")
+        rep.raise_if_errors()
     types_failed = False  # a type file could not be read: its types are not "unknown"
+    folded_types = {fold(t): t for t in types}
+    read: dict[Path, tuple[int, int]] = {}  # type file read -> (index in the list, bytes)
     for i, rel in enumerate(type_files):
-        user = _load_user_types(doc, rep, path, display, i, rel)
+        user = _load_user_types(doc, rep, path, display, i, rel, read)
         types_failed |= user is None
         user = user or {}
         for tname, ctype in user.items():
-            clash = next((t for t in types if fold(t) == fold(tname)), None)
+            clash = folded_types.get(fold(tname))
             if clash is not None:
                 where = "by the library" if types[clash].origin == "library" else "elsewhere"
                 rep.error(ctype.pos, f"component type '{tname}' is already defined {where}"
@@ -1004,6 +1028,7 @@ def load_system(path: Path, display: str | None = None) -> SystemModel:
                           "give your type another name (case and underscores do not count)")
                 continue
             types[tname] = ctype
+            folded_types[fold(tname)] = tname
     # platform
     platform = _expect_map(doc, rep, ("platform",), root.get("platform"), "platform")
     _unknown_keys(doc, rep, ("platform",), platform, PLATFORM_KEYS, "platform")

@@ -334,6 +334,42 @@ def test_a_type_with_too_many_ports_or_parameters(tmp_path, key, count, message)
     assert f"t.yaml:4:5: error: {message}" in proc.stderr, proc.stderr
 
 
+def test_a_type_file_listed_twice_is_read_once(project):
+    model = project / "m.yaml"
+    text = model.read_text()
+    assert "types: [types/t.yaml]" in text
+    model.write_text(text.replace("types: [types/t.yaml]",
+                                  "types: [types/t.yaml, ./types/t.yaml]"))
+    proc = check(project)
+    assert proc.returncode == 1
+    assert "error: component-type file './types/t.yaml' is listed twice (also entry 1 of " \
+        "'types:')" in proc.stderr
+    assert proc.stderr.count("error:") == 1, "no 'already defined' for each of its types"
+
+
+def test_too_many_type_files(tmp_path):
+    files = ", ".join(f"t{i}.yaml" for i in range(33))
+    (tmp_path / "m.yaml").write_text(f"system: s\ntypes: [{files}]\ncomponents: {{a: Camera}}\n")
+    proc = gpucompgen("check", "m.yaml", cwd=tmp_path)
+    assert proc.returncode == 1
+    assert "m.yaml:2:1: error: the model lists 33 type files; at most 32 are allowed" \
+        in proc.stderr
+
+
+def test_the_type_files_of_a_model_are_bounded_together(tmp_path):
+    block = "".join(f"  T{{i}}x{j}: {{{{kind: standard, python: {{{{file: p.py, class: P}}}}}}}}\n"
+                    for j in range(20))
+    for i in range(6):  # 6 files of about 200 KB: each under its cap, not together
+        body = "".join(block.format(i=f"{i}_{k}") for k in range(160))
+        (tmp_path / f"t{i}.yaml").write_text("component_types:\n" + body)
+    files = ", ".join(f"t{i}.yaml" for i in range(6))
+    (tmp_path / "m.yaml").write_text(f"system: s\ntypes: [{files}]\ncomponents: {{a: Camera}}\n")
+    proc = gpucompgen("check", "m.yaml", cwd=tmp_path)
+    assert proc.returncode == 1
+    assert "error: the model's type files come to " in proc.stderr
+    assert "bytes with 't5.yaml'; at most 1,048,576 are allowed" in proc.stderr
+
+
 # ---------------------------------------------------------------- user code
 
 def test_user_code_is_never_run_by_check_or_build(project):
