@@ -328,9 +328,9 @@ KILL_AFTER_SECONDS = 10.0
 # What a program killed by a signal most likely met, for the message of 'gpucompgen run'.
 _DEATHS = {
     signal.SIGSEGV: "a kernel (or other native code) accessed memory out of bounds; see "
-                    "'Finding an out-of-bounds kernel' in the README",
+                    "'Finding an out-of-bounds kernel' in docs/runtime.md",
     signal.SIGBUS: "a kernel (or other native code) accessed memory out of bounds; see "
-                   "'Finding an out-of-bounds kernel' in the README",
+                   "'Finding an out-of-bounds kernel' in docs/runtime.md",
     signal.SIGILL: "native code (a kernel or the OpenCL driver) crashed",
     signal.SIGFPE: "native code (a kernel or the OpenCL driver) crashed",
     signal.SIGABRT: "native code (the OpenCL driver?) aborted",
