@@ -194,8 +194,8 @@ def parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     args = parser().parse_args(argv)
-    if getattr(args, "frames", None) is not None and args.frames < 0:
-        parser().error("--frames must be 0 or more")
+    if args.command == "run" and args.frames is not None and args.frames < 0:
+        parser().error("--frames must be 0 or more")  # tune and bench need 1 or more
     try:
         model = getattr(args, "model", None)
         if model is not None and not model.is_file():

@@ -97,6 +97,7 @@ def test_chain_model_is_a_valid_system(tmp_path):
     (["--sizes", "16x16,1x99999999"], "size '1x99999999': width and height must be at most "
                                       "16,384 (StillImage's range)"),
     (["--frames", "0"], "--frames must be 1 or more"),
+    (["--frames", "-1"], "--frames must be 1 or more"),  # once "0 or more", from run's rule
     (["-o", "/dev/null/results"], "cannot create output folder /dev/null/results: Not a directory"),
 ])
 def test_bad_options_are_errors_without_traceback(tmp_path, args, message):
