@@ -1,7 +1,7 @@
 """The pipeline: every pass in order, verified after each when asked, dumped when asked.
 
     check-connections → check-port-types → schedule → propagate-sizes → insert-adapters
-    → allocate-gpu → name-variables → assign-queues → lower
+    → allocate-gpu → name-variables → assign-queues → stage-frames → lower
 """
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ from collections.abc import Callable
 
 from ..errors import GpucompgenError, Reporter
 from ..ir import MODES, System, build_system
-from ..model import EXECUTIONS, ZERO_COPY, SystemModel
+from ..model import EXECUTIONS, STAGING, ZERO_COPY, SystemModel
 from ..runtime.facts import DeviceFacts
 from .allocate_gpu import AllocateGpu
 from .assign_queues import AssignQueues
@@ -23,23 +23,32 @@ from .lower import Lower
 from .name_variables import NameVariables
 from .propagate_sizes import PropagateSizes
 from .schedule import Schedule
+from .stage_frames import StageFrames
 
 PIPELINE: tuple[Pass, ...] = (CheckConnections(), CheckPortTypes(), Schedule(),
                              PropagateSizes(), InsertAdapters(), AllocateGpu(), NameVariables(),
-                             AssignQueues(), Lower())
+                             AssignQueues(), StageFrames(), Lower())
 
 
 def new_system(model: SystemModel, device: DeviceFacts, mode: str = "gpu-aware",
-               execution: str | None = None, zero_copy: str | None = None) -> System:
-    """The IR of a model with its platform decisions (mode, execution, zero-copy) taken.
+               execution: str | None = None, zero_copy: str | None = None,
+               frames_in_flight: int | None = None, staging: str | None = None) -> System:
+    """The IR of a model with its platform decisions (mode, execution, zero-copy, frames in
+    flight, staging) taken.
 
-    execution ("parallel" | "sequential") and zero_copy ("auto" | "on" | "off") override
-    the model's platform settings (the command line's --execution and --zero-copy).
+    execution ("parallel" | "sequential"), zero_copy ("auto" | "on" | "off"),
+    frames_in_flight (1 or more) and staging ("auto" | "pinned" | "pageable") override the
+    model's platform settings (the command line's --execution, --zero-copy,
+    --frames-in-flight and --staging).
     """
     execution = execution or model.execution
     zero_copy = zero_copy or model.zero_copy
-    if mode not in MODES or execution not in EXECUTIONS or zero_copy not in ZERO_COPY:
-        raise ValueError(f"mode {mode!r}, execution {execution!r}, zero_copy {zero_copy!r}")
+    staging = staging or model.staging
+    frames_in_flight = frames_in_flight or model.frames_in_flight
+    if (mode not in MODES or execution not in EXECUTIONS or zero_copy not in ZERO_COPY
+            or staging not in STAGING or frames_in_flight < 1):
+        raise ValueError(f"mode {mode!r}, execution {execution!r}, zero_copy {zero_copy!r}, "
+                         f"staging {staging!r}, frames_in_flight {frames_in_flight!r}")
     system = build_system(model, device, mode,
                           "sequential" if mode == "standard" else execution)
     if mode == "standard":
@@ -51,6 +60,18 @@ def new_system(model: SystemModel, device: DeviceFacts, mode: str = "gpu-aware",
     else:
         system.zero_copy = zero_copy == "on"
         system.zero_copy_reason = "forced by the model or the command line"
+    system.frames_in_flight = frames_in_flight
+    if mode == "standard":
+        system.staging, system.staging_reason = "pageable", "standard mode: no adapters"
+    elif system.zero_copy:
+        system.staging, system.staging_reason = "pageable", "zero-copy adapters copy nothing"
+    elif staging == "auto":
+        system.staging = "pageable" if device.host_unified_memory else "pinned"
+        system.staging_reason = (f"auto: device {'has' if device.host_unified_memory else 'has no'}"
+                                 " unified host memory")
+    else:
+        system.staging = staging
+        system.staging_reason = "forced by the model or the command line"
     return system
 
 
@@ -86,11 +107,12 @@ def run_pipeline(system: System, passes: tuple[Pass, ...] = PIPELINE,
 
 def run_passes(model: SystemModel, device: DeviceFacts, mode: str = "gpu-aware",
                dump: Callable[[str], None] | None = None, execution: str | None = None,
-               zero_copy: str | None = None, verify: bool | None = None
+               zero_copy: str | None = None, verify: bool | None = None,
+               frames_in_flight: int | None = None, staging: str | None = None
                ) -> tuple[System, list]:
     """Build the IR of a model and run every pass on it."""
-    return run_pipeline(new_system(model, device, mode, execution, zero_copy), PIPELINE,
-                        dump, verify)
+    return run_pipeline(new_system(model, device, mode, execution, zero_copy,
+                                   frames_in_flight, staging), PIPELINE, dump, verify)
 
 
 def passes_names() -> list[str]:

@@ -12,6 +12,7 @@ pyopencl and numpy only. One module per concern:
     programs    building kernel files, with the component named in errors
     lifecycle   size checks, user modules, failures named by component, freeing
     profiling   --profile: event times and bytes moved
+    pipeline    frames in flight: the stages of a stream, one thread each
     monitor     progress, --stats-json, runtime options
     signals     SIGINT and SIGTERM stop a run cleanly
     cli         the generated program's command line (main)
@@ -57,6 +58,7 @@ from .lifecycle import (
     load_module,
 )
 from .monitor import Monitor
+from .pipeline import FrameFailure, stream_in_flight
 from .profiling import Profile
 from .programs import build_program, quiet_compiler
 from .signals import _stop_on_signals
@@ -67,6 +69,7 @@ __all__ = [
     "CpuToGpuAdapter",
     "DeviceLimits",
     "DeviceStatus",
+    "FrameFailure",
     "GpuToCpuAdapter",
     "KernelComponent",
     "KernelLimits",
@@ -98,6 +101,7 @@ __all__ = [
     "probe_device",
     "quiet_compiler",
     "select_device",
+    "stream_in_flight",
     "survey_devices",
     "unusable_message",
 ]
