@@ -302,3 +302,30 @@ def test_stats_json_reports_latency_beside_frames_per_second(tmp_path, n):
     # a frame's latency is at most the whole run's time
     assert lat["max"] <= doc["wall_seconds"]
     assert doc["components"]["manager"]["calls"] == 12
+
+
+# --- the demo's camera: water rendered once, the same frames ---------------------------------
+
+def _render_by_adding_and_clipping(cam: Camera, frame: int) -> np.ndarray:
+    """The camera's former render: add the noise field to the background, draw each buoy
+    as colour plus the next noise field, clip once."""
+    img = cam.background + cam.noise[frame % len(cam.noise)]
+    for b in cam.ground_truth(frame):
+        y0, y1 = b.y - b.radius, b.y + b.radius + 1
+        x0, x1 = b.x - b.radius, b.x + b.radius + 1
+        yy, xx = np.ogrid[y0:y1, x0:x1]
+        disk = (yy - b.y) ** 2 + (xx - b.x) ** 2 <= b.radius ** 2
+        patch = img[y0:y1, x0:x1]
+        patch[disk] = (210, 30, 35) + cam.noise[(frame + 1) % len(cam.noise)][y0:y1, x0:x1][disk]
+    return np.clip(img, 0, 255).astype(np.uint8)
+
+
+@pytest.mark.parametrize("seed,width,height,buoys", [(1, 640, 480, 2), (2, 640, 480, 2),
+                                                     (5, 97, 61, 3), (3, 1152, 864, 5)])
+def test_camera_frames_are_those_of_adding_and_clipping_every_frame(seed, width, height,
+                                                                    buoys):
+    cam = Camera(seed=seed, width=width, height=height, buoys=buoys)
+    cam.initialize()
+    for frame in range(0, 240, 7):
+        np.testing.assert_array_equal(cam.render(frame),
+                                      _render_by_adding_and_clipping(cam, frame))
