@@ -1,9 +1,11 @@
 """Frames in flight: N = 1, 2, 3 on the vision system, in one run.
 
     python benchmarks/frames_in_flight.py [--model models/vision_system.yaml] [--rounds 3]
-        [--frames 150] [--n 1 2 3] [--zero-copy off] [--staging auto] [--json FILE]
+        [--frames 150] [--n 1 2 3] [--device auto] [--zero-copy auto] [--staging auto]
+        [--json FILE]
 
-Builds the model once per N (`--frames-in-flight N`), then runs the programs as a user
+Builds the model once per N (`--frames-in-flight N`) for the device programs use (as
+`gpucompgen run` does: `--device auto`; on PoCL that means zero-copy adapters), then runs the programs as a user
 does (`python vision_system.py --frames F -q --stats-json ...`, each its own process),
 interleaved round after round so that a noisy machine slows every N alike.  Per N:
 frames per second (frames / wall time of the run, building kernels included, median over
@@ -29,11 +31,11 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 
-def build(model: Path, out: Path, n: int, zero_copy: str, staging: str) -> Path:
+def build(model: Path, out: Path, n: int, device: str, zero_copy: str, staging: str) -> Path:
     from gpucompgen.build import compile_model, write
 
-    result = compile_model(model, out, zero_copy=zero_copy, frames_in_flight=n,
-                           staging=staging)
+    result = compile_model(model, out, device=device, zero_copy=zero_copy,
+                           frames_in_flight=n, staging=staging)
     write(result, out)
     return out / f"{result.system.model.name}.py"
 
@@ -63,14 +65,16 @@ def main(argv=None) -> int:
                         help="first frames of each run left out of the latencies")
     parser.add_argument("--n", type=int, nargs="+", default=[1, 2, 3],
                         help="frames in flight to compare")
-    parser.add_argument("--zero-copy", default="off", choices=("auto", "on", "off"))
+    parser.add_argument("--device", default="auto",
+                        help="device facts to plan for (default: the device programs use)")
+    parser.add_argument("--zero-copy", default="auto", choices=("auto", "on", "off"))
     parser.add_argument("--staging", default="auto", choices=("auto", "pinned", "pageable"))
     parser.add_argument("--json", type=Path, help="also write the results as JSON here")
     args = parser.parse_args(argv)
     fps: dict[int, list[float]] = {n: [] for n in args.n}
     latency: dict[int, list[float]] = {n: [] for n in args.n}
     with tempfile.TemporaryDirectory(prefix="flight-bench-") as tmp:
-        programs = {n: build(args.model, Path(tmp) / f"n{n}", n, args.zero_copy,
+        programs = {n: build(args.model, Path(tmp) / f"n{n}", n, args.device, args.zero_copy,
                              args.staging) for n in args.n}
         for r in range(args.rounds):
             for n in args.n:
@@ -81,7 +85,8 @@ def main(argv=None) -> int:
                       file=sys.stderr)
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
     print(f"{args.model.name}: {args.frames} frames a run, {args.rounds} rounds interleaved, "
-          f"zero-copy {args.zero_copy}, staging {args.staging}; {os.cpu_count()} CPUs, "
+          f"device {args.device}, zero-copy {args.zero_copy}, staging {args.staging}; "
+          f"{os.cpu_count()} CPUs, "
           f"load average {load:.1f}")
     print(f"{'N':>3}  {'frames/s':>9}  {'vs N=1':>7}  {'latency median':>15}  {'p95':>9}")
     base = statistics.median(fps[args.n[0]])
