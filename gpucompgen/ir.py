@@ -100,11 +100,21 @@ class ComponentNode(Node):
     params: dict[str, Any] = field(default_factory=dict)
     placement: str = "cpu"  # "gpu" | "cpu"
     order: int = 0  # position in the model: ties in the run order follow it
+    # a flexible component: what was asked ("gpu" | "cpu" | "auto") and by whom ("model",
+    # "platform.placement", "command line", "default"); the place pass decides "auto"
+    asked: str = ""
+    placed_by: str = ""
     kind: ClassVar[str] = "component"
 
     @property
     def on_gpu(self) -> bool:
         return self.placement == "gpu"
+
+    def place(self, side: str, mode: str) -> None:
+        """Run on side ("gpu" | "cpu"): a flexible component's ports live there too."""
+        self.placement = side
+        for port in self.ports:
+            port.memory = port_memory(mode, side)
 
 
 @dataclass
@@ -187,6 +197,8 @@ class System:
     flight_end_waits: list[list[str]] = field(default_factory=list)
     buffer_sets: dict[str, str] = field(default_factory=dict)
     plan: Any = None  # lower: the ProgramPlan
+    # place: how the flexible components were placed (passes/place.py's Placement)
+    placement: Any = None
 
     # --- queries -----------------------------------------------------------------------
     @property
@@ -354,24 +366,48 @@ def port_memory(mode: str, decl_memory: str) -> str:
 
 
 def component_node(name: str, ctype: ComponentType, params: dict[str, Any], pos: Pos,
-                   order: int, mode: str = "gpu-aware") -> ComponentNode:
+                   order: int, mode: str = "gpu-aware", asked: str = "",
+                   placed_by: str = "") -> ComponentNode:
+    """A node of one instance; a flexible one starts where it is asked to run (on the GPU
+    when asked "auto", until the place pass decides)."""
+    side = "gpu" if ctype.gpu_aware else "cpu"
+    if ctype.flexible and asked == "cpu":
+        side = "cpu"
+
     def ports(decls):
-        return {p: Port(p, d.direction, port_memory(mode, d.memory), d.dtype, d.channels)
+        return {p: Port(p, d.direction, port_memory(mode, side if d.memory == "any" else d.memory),
+                        d.dtype, d.channels)
                 for p, d in decls.items()}
 
     return ComponentNode(name, pos, ports(ctype.inputs), ports(ctype.outputs), type=ctype,
-                         params=dict(params), placement="gpu" if ctype.gpu_aware else "cpu",
-                         order=order)
+                         params=dict(params), placement=side, order=order,
+                         asked=asked if ctype.flexible else "",
+                         placed_by=placed_by if ctype.flexible else "")
+
+
+def asked_placement(model: SystemModel, name: str,
+                    places: dict[str, str] | None = None) -> tuple[str, str]:
+    """Where a flexible component is asked to run, and by whom: the command line
+    (--place), its own 'placement:', platform.placement, else the GPU (the default)."""
+    inst = model.components[name]
+    if places and name in places:
+        return places[name], "command line"
+    if inst.placement:
+        return inst.placement, "model"
+    if model.placement != "gpu":
+        return model.placement, "platform.placement"
+    return "gpu", "default"
 
 
 def build_system(model: SystemModel, device: DeviceFacts, mode: str = "gpu-aware",
-                 execution: str = "parallel") -> System:
+                 execution: str = "parallel", places: dict[str, str] | None = None) -> System:
     """The IR of a parsed model: one node per instance, one edge per connection (duplicates
-    included: check-connections reports and drops them)."""
+    included: check-connections reports and drops them).  places: --place COMPONENT=SIDE."""
     system = System(model.name, model, device, mode, execution)
     for inst in sorted(model.components.values(), key=lambda i: i.order):
+        asked, by = asked_placement(model, inst.name, places)
         system.add_node(component_node(inst.name, inst.type, inst.params, inst.pos, inst.order,
-                                       mode))
+                                       mode, asked, by))
     for conn in model.connections:
         system.edges.append(Edge(conn.source, conn.target, conn.pos))
     return system
@@ -408,6 +444,8 @@ def _node_lines(system: System, node: Node) -> list[str]:
     if isinstance(node, ComponentNode):
         params = ", ".join(f"{k}={v!r}" for k, v in node.params.items())
         head = (f"component {node.name}: {node.type.name} on {node.placement.upper()}"
+                + (f" [asked {node.asked} by {node.placed_by}]"
+                   if node.placed_by not in ("", "default") else "")
                 + (f" ({params})" if params else ""))
     elif isinstance(node, AdapterNode):
         head = (f"adapter {node.name}: {node.direction} of {node.source}"

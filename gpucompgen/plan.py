@@ -105,18 +105,26 @@ class Part:
     init_inputs: tuple[str, ...] = ()
     init_outputs: tuple[tuple[str, str, Size], ...] = ()
     dtype: str = ""
+    # a flexible component placed on the CPU: the variable of its type's CPU function, and
+    # its ports: (input names, ((output name, element type), ...))
+    function: str = ""
+    ports: tuple = ()
 
 
 @dataclass(frozen=True)
 class Step:
     """One statement of the stream loop."""
 
-    kind: str  # "execute" | "transfer" | "unmap" | "end_of_stream"
+    kind: str  # "execute" | "transfer" | "unmap" | "end_of_stream" | "check"
     part: str = ""
     inputs: tuple[str, ...] = ()  # variables
     outputs: tuple[str, ...] = ()  # variables
     waits: tuple[str, ...] = ()  # parts whose last event it waits for
     note: str = ""
+    # "check": a CPU component's output entering another part must have this host shape
+    # and numpy element type (note names the port)
+    shape: tuple[int, ...] = ()
+    dtype: str = ""
 
 
 @dataclass(frozen=True)
@@ -162,6 +170,7 @@ class UserClass:
     name: str
     file: str  # in the lib folder
     cls: str
+    kind: str = "class"  # "class" (a standard type) | "function" (a flexible type's CPU side)
 
 
 @dataclass
@@ -187,6 +196,7 @@ class ProgramPlan:
     thread_budget_source: str = ""
     concurrent: tuple[tuple[tuple[str, ...], int], ...] = ()  # (group, resident threads)
     lib_files: dict[str, str] = field(default_factory=dict)  # lib file -> what it is
+    placement: tuple[str, ...] = ()  # where each flexible component runs, who decided, costs
     # frames in flight (stage-frames): N, the stages, why stages were merged, the parts
     # that keep N sets of their outputs and why; staging of copying adapters
     frames_in_flight: int = 1
@@ -216,6 +226,10 @@ class ProgramPlan:
     @property
     def copied_bytes(self) -> int:
         return sum(t.copied for t in self.transfers)
+
+    def lib_files_of(self, key: str) -> str:
+        """The lib folder's file of a source (see lower.lib_files)."""
+        return next(f for f, k in self.lib_files.items() if k == key)
 
     def launch(self, part: str) -> Launch | None:
         return next((la for la in self.launches if la.part == part), None)
@@ -280,6 +294,10 @@ def plan_lines(plan: ProgramPlan) -> list[str]:
                         + (("-",) if flight else ()))
     lines += _table(rows, right=(3,))
     lines.append("")
+    if plan.placement:
+        lines.append("placement of flexible components:")
+        lines += [f"  {line}" for line in plan.placement]
+        lines.append("")
     lines.append(f"device: {plan.device_name}")
     lines.append(f"peak device memory: {plan.device_bytes:,} bytes; peak host memory: "
                  f"{plan.host_bytes:,} bytes")
@@ -351,5 +369,8 @@ def summary_lines(plan: ProgramPlan) -> list[str]:
             bx, by, bz = la.local_size
             lines.append(f"GPU settings of {p.name}: tile {la.tile}, block {bx}x{by}x{bz} "
                          f"({la.settings_source})")
+    if plan.placement:
+        lines.append("placement of flexible components:")
+        lines += [f"  {line}" for line in plan.placement]
     lines.append("device: " + plan.device_name.encode("unicode_escape").decode("ascii"))
     return lines

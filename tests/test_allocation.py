@@ -311,7 +311,9 @@ def test_block_shape_constraints_hold_when_fitting_and_sharing_the_budget(tmp_pa
     two concurrent components shrink to share the budget."""
     (tmp_path / "shaped.yaml").write_text(SHAPED_TYPES)
     (tmp_path / "shaped.cl").write_text(
-        "__kernel void shaped(__global const uchar *image, __global uchar *out) {}\n")
+        "__kernel void shaped(__global const uchar *image, __global uchar *out,\n"
+        "    const int image_height, const int image_width, const int out_height,\n"
+        "    const int out_width, const int tile) {}\n")
     platform = {"device": device} | ({"thread_budget": budget} if budget else {})
     comps = {"camera1": {"type": "Camera", "params": {"width": 320, "height": 240}},
              "camera2": {"type": "Camera", "params": {"width": 320, "height": 240, "seed": 2}},

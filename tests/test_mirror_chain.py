@@ -195,7 +195,8 @@ def test_rows_cover_is_printed_and_planned(build):
 
 
 def test_bad_kernel_cover_is_a_positioned_error(tmp_path):
-    (tmp_path / "k.cl").write_text("__kernel void k(__global uchar *a) {}\n")
+    (tmp_path / "k.cl").write_text("__kernel void k(__global uchar *a, const int a_height,\n"
+                                   "    const int a_width, const int tile) {}\n")
     (tmp_path / "t.yaml").write_text(
         "component_types:\n  K:\n    kind: gpu-aware\n    outputs:\n"
         "      a: {memory: gpu, height: 4, width: 4}\n"

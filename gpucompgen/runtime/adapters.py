@@ -51,8 +51,11 @@ def _pinned(context, queue, shape, dtype, flags):
 
 
 def _release_pinned(queue, pinned) -> None:
+    """Unmap and release pinned staging buffers without waiting: the unmap is queued behind
+    whatever the device still runs (a kernel that never ends must not keep free_all from
+    returning), and OpenCL releases the memory once its commands are done."""
     for buffer, view in pinned:
-        view.base.release(queue).wait()
+        view.base.release(queue)
         buffer.release()
 
 
