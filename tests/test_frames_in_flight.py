@@ -34,10 +34,11 @@ FRAMES = 30
 
 
 def _build(tmp: Path, model: Path, n: int, zero_copy: str = "off", staging: str = "auto",
-           execution: str | None = None):
-    out = tmp / f"out-{model.stem}-{n}-{zero_copy}-{staging}-{execution}"
+           execution: str | None = None, places: dict[str, str] | None = None):
+    where = "-".join(f"{k}_{v}" for k, v in sorted((places or {}).items()))
+    out = tmp / f"out-{model.stem}-{n}-{zero_copy}-{staging}-{execution}-{where}"
     result = compile_model(model, out, zero_copy=zero_copy, frames_in_flight=n,
-                           staging=staging, execution=execution)
+                           staging=staging, execution=execution, places=places)
     write(result, out)
     return result, out / f"{result.system.model.name}.py"
 
@@ -74,11 +75,22 @@ def vision_runs(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("flight")
     runs = {}
     for n in (1, 2, 3):
-        for zero_copy, staging in (("off", "pinned"), ("off", "pageable"), ("on", "auto")):
-            _, program = _build(tmp, VISION, n, zero_copy, staging)
-            runs[n, zero_copy, staging] = _masks_and_decisions(
-                program, f"{n}_{zero_copy}_{staging}", FRAMES, tmp)
+        for zero_copy, staging, place in PLATFORMS:
+            places = dict(p.split("=") for p in place.split(",")) if place else None
+            result, program = _build(tmp, VISION, n, zero_copy, staging, places=places)
+            for name in places or ():  # a CPU-placed component runs in a CPU stage
+                assert n == 1 or "device" not in [
+                    st.runs for st in result.system.plan.stages if name in st.parts], name
+            tag = f"{n}_{zero_copy}_{staging}_{place.replace('=', '_').replace(',', '_')}"
+            runs[n, zero_copy, staging, place] = _masks_and_decisions(program, tag, FRAMES, tmp)
     return runs
+
+
+# (zero-copy, staging, --place): copying and zero-copy adapters; flexible components on the
+# CPU, where they join the CPU stages (the detector alone: its mask is uploaded by nobody,
+# the manager reads it; both: the merged frame is made on the CPU, uploaded, detected)
+PLATFORMS = (("off", "pinned", ""), ("off", "pageable", ""), ("on", "auto", ""),
+             ("off", "auto", "detector=cpu"), ("on", "auto", "merger=cpu"))
 
 
 def test_masks_match_numpy_for_every_n_zero_copy_and_staging(vision_runs):
@@ -95,7 +107,7 @@ def test_masks_match_numpy_for_every_n_zero_copy_and_staging(vision_runs):
 
 
 def test_decisions_are_identical_for_every_n(vision_runs):
-    reference = vision_runs[1, "off", "pageable"][1]
+    reference = vision_runs[1, "off", "pageable", ""][1]
     assert len(reference) == FRAMES
     assert [json.loads(line)["frame"] for line in reference] == list(range(FRAMES))
     for key, (_, decisions) in vision_runs.items():

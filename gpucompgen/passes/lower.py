@@ -262,6 +262,11 @@ def lower(system: System) -> ProgramPlan:
                 options.append(("blocking", blocking))
             if sets(name) > 1:
                 options.append(("buffer_sets", sets(name)))
+                if (node.zero_copy and node.direction == "gpu2cpu"
+                        and queue_of(name) == queue_of(node.source.component)):
+                    # the in-order queue puts the unmap before the writer's next kernel; a
+                    # host wait would also wait for later frames' kernels queued before it
+                    options.append(("wait_unmap", False))
             if pinned and not node.zero_copy:
                 options.append(("staging", "pinned"))
             parts.append(Part(name, "adapter", f"runtime.{cls}", runs=runs,

@@ -235,14 +235,19 @@ class ZeroCopyGpuToCpuAdapter(_Adapter):
     before the device writes it again (OpenCL's mapping rule).  A consumer that keeps data
     past its execute() copies it, as with any adapter's output.  With buffer_sets (frames
     in flight) up to that many frames' buffers are mapped at once (the producer writes
-    one set per frame); unmap() gives back the oldest.
+    one set per frame); unmap() gives back the oldest.  wait_unmap=False (frames in flight,
+    where the buffer's writer uses this adapter's in-order queue): unmap() enqueues the
+    unmap without waiting for it; the queue runs it before the writer's next kernel, and a
+    wait would also wait for the kernels of later frames queued before it.
     """
 
-    def __init__(self, context, queue, nbytes: int, buffer_sets: int = 1):
+    def __init__(self, context, queue, nbytes: int, buffer_sets: int = 1,
+                 wait_unmap: bool = True):
         from collections import deque
 
         super().__init__(context, queue, nbytes)
         self.buffer_sets = buffer_sets
+        self.wait_unmap = wait_unmap
         self.views = deque()  # mapped, oldest first
 
     @property
@@ -268,7 +273,8 @@ class ZeroCopyGpuToCpuAdapter(_Adapter):
         if self.views:
             view = self.views.popleft()
             event = view.base.release(self.queue)
-            event.wait()
+            if self.wait_unmap:
+                event.wait()
             if self.profile is not None:
                 self.profile.mapping(self, "unmap", event)
 
