@@ -1,19 +1,22 @@
-"""Frames in flight: N = 1, 2, 3 on the vision system, in one run.
+"""Frames in flight: N = 1, 2, 3 on the vision system, zero-copy on and off, in one run.
 
     python benchmarks/frames_in_flight.py [--model models/vision_system.yaml] [--rounds 3]
-        [--frames 150] [--n 1 2 3] [--device auto] [--zero-copy auto] [--staging auto]
+        [--frames 150] [--n 1 2 3] [--zero-copy on off] [--device auto] [--staging auto]
         [--json FILE]
 
-Builds the model once per N (`--frames-in-flight N`) for the device programs use (as
-`gpucompgen run` does: `--device auto`; on PoCL that means zero-copy adapters), then runs the programs as a user
-does (`python vision_system.py --frames F -q --stats-json ...`, each its own process),
-interleaved round after round so that a noisy machine slows every N alike.  Per N:
-frames per second (frames / wall time of the run, building kernels included, median over
-rounds) and the per-frame latency (start of the frame's sources to end of its last sink)
-median and 95th percentile over every frame of every round, from --stats-json.
+Builds the model once per (zero-copy, N) (`--zero-copy Z --frames-in-flight N`) for the
+device programs use (as `gpucompgen run` does: `--device auto`), then runs the programs as
+a user does (`python vision_system.py --frames F -q --stats-json ...`, each its own
+process), interleaved round after round so that a noisy machine slows every variant alike.
+Per variant: frames per second (frames / wall time of the run, building kernels included,
+median over rounds), the per-frame latency (start of the frame's sources to end of its
+last sink) median and 95th percentile over every frame of every round, from --stats-json,
+and the processor time the run took (user + system, of the process and its threads) per
+frame and per second of wall time ("cores": how many cores it kept busy on average).
 
 The machine's load is printed with the results: on a machine shared with other jobs the
-ratios between N are what to read, not the absolute figures.
+ratios between N are what to read, not the absolute figures; "cores" says how much of the
+machine a run got.
 """
 
 from __future__ import annotations
@@ -21,6 +24,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import resource
 import statistics
 import subprocess
 import sys
@@ -40,14 +44,18 @@ def build(model: Path, out: Path, n: int, device: str, zero_copy: str, staging: 
     return out / f"{result.system.model.name}.py"
 
 
-def run_once(program: Path, frames: int, stats: Path) -> dict:
+def run_once(program: Path, frames: int, stats: Path) -> tuple[dict, float]:
+    """The run's --stats-json, and the processor seconds (user + system) it took."""
     env = dict(os.environ, PYTHONPATH=str(ROOT))
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
     proc = subprocess.run([sys.executable, str(program), "--frames", str(frames), "-q",
                            "--stats-json", str(stats)], capture_output=True, text=True,
                           env=env, check=False)
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
     if proc.returncode != 0:
         raise SystemExit(f"{program} failed: {proc.stderr.strip()}")
-    return json.loads(stats.read_text())
+    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    return json.loads(stats.read_text()), cpu
 
 
 def percentile(values: list[float], q: float) -> float:
@@ -67,37 +75,50 @@ def main(argv=None) -> int:
                         help="frames in flight to compare")
     parser.add_argument("--device", default="auto",
                         help="device facts to plan for (default: the device programs use)")
-    parser.add_argument("--zero-copy", default="auto", choices=("auto", "on", "off"))
+    parser.add_argument("--zero-copy", nargs="+", default=["on", "off"],
+                        choices=("auto", "on", "off"), help="zero-copy settings to compare")
     parser.add_argument("--staging", default="auto", choices=("auto", "pinned", "pageable"))
     parser.add_argument("--json", type=Path, help="also write the results as JSON here")
     args = parser.parse_args(argv)
-    fps: dict[int, list[float]] = {n: [] for n in args.n}
-    latency: dict[int, list[float]] = {n: [] for n in args.n}
+    variants = [(z, n) for z in args.zero_copy for n in args.n]
+    fps: dict = {v: [] for v in variants}
+    latency: dict = {v: [] for v in variants}
+    cpu: dict = {v: [] for v in variants}  # processor seconds per frame, per round
+    cores: dict = {v: [] for v in variants}
     with tempfile.TemporaryDirectory(prefix="flight-bench-") as tmp:
-        programs = {n: build(args.model, Path(tmp) / f"n{n}", n, args.device, args.zero_copy,
-                             args.staging) for n in args.n}
+        programs = {(z, n): build(args.model, Path(tmp) / f"{z}-n{n}", n, args.device, z,
+                                  args.staging) for z, n in variants}
         for r in range(args.rounds):
-            for n in args.n:
-                doc = run_once(programs[n], args.frames, Path(tmp) / f"stats-{n}-{r}.json")
-                fps[n].append(doc["frames_per_second"])
-                latency[n] += doc["frame_seconds"][args.skip:]
-                print(f"round {r + 1}, N={n}: {doc['frames_per_second']:.1f} frames/s",
-                      file=sys.stderr)
+            for v in variants:
+                doc, seconds = run_once(programs[v], args.frames,
+                                        Path(tmp) / f"stats-{v[0]}-{v[1]}-{r}.json")
+                fps[v].append(doc["frames_per_second"])
+                latency[v] += doc["frame_seconds"][args.skip:]
+                cpu[v].append(seconds / doc["frames"])
+                cores[v].append(seconds / doc["wall_seconds"])
+                print(f"round {r + 1}, zero-copy {v[0]}, N={v[1]}: "
+                      f"{doc['frames_per_second']:.1f} frames/s", file=sys.stderr)
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
     print(f"{args.model.name}: {args.frames} frames a run, {args.rounds} rounds interleaved, "
-          f"device {args.device}, zero-copy {args.zero_copy}, staging {args.staging}; "
-          f"{os.cpu_count()} CPUs, "
+          f"device {args.device}, staging {args.staging}; {os.cpu_count()} CPUs, "
           f"load average {load:.1f}")
-    print(f"{'N':>3}  {'frames/s':>9}  {'vs N=1':>7}  {'latency median':>15}  {'p95':>9}")
-    base = statistics.median(fps[args.n[0]])
-    results = {}
-    for n in args.n:
-        rate = statistics.median(fps[n])
-        med, p95 = percentile(latency[n], 50), percentile(latency[n], 95)
-        results[n] = {"frames_per_second": rate, "rounds": fps[n],
-                      "latency_median_seconds": med, "latency_p95_seconds": p95}
-        print(f"{n:>3}  {rate:>9.1f}  {rate / base:>6.2f}x  {med * 1000:>12.1f} ms  "
-              f"{p95 * 1000:>6.1f} ms")
+    print(f"{'zero-copy':>9}  {'N':>2}  {'frames/s':>8}  {'vs N=1':>6}  "
+          f"{'latency median':>14}  {'p95':>8}  {'CPU ms/frame':>12}  {'cores':>5}")
+    results = []
+    for z in args.zero_copy:
+        base = statistics.median(fps[z, args.n[0]])
+        for n in args.n:
+            v = (z, n)
+            rate = statistics.median(fps[v])
+            med, p95 = percentile(latency[v], 50), percentile(latency[v], 95)
+            per_frame, busy = statistics.median(cpu[v]), statistics.median(cores[v])
+            results.append({"zero_copy": z, "frames_in_flight": n, "frames_per_second": rate,
+                            "rounds": fps[v], "latency_median_seconds": med,
+                            "latency_p95_seconds": p95, "cpu_seconds_per_frame": per_frame,
+                            "cores": busy})
+            print(f"{z:>9}  {n:>2}  {rate:>8.1f}  {rate / base:>5.2f}x  "
+                  f"{med * 1000:>11.1f} ms  {p95 * 1000:>5.1f} ms  {per_frame * 1000:>12.2f}  "
+                  f"{busy:>5.2f}")
     if args.json:
         args.json.write_text(json.dumps(results, indent=2) + "\n", encoding="utf-8")
     return 0
