@@ -18,7 +18,7 @@ from pathlib import Path
 from . import __version__
 from .errors import GpucompgenError, OutputError, UsageError
 from .ir import MODES
-from .model import EXECUTIONS, ZERO_COPY
+from .model import EXECUTIONS, MAX_FRAMES_IN_FLIGHT, STAGING, ZERO_COPY
 from .runtime import add_program_options
 
 EPILOG = """\
@@ -53,9 +53,29 @@ def _common(p: argparse.ArgumentParser,
                    help="zero-copy adapters (map host-visible memory instead of copying): auto "
                         "follows the device's unified host memory (default: the model's "
                         "platform.zero_copy, else auto)")
+    p.add_argument("--frames-in-flight", type=_frames_in_flight, dest="frames_in_flight",
+                   metavar="N",
+                   help="frames the program works on at the same time: 1 runs one frame at a "
+                        "time; 2 or more overlap sources, device work and sinks of "
+                        "consecutive frames, one thread a stage (default: the model's "
+                        "platform.frames_in_flight, else 1)")
+    p.add_argument("--staging", choices=STAGING,
+                   help="how copying adapters stage host memory: pinned host buffers or "
+                        "pageable arrays; auto is pinned when the device has no unified host "
+                        "memory (default: the model's platform.staging, else auto)")
     p.add_argument("--place", action="append", type=_place, default=[], metavar="NAME=SIDE",
                    help="run flexible component NAME on SIDE: gpu, cpu or auto (chosen with "
                         "the others by the cost model); repeatable; overrides the model")
+
+
+def _frames_in_flight(text: str) -> int:
+    try:
+        n = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, not {text!r}") from None
+    if not 1 <= n <= MAX_FRAMES_IN_FLIGHT:
+        raise argparse.ArgumentTypeError(f"must be 1 to {MAX_FRAMES_IN_FLIGHT}, not {n}")
+    return n
 
 
 def _place(text: str) -> tuple[str, str]:
@@ -254,6 +274,7 @@ def _compile(args, out_dir: Path):
             print(text, file=sys.stderr)
     result = compile_model(args.model, out_dir, args.mode, args.device, dump,
                            execution=args.execution, zero_copy=args.zero_copy,
+                           frames_in_flight=args.frames_in_flight, staging=args.staging,
                            verify=True if args.debug else None, places=places(args))
     for w in result.warnings:
         print(w.format(), file=sys.stderr)

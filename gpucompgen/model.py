@@ -206,6 +206,10 @@ class SystemModel:
     execution: str = "parallel"
     # platform.zero_copy: "auto" (follow the device's unified memory) | "on" | "off"
     zero_copy: str = "auto"
+    # platform.frames_in_flight: frames the program works on at the same time (1: one at a
+    # time, the paper's loop); platform.staging: how copying adapters stage host memory
+    frames_in_flight: int = 1
+    staging: str = "auto"
     thread_budget_pos: Pos | None = None
     platform_pos: Pos = Pos("")
     # platform.placement: where flexible components without their own 'placement:' run
@@ -906,9 +910,11 @@ def library_types() -> dict[str, ComponentType]:
 
 SYSTEM_KEYS = ("system", "description", "types", "platform", "components", "connections")
 PLATFORM_KEYS = ("device", "gpu_settings", "thread_budget", "execution", "zero_copy",
-                 "placement", "profile")
+                 "placement", "profile", "frames_in_flight", "staging")
 EXECUTIONS = ("parallel", "sequential")
 ZERO_COPY = ("auto", "on", "off")
+STAGING = ("auto", "pinned", "pageable")
+MAX_FRAMES_IN_FLIGHT = 16
 INSTANCE_KEYS = ("type", "params", "description", "placement")
 CONNECTION_RE = re.compile(r"^\s*([^\s.]+)\.([^\s.]+)\s*->\s*([^\s.]+)\.([^\s.]+)\s*$")
 
@@ -1076,6 +1082,24 @@ def load_system(path: Path, display: str | None = None) -> SystemModel:
                       "e.g. 'profile: tune/my_system.yaml', written by 'gpucompgen tune'")
         else:  # read (and found missing) only where a placement is 'auto'
             profile = path.parent / rel
+    frames_in_flight = 1
+    if "frames_in_flight" in platform:
+        frames_in_flight = _positive_int(doc, rep, ("platform", "frames_in_flight"),
+                                         platform["frames_in_flight"], "frames_in_flight") or 1
+        if frames_in_flight > MAX_FRAMES_IN_FLIGHT:
+            rep.error(doc.pos("platform", "frames_in_flight"),
+                      f"platform.frames_in_flight is {frames_in_flight}; at most "
+                      f"{MAX_FRAMES_IN_FLIGHT} frames can be in flight",
+                      "2 or 3 overlap sources, device work and sinks; each frame in flight "
+                      "costs one more set of the buffers it crosses stages with")
+            frames_in_flight = 1
+    staging = platform.get("staging", "auto")
+    if not _named(staging, STAGING):
+        rep.error(doc.pos("platform", "staging"),
+                  f"platform.staging must be 'auto', 'pinned' or 'pageable', not {staging!r}",
+                  "auto stages copies through pinned host buffers when the device has no "
+                  "unified host memory")
+        staging = "auto"
     # components
     components: dict[str, Instance] = {}
     comps = _expect_map(doc, rep, ("components",), root.get("components"), "components")
@@ -1164,7 +1188,8 @@ def load_system(path: Path, display: str | None = None) -> SystemModel:
                        device_pos=doc.pos("platform", "device"), gpu_overrides=overrides,
                        thread_budget=budget,
                        thread_budget_pos=doc.pos("platform", "thread_budget"), types=types, execution=execution,
-                       zero_copy=zero_copy, platform_pos=doc.pos("platform"),
+                       zero_copy=zero_copy, frames_in_flight=frames_in_flight,
+                       staging=staging, platform_pos=doc.pos("platform"),
                        placement=placement, placement_pos=doc.pos("platform", "placement"),
                        profile=profile, profile_pos=doc.pos("platform", "profile"),
                        device_positions={k: (doc.key_pos("platform", "device", k),
