@@ -34,11 +34,13 @@ class BuildResult:
 def compile_model(model_path: Path, out_dir: Path, mode: str = "gpu-aware",
                   device: str | None = None, dump: Callable[[str], None] | None = None,
                   display: str | None = None, execution: str | None = None,
-                  zero_copy: str | None = None, verify: bool | None = None) -> BuildResult:
+                  zero_copy: str | None = None, verify: bool | None = None,
+                  fusion: str | None = None) -> BuildResult:
     """Everything but writing: raises GpucompgenError with all problems found.
 
     execution ("parallel" | "sequential") and zero_copy ("auto" | "on" | "off") override
-    the model's platform.execution and platform.zero_copy; None keeps the model's.
+    the model's platform.execution and platform.zero_copy, fusion ("auto" | "off") its
+    platform.fusion; None keeps the model's.
     verify: check the IR's invariants after every pass (--debug; the test suite sets
     GPUCOMPGEN_VERIFY=1 so that None verifies there too).
     """
@@ -50,7 +52,8 @@ def compile_model(model_path: Path, out_dir: Path, mode: str = "gpu-aware",
     facts = device_mod.resolve(spec, model.device_pos, rep,
                                model.device_positions if device is None else None)
     rep.raise_if_errors()
-    system, warnings = run_passes(model, facts, mode, dump, execution, zero_copy, verify)
+    system, warnings = run_passes(model, facts, mode, dump, execution, zero_copy, verify,
+                                  fusion)
     files = render(system, source_path(model_path, out_dir))
     _must_compile(files[0])
     return BuildResult(system, files, warnings)

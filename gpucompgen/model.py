@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from . import fusable as fusable_forms
 from . import sizeexpr
 from .errors import Pos, Reporter, did_you_mean
 from .loader import Document, load_file
@@ -108,6 +109,7 @@ class ComponentType:
     python_file: Path | None = None
     python_class: str = ""
     gpu: GpuDecl = field(default_factory=GpuDecl)
+    fusable: fusable_forms.FusableDecl | None = None  # None: opaque, never fused
 
     @property
     def gpu_aware(self) -> bool:
@@ -128,6 +130,7 @@ class Instance:
     params: dict[str, Any]
     pos: Pos
     order: int
+    fuse: bool = True  # 'fuse: false': never fused with its neighbours
 
 
 @dataclass(frozen=True)
@@ -168,6 +171,8 @@ class SystemModel:
     zero_copy: str = "auto"
     thread_budget_pos: Pos | None = None
     platform_pos: Pos = Pos("")
+    # platform.fusion: "auto" (chains of fusable GPU components become one kernel) | "off"
+    fusion: str = "auto"
 
 
 # --------------------------------------------------------------------------- helpers
@@ -223,7 +228,7 @@ def _positive_int(doc: Document, rep: Reporter, path: tuple, value: Any, what: s
 # --------------------------------------------------------------------------- types
 
 TYPE_KEYS = ("kind", "description", "params", "inputs", "outputs", "requires", "kernel",
-             "python", "gpu")
+             "python", "gpu", "fusable")
 PORT_KEYS = ("memory", "dtype", "channels", "height", "width", "description")
 PARAM_KEYS = ("type", "default", "min", "max", "description")
 
@@ -366,13 +371,15 @@ def _load_type(doc: Document, rep: Reporter, path: Path, origin: str, tname: str
     # implementation
     if kind == "gpu-aware":
         _load_kernel(doc, rep, base, ctype, spec)
+        if "fusable" in spec:
+            _load_fusable(doc, rep, base, ctype, spec["fusable"])
         if "python" in spec:
             rep.error(doc.key_pos(*base, "python"),
                       "a GPU-aware type is implemented by its OpenCL kernel, not 'python'",
                       "remove 'python:' or make the type 'kind: standard'")
     else:
         _load_python(doc, rep, base, ctype, spec)
-        for key in ("kernel", "gpu"):
+        for key in ("kernel", "gpu", "fusable"):
             if key in spec:
                 rep.error(doc.key_pos(*base, key),
                           f"'{key}' is only for GPU-aware types; '{tname}' is standard",
@@ -605,6 +612,67 @@ def _load_kernel(doc, rep, base, ctype: ComponentType, spec) -> None:
                         max_threads, square)
 
 
+def _load_fusable(doc, rep, base, ctype: ComponentType, fspec) -> None:
+    """The type's fusable form (gpucompgen/fusable.py), checked as far as possible without
+    a device."""
+    path = base + ("fusable",)
+    fspec = _expect_map(doc, rep, path, fspec, "fusable")
+    _unknown_keys(doc, rep, path, fspec, ("form", "value", "radius", "border"), "fusable")
+    form = fspec.get("form")
+    if not _named(form, fusable_forms.FORMS):
+        rep.error(doc.pos(*path, "form") if "form" in fspec else doc.key_pos(*path),
+                  f"fusable form of '{ctype.name}' must be one of "
+                  f"{', '.join(fusable_forms.FORMS)}, not {form!r}",
+                  "pointwise: inputs read at (y, x); index_map: each input at one computed "
+                  "position; stencil: a window of 'radius' with a 'border' rule")
+        return
+    if len(ctype.outputs) != 1:
+        rep.error(doc.key_pos(*path), f"only types with a single output can be fusable; "
+                  f"'{ctype.name}' has {len(ctype.outputs)}",
+                  "remove 'fusable:' (the type stays opaque: its kernel runs on its own)")
+        return
+    value = fspec.get("value")
+    if not isinstance(value, str) or not value.strip():
+        rep.error(doc.pos(*path, "value") if "value" in fspec else doc.key_pos(*path),
+                  f"fusable '{ctype.name}' needs 'value': an OpenCL C expression (or "
+                  "statements ending in 'return ...;') for output element (y, x, c)",
+                  "e.g. value: \"image(image_height - 1 - y, x, c)\"")
+        return
+    problems = fusable_forms.snippet_problems(value, form, list(ctype.inputs),
+                                              list(ctype.outputs), list(ctype.params))
+    for p in problems:
+        rep.error(doc.pos(*path, "value"), f"fusable snippet of '{ctype.name}': {p}",
+                  "a snippet uses y, x, c, its ports as <port>(y, x, c), <port>_height, "
+                  "<port>_width, its parameters and its own locals")
+    radius: int | str = 0
+    border = fspec.get("border", "clamp")
+    if form == "stencil":
+        radius = fspec.get("radius")
+        int_params = _int_params(ctype)
+        if not (isinstance(radius, int) and not isinstance(radius, bool) and radius >= 0) \
+                and not _named(radius, int_params):
+            rep.error(doc.pos(*path, "radius") if "radius" in fspec else doc.key_pos(*path),
+                      f"stencil '{ctype.name}' needs 'radius': a number of pixels (0 or "
+                      f"more) or an int parameter, not {radius!r}",
+                      did_you_mean(str(radius), int_params) if int_params else
+                      "e.g. radius: 1")
+            return
+        if border not in fusable_forms.BORDERS:
+            rep.error(doc.pos(*path, "border"), f"stencil border {border!r} of "
+                      f"'{ctype.name}' is not one of {list(fusable_forms.BORDERS)}",
+                      "clamp: reads outside the input take the nearest edge pixel")
+            return
+    else:
+        for key in ("radius", "border"):
+            if key in fspec:
+                rep.error(doc.key_pos(*path, key), f"'{key}' is only for the stencil form",
+                          f"remove '{key}' or use 'form: stencil'")
+    if problems:
+        return
+    ctype.fusable = fusable_forms.FusableDecl(form, value, fusable_forms.as_body(value),
+                                              radius, border)
+
+
 def _load_python(doc, rep, base, ctype: ComponentType, spec) -> None:
     pspec = _expect_map(doc, rep, base + ("python",), spec.get("python"), "python")
     if not pspec:
@@ -646,10 +714,12 @@ def library_types() -> dict[str, ComponentType]:
 # --------------------------------------------------------------------------- systems
 
 SYSTEM_KEYS = ("system", "description", "types", "platform", "components", "connections")
-PLATFORM_KEYS = ("device", "gpu_settings", "thread_budget", "execution", "zero_copy")
+PLATFORM_KEYS = ("device", "gpu_settings", "thread_budget", "execution", "zero_copy",
+                 "fusion")
+FUSION = ("auto", "off")
 EXECUTIONS = ("parallel", "sequential")
 ZERO_COPY = ("auto", "on", "off")
-INSTANCE_KEYS = ("type", "params", "description")
+INSTANCE_KEYS = ("type", "params", "description", "fuse")
 CONNECTION_RE = re.compile(r"^\s*([^\s.]+)\.([^\s.]+)\s*->\s*([^\s.]+)\.([^\s.]+)\s*$")
 
 
@@ -742,6 +812,14 @@ def load_system(path: Path, display: str | None = None) -> SystemModel:
         rep.error(doc.pos("platform", "zero_copy"),
                   f"platform.zero_copy must be 'auto', 'on' or 'off', not {zero_copy!r}")
         zero_copy = "auto"
+    fusion = platform.get("fusion", "auto")
+    if isinstance(fusion, bool):  # YAML 1.1 reads off as a boolean
+        fusion = "auto" if fusion else "off"
+    if fusion not in FUSION:
+        rep.error(doc.pos("platform", "fusion"),
+                  f"platform.fusion must be 'auto' or 'off', not {fusion!r}",
+                  "auto: chains of fusable GPU components run as one kernel")
+        fusion = "auto"
     # components
     components: dict[str, Instance] = {}
     comps = _expect_map(doc, rep, ("components",), root.get("components"), "components")
@@ -786,7 +864,12 @@ def load_system(path: Path, display: str | None = None) -> SystemModel:
                       f"component after its role, e.g. '{snake(clash)}1'")
             continue
         params = _instance_params(doc, rep, cpath, ctype, cspec.get("params"))
-        components[cname] = Instance(cname, ctype, params, doc.key_pos(*cpath), order)
+        fuse = cspec.get("fuse", True)
+        if not isinstance(fuse, bool):
+            rep.error(doc.pos(*cpath, "fuse"), f"fuse of '{cname}' must be true or false, "
+                      f"not {fuse!r}", "'fuse: false' keeps the component's own kernel")
+            fuse = True
+        components[cname] = Instance(cname, ctype, params, doc.key_pos(*cpath), order, fuse)
     for cname, (_, pos) in overrides.items():
         if cname not in components and cname in comps:
             continue
@@ -814,7 +897,7 @@ def load_system(path: Path, display: str | None = None) -> SystemModel:
                        device_pos=doc.pos("platform", "device"), gpu_overrides=overrides,
                        thread_budget=budget,
                        thread_budget_pos=doc.pos("platform", "thread_budget"), types=types, execution=execution,
-                       zero_copy=zero_copy, platform_pos=doc.pos("platform"),
+                       zero_copy=zero_copy, platform_pos=doc.pos("platform"), fusion=fusion,
                        device_positions={k: (doc.key_pos("platform", "device", k),
                                              doc.pos("platform", "device", k))
                                          for k in (device if isinstance(device, dict) else {})

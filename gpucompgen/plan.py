@@ -142,6 +142,16 @@ class UserClass:
     cls: str
 
 
+@dataclass(frozen=True)
+class GroupPlan:
+    """A fused group: its part, its members (name, type, fusable form) in run order, and
+    the generated kernel's file in the lib folder."""
+
+    part: str
+    members: tuple[tuple[str, str, str], ...]
+    file: str
+
+
 @dataclass
 class ProgramPlan:
     system: str
@@ -165,6 +175,9 @@ class ProgramPlan:
     thread_budget_source: str = ""
     concurrent: tuple[tuple[tuple[str, ...], int], ...] = ()  # (group, resident threads)
     lib_files: dict[str, str] = field(default_factory=dict)  # lib file -> what it is
+    fusion: str = "off"
+    groups: tuple[GroupPlan, ...] = ()
+    unfused: tuple[tuple[str, str], ...] = ()  # (GPU-to-GPU edge, why it was not fused)
 
     # --- the facts everything reads --------------------------------------------------------
     def device_buffers(self) -> list[Buffer]:
@@ -253,6 +266,21 @@ def plan_lines(plan: ProgramPlan) -> list[str]:
                      "GPU components that can run at the same time:")
         for group, threads in plan.concurrent:
             lines.append(f"  {', '.join(group)}: {threads:,} threads")
+    lines += fusion_lines(plan)
+    return lines
+
+
+def fusion_lines(plan: ProgramPlan) -> list[str]:
+    """Each fused group and, for every GPU-to-GPU edge left unfused, why."""
+    if plan.fusion == "off" and not plan.unfused:
+        return []
+    lines = [f"fusion: {plan.fusion}, {len(plan.groups)} "
+             f"group{'s' if len(plan.groups) != 1 else ''}" + (":" if plan.groups else "")]
+    for g in plan.groups:
+        lines.append(f"  {g.part}: one kernel ({g.file}) for "
+                     + " -> ".join(f"{m} ({t}, {form})" for m, t, form in g.members))
+    for edge, why in plan.unfused:
+        lines.append(f"  not fused: {edge}: {why}")
     return lines
 
 
@@ -285,5 +313,6 @@ def summary_lines(plan: ProgramPlan) -> list[str]:
             bx, by, bz = la.local_size
             lines.append(f"GPU settings of {p.name}: tile {la.tile}, block {bx}x{by}x{bz} "
                          f"({la.settings_source})")
+    lines += fusion_lines(plan)
     lines.append("device: " + plan.device_name.encode("unicode_escape").decode("ascii"))
     return lines

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 
-from ..ir import ComponentNode, GpuSettings, System
+from ..ir import ComponentNode, GpuSettings, GroupNode, System
 from ..model import Endpoint
 from ..runtime.facts import DeviceFacts
 from .base import Pass
@@ -28,11 +28,15 @@ class AllocateGpu(Pass):
         overrides = system.model.gpu_overrides
         for name in system.order:
             inst = system.nodes[name]
-            if not (isinstance(inst, ComponentNode) and inst.on_gpu):
+            if not (isinstance(inst, (ComponentNode, GroupNode)) and inst.on_gpu):
                 continue
             decl = inst.type.gpu
-            if name in overrides and system.mode == "gpu-aware":
-                values, pos = overrides[name]
+            # a group takes the settings the model gives its root, else another member's
+            given = ([name] if isinstance(inst, ComponentNode) else
+                     [m.name for m in reversed(inst.members)])
+            given = [n for n in given if n in overrides]
+            if given and system.mode == "gpu-aware":
+                values, pos = overrides[given[0]]
                 tile, bx, by, bz = (values.get(k, d) for k, d in zip(
                     ("tile", "block_x", "block_y", "block_z"), decl.prefer))
                 problems = limit_problems(tile, bx, by, bz, decl, dev)
@@ -112,7 +116,7 @@ class AllocateGpu(Pass):
                             f"together need at least {total} resident threads")
                 else:
                     what = f"component {group[0]} needs at least {total} resident threads"
-                rep.error(system.components[group[0]].pos,
+                rep.error(system.nodes[group[0]].pos,
                           f"{what}, over the thread budget of {budget}"
                           + (f" (settings fixed by the model: {', '.join(fixed)})"
                              if fixed else ""),
@@ -127,7 +131,7 @@ class AllocateGpu(Pass):
 def _smaller(system: System, name: str) -> GpuSettings | None:
     """The next smaller settings of a component (fewer resident threads), or None."""
     s = system.settings[name]
-    decl = system.components[name].type.gpu
+    decl = system.gpu_node(name).type.gpu
     # compared uncapped, so that each step makes progress even above the device's total
     now = _resident(system, name, s, capped=False)
     source = "shrunk to share the thread budget"
@@ -188,7 +192,7 @@ def resident_threads(system: System, name: str) -> int:
 
 
 def _resident(system: System, name: str, s: GpuSettings, capped: bool = True) -> int:
-    ctype = system.components[name].type
+    ctype = system.gpu_node(name).type
     grid = system.data(Endpoint(name, ctype.grid))
     if grid is None:
         return s.threads_per_group
