@@ -131,7 +131,8 @@ def test_random_pipelines_stay_within_limits_and_budget(tmp_path_factory, pipe, 
                    {"system": "rand", "platform": platform, "components": comps,
                     "connections": conns})
     try:
-        result = compile_model(model, model.parent / "out")
+        # allocation of single components: fusion would make groups of them
+        result = compile_model(model, model.parent / "out", fusion="off")
     except GpucompgenError as exc:
         # only an impossible budget may fail: the named group can run together, and even
         # at their smallest settings (largest tile, one thread per work-group) its
@@ -148,7 +149,7 @@ def test_random_pipelines_stay_within_limits_and_budget(tmp_path_factory, pipe, 
                  **({} if isinstance(device, str) else device), "compute_units": 10 ** 6}
         model.write_text(yaml.safe_dump({"system": "rand", "platform": {"device": roomy},
                                          "components": comps, "connections": conns}))
-        system = compile_model(model, model.parent / "out").system  # for sizes
+        system = compile_model(model, model.parent / "out", fusion="off").system  # sizes
         reach = _reach(comps, conns)
         types = library_types()
         for m in messages:

@@ -30,7 +30,7 @@ from __future__ import annotations
 
 from dataclasses import replace
 
-from ..ir import ComponentNode, Edge, GroupNode, Port, System
+from ..ir import AdapterNode, ComponentNode, Edge, GroupNode, Port, System
 from ..model import ComponentType, Endpoint, GpuDecl
 from .base import Pass
 
@@ -109,9 +109,9 @@ def _why_not(system: System, src: Endpoint, members: set[str], consumer: str) ->
     why = _opaque(system, src.component)
     if why:
         return why
-    outside = [r for r in system.readers(src) if r.component not in members]
+    outside = [_reader(system, r) for r in system.readers(src) if r.component not in members]
     if outside:
-        return (f"{src} is also read by {', '.join(map(str, outside))}, outside the group: "
+        return (f"{src} is also read by {', '.join(outside)}, outside the group: "
                 "its output must be materialized")
     cost = _worst_recompute(system, members | {src.component})
     if cost is not None:
@@ -120,6 +120,15 @@ def _why_not(system: System, src: Endpoint, members: set[str], consumer: str) ->
                 f"(reading {taps} input element{'s' if taps != 1 else ''} each time) "
                 f"costs {r * taps} loads, over the cap of {FUSE_COST_CAP}")
     return ""
+
+
+def _reader(system: System, end: Endpoint) -> str:
+    """A reader as a user knows it: the CPU reads through an adapter."""
+    node = system.nodes[end.component]
+    if isinstance(node, AdapterNode):
+        ends = ", ".join(map(str, system.readers(Endpoint(node.name, "output"))))
+        return f"the CPU ({ends}, through {node.name})"
+    return str(end)
 
 
 def evaluations(system: System, members: set[str]) -> dict[str, int]:

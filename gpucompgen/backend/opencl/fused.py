@@ -31,8 +31,8 @@ def group_kernel(group: GroupNode, header: str) -> str:
              f"// Fused group {group.name}: one kernel for "
              + ", ".join(f"{m.name} ({m.type.name}, {m.type.fusable.form})"
                          for m in group.members) + ".",
-             f"// It computes {root.name}.{out_name} from the group's inputs directly: no "
-             "buffers between members.",
+             (f"// It computes {root.name}.{out_name} from the group's inputs directly: no "
+              "buffers between members."),
              "// Each member's snippet is a function of the element (y, x, c) it computes;",
              "// an input read <port>(y, x, c) calls the producing member, or loads from a",
              "// group input.",
