@@ -9,14 +9,14 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 """
 
 # System plan:
-#   step  name                                                         stage  queue  runs  GPU settings            threads
-#   1     camera1 (Camera)                                             1      -      CPU   -                       -
-#   2     camera2 (Camera)                                             1      -      CPU   -                       -
-#   3     adapter1_cpu2gpu                                             1      0      copy  -                       -
-#   4     adapter2_cpu2gpu                                             1      1      copy  -                       -
-#   5     blur1_to_detector (group of blur1, blur2, merger, detector)  4      0      GPU   tile 32, block 16x16x1  16,384
-#   6     adapter3_gpu2cpu                                             4      0      copy  -                       -
-#   7     manager (VisionManager)                                      5      -      CPU   -                       -
+#   step  name                             stage  queue  runs  GPU settings            threads
+#   1     camera1 (Camera)                 1      -      CPU   -                       -
+#   2     camera2 (Camera)                 1      -      CPU   -                       -
+#   3     adapter1_cpu2gpu                 1      0      copy  -                       -
+#   4     adapter2_cpu2gpu                 1      1      copy  -                       -
+#   5     blur1_to_detector (fused group)  4      0      GPU   tile 32, block 16x16x1  16,384
+#   6     adapter3_gpu2cpu                 4      0      copy  -                       -
+#   7     manager (VisionManager)          5      -      CPU   -                       -
 #
 #   buffer                            memory  size                bytes
 #   camera1.image                     host    480x640x3 uint8   921,600
@@ -35,7 +35,11 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 #   thread budget: 16,384 (device total); GPU components that can run at the same time:
 #     blur1_to_detector: 16,384 threads
 #   fusion: auto, 1 group:
-#     blur1_to_detector: one kernel (group_blur1_to_detector.cl) for blur1 (BoxBlur, stencil) -> blur2 (BoxBlur, stencil) -> merger (ImageMerger, index_map) -> detector (ObjectDetector, pointwise)
+#     blur1_to_detector: one kernel (group_blur1_to_detector.cl) for
+#       blur1 (BoxBlur, stencil)
+#       -> blur2 (BoxBlur, stencil)
+#       -> merger (ImageMerger, index_map)
+#       -> detector (ObjectDetector, pointwise)
 
 from __future__ import annotations
 
@@ -54,7 +58,8 @@ LIB_DIR = Path(__file__).resolve().with_name('parallel_branches_lib')
 
 
 class FusedBlur1ToDetector(runtime.KernelComponent):
-    """GPU-aware component FusedBlur1ToDetector: kernel blur1_to_detector() in group_blur1_to_detector.cl.
+    """GPU-aware component FusedBlur1ToDetector:
+    kernel blur1_to_detector() in group_blur1_to_detector.cl.
 
     One work-group of block_x * block_y * block_z threads covers a tile x tile square
     of 'mask'.

@@ -9,14 +9,14 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 """
 
 # System plan:
-#   step  name                                         stage  queue  runs  GPU settings            threads
-#   1     camera1 (Camera)                             1      -      CPU   -                       -
-#   2     camera2 (Camera)                             1      -      CPU   -                       -
-#   3     adapter1_cpu2gpu                             1      0      copy  -                       -
-#   4     adapter2_cpu2gpu                             1      1      copy  -                       -
-#   5     merger_detector (group of merger, detector)  3      0      GPU   tile 32, block 16x16x1  16,384
-#   6     adapter3_gpu2cpu                             3      0      copy  -                       -
-#   7     manager (VisionManager)                      4      -      CPU   -                       -
+#   step  name                           stage  queue  runs  GPU settings            threads
+#   1     camera1 (Camera)               1      -      CPU   -                       -
+#   2     camera2 (Camera)               1      -      CPU   -                       -
+#   3     adapter1_cpu2gpu               1      0      copy  -                       -
+#   4     adapter2_cpu2gpu               1      1      copy  -                       -
+#   5     merger_detector (fused group)  3      0      GPU   tile 32, block 16x16x1  16,384
+#   6     adapter3_gpu2cpu               3      0      copy  -                       -
+#   7     manager (VisionManager)        4      -      CPU   -                       -
 #
 #   buffer                            memory  size                bytes
 #   camera1.image                     host    480x640x3 uint8   921,600
@@ -35,7 +35,9 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 #   thread budget: 16,384 (device total); GPU components that can run at the same time:
 #     merger_detector: 16,384 threads
 #   fusion: auto, 1 group:
-#     merger_detector: one kernel (group_merger_detector.cl) for merger (ImageMerger, index_map) -> detector (ObjectDetector, pointwise)
+#     merger_detector: one kernel (group_merger_detector.cl) for
+#       merger (ImageMerger, index_map)
+#       -> detector (ObjectDetector, pointwise)
 
 from __future__ import annotations
 
@@ -54,7 +56,8 @@ LIB_DIR = Path(__file__).resolve().with_name('vision_system_lib')
 
 
 class FusedMergerDetector(runtime.KernelComponent):
-    """GPU-aware component FusedMergerDetector: kernel merger_detector() in group_merger_detector.cl.
+    """GPU-aware component FusedMergerDetector:
+    kernel merger_detector() in group_merger_detector.cl.
 
     One work-group of block_x * block_y * block_z threads covers a tile x tile square
     of 'mask'.

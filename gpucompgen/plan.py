@@ -277,10 +277,12 @@ def fusion_lines(plan: ProgramPlan) -> list[str]:
     lines = [f"fusion: {plan.fusion}, {len(plan.groups)} "
              f"group{'s' if len(plan.groups) != 1 else ''}" + (":" if plan.groups else "")]
     for g in plan.groups:
-        lines.append(f"  {g.part}: one kernel ({g.file}) for "
-                     + " -> ".join(f"{m} ({t}, {form})" for m, t, form in g.members))
+        lines.append(f"  {g.part}: one kernel ({g.file}) for")
+        lines += [f"    {'-> ' if i else ''}{m} ({t}, {form})"
+                  for i, (m, t, form) in enumerate(g.members)]
     for edge, why in plan.unfused:
-        lines.append(f"  not fused: {edge}: {why}")
+        lines.append(f"  not fused: {edge}:")
+        lines.append(f"    {why}")
     return lines
 
 

@@ -107,9 +107,9 @@ def test_plan_and_check_name_groups_and_why_edges_stay_unfused(tmp_path):
         proc = subprocess.run([sys.executable, "-m", "gpucompgen", command, str(model)],
                               capture_output=True, text=True, check=False)
         assert proc.returncode == 0, proc.stderr
-        assert "m2_b1: one kernel (group_m2_b1.cl) for m2 (VerticalMirror, index_map) -> " \
-            "b1 (BoxBlur, stencil)" in proc.stdout
-        assert "not fused: b2.smooth -> m3.image: the model sets 'fuse: false' on m3" \
+        assert "m2_b1: one kernel (group_m2_b1.cl) for\n    m2 (VerticalMirror, index_map)\n" \
+            "    -> b1 (BoxBlur, stencil)" in proc.stdout
+        assert "not fused: b2.smooth -> m3.image:\n    the model sets 'fuse: false' on m3" \
             in proc.stdout
     off = subprocess.run([sys.executable, "-m", "gpucompgen", "plan", str(model),
                           "--fusion", "off"], capture_output=True, text=True, check=False)

@@ -36,7 +36,7 @@ def mirror_class(tmp_path_factory, cl_context):
     from gpucompgen.build import compile_model, write
 
     out = tmp_path_factory.mktemp("mirror")
-    write(compile_model(MODEL, out), out)
+    write(compile_model(MODEL, out, fusion="off"), out)
     return load_generated(out / "mirror_chain.py", "mirror_class_under_test").VerticalMirror
 
 
@@ -75,7 +75,7 @@ def chains(tmp_path_factory, cl_context):
     modules = {}
     for mode in ("gpu-aware", "standard"):
         out = tmp_path_factory.mktemp(mode)
-        write(compile_model(MODEL, out, mode), out)
+        write(compile_model(MODEL, out, mode, fusion="off"), out)
         modules[mode] = load_generated(out / "mirror_chain.py",
                                        f"mirror_chain_{mode.replace('-', '_')}")
     return modules
@@ -139,7 +139,7 @@ def test_zero_copy_chain_copies_nothing_and_profiles_its_maps(tmp_path, cl_conte
 
     from gpucompgen.build import compile_model, write
 
-    write(compile_model(MODEL, tmp_path, zero_copy="on"), tmp_path)
+    write(compile_model(MODEL, tmp_path, zero_copy="on", fusion="off"), tmp_path)
     module = load_generated(tmp_path / "mirror_chain.py", "mirror_chain_zero_copy_profile")
     copies = []
     real_copy = cl.enqueue_copy

@@ -42,12 +42,16 @@ class AllocateGpu(Pass):
                 problems = limit_problems(tile, bx, by, bz, decl, dev)
                 for p in problems:
                     if "kernel" in p:
-                        hint = f"the kernel of '{inst.type.name}' accepts {decl.accepts()}"
+                        kernel = (f"the kernel of '{inst.type.name}'" if given[0] == name
+                                  else f"the kernel of fused group {name}")
+                        hint = f"{kernel} accepts {decl.accepts()}"
                     else:
                         hint = (f"device '{dev.name}' allows work-groups of at most "
                                 f"{dev.max_work_group_size} threads, "
                                 f"{list(dev.max_work_item_sizes)} per dimension")
-                    rep.error(pos, f"gpu_settings of '{name}': {p}", hint)
+                    owner = given[0] if given[0] == name else \
+                        f"{given[0]}, which runs in fused group {name}"
+                    rep.error(pos, f"gpu_settings of '{owner}': {p}", hint)
                 if problems:
                     continue
                 system.settings[name] = GpuSettings(tile, bx, by, bz, "model")

@@ -241,7 +241,7 @@ def lower(system: System) -> ProgramPlan:
         else:
             for p, port in node.outputs.items():
                 buffers.append(Buffer(name, p, f"{name}.{p}", "host", port.data))
-        type_name = (f"group of {', '.join(m.name for m in node.members)}" if group else t.name)
+        type_name = "fused group" if group else t.name
         parts.append(Part(name, "component", t.name, type_name, "GPU" if node.on_gpu else "CPU",
                           system.stages[name], queue_of(name) if node.on_gpu else None,
                           programs.get(t.name) if node.on_gpu else None, params,

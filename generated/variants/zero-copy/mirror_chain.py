@@ -9,12 +9,12 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 """
 
 # System plan:
-#   step  name                                                                       stage  queue  runs      GPU settings            threads
-#   1     source (StillImage)                                                        1      -      CPU       -                       -
-#   2     adapter1_cpu2gpu                                                           1      -      in place  -                       -
-#   3     mirror1_to_mirror5 (group of mirror1, mirror2, mirror3, mirror4, mirror5)  6      -      GPU       tile 32, block 16x16x1  16,384
-#   4     adapter2_gpu2cpu                                                           6      -      map       -                       -
-#   5     sink (FrameSink)                                                           7      -      CPU       -                       -
+#   step  name                              stage  queue  runs      GPU settings            threads
+#   1     source (StillImage)               1      -      CPU       -                       -
+#   2     adapter1_cpu2gpu                  1      -      in place  -                       -
+#   3     mirror1_to_mirror5 (fused group)  6      -      GPU       tile 32, block 16x16x1  16,384
+#   4     adapter2_gpu2cpu                  6      -      map       -                       -
+#   5     sink (FrameSink)                  7      -      CPU       -                       -
 #
 #   buffer                               memory              size                  bytes
 #   source.image                         host                864x1152x3 uint8  2,985,984
@@ -31,7 +31,12 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 #   thread budget: 16,384 (device total); GPU components that can run at the same time:
 #     mirror1_to_mirror5: 16,384 threads
 #   fusion: auto, 1 group:
-#     mirror1_to_mirror5: one kernel (group_mirror1_to_mirror5.cl) for mirror1 (VerticalMirror, index_map) -> mirror2 (VerticalMirror, index_map) -> mirror3 (VerticalMirror, index_map) -> mirror4 (VerticalMirror, index_map) -> mirror5 (VerticalMirror, index_map)
+#     mirror1_to_mirror5: one kernel (group_mirror1_to_mirror5.cl) for
+#       mirror1 (VerticalMirror, index_map)
+#       -> mirror2 (VerticalMirror, index_map)
+#       -> mirror3 (VerticalMirror, index_map)
+#       -> mirror4 (VerticalMirror, index_map)
+#       -> mirror5 (VerticalMirror, index_map)
 
 from __future__ import annotations
 
@@ -53,7 +58,8 @@ LIB_DIR = Path(__file__).resolve().with_name('mirror_chain_lib')
 
 
 class FusedMirror1ToMirror5(runtime.KernelComponent):
-    """GPU-aware component FusedMirror1ToMirror5: kernel mirror1_to_mirror5() in group_mirror1_to_mirror5.cl.
+    """GPU-aware component FusedMirror1ToMirror5:
+    kernel mirror1_to_mirror5() in group_mirror1_to_mirror5.cl.
 
     One work-group of block_x * block_y * block_z threads covers a tile x tile square
     of 'mirrored'.
