@@ -22,6 +22,13 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 #   mirror1_to_mirror5.mirrored          device  864x1152x3 uint8  2,985,984
 #   adapter2_gpu2cpu (mirror5.mirrored)  host    864x1152x3 uint8  2,985,984
 #
+#   placement of flexible components:
+#     mirror1: GPU (by default)
+#     mirror2: GPU (by default)
+#     mirror3: GPU (by default)
+#     mirror4: GPU (by default)
+#     mirror5: GPU (by default)
+#
 #   device: portable OpenCL 1.2 device
 #   peak device memory: 5,971,968 bytes; peak host memory: 5,971,968 bytes
 #   (every buffer is allocated once, at start)
@@ -158,6 +165,7 @@ def run(frames=None, context=None, monitor=None, profile=False):
             source_image = source.execute()
             if source_image is None:
                 break  # end of stream
+            runtime.check_frame('source.image', source_image, (864, 1152, 3), np.uint8)
             source_image_gpu = adapter1_cpu2gpu.transfer(source_image)
             mirror1_to_mirror5_mirrored = mirror1_to_mirror5.execute(source_image_gpu)
             mirror5_mirrored_cpu = adapter2_gpu2cpu.transfer(mirror1_to_mirror5_mirrored)

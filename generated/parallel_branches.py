@@ -26,6 +26,12 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 #   blur1_to_detector.mask            device  480x1280x1 uint8  614,400
 #   adapter3_gpu2cpu (detector.mask)  host    480x1280x1 uint8  614,400
 #
+#   placement of flexible components:
+#     blur1: GPU (by default)
+#     blur2: GPU (by default)
+#     merger: GPU (by default)
+#     detector: GPU (by default)
+#
 #   device: portable OpenCL 1.2 device
 #   peak device memory: 2,457,600 bytes; peak host memory: 2,457,600 bytes
 #   (every buffer is allocated once, at start)
@@ -175,6 +181,8 @@ def run(frames=None, context=None, monitor=None, profile=False):
             camera2_image = camera2.execute()
             if camera1_image is None or camera2_image is None:
                 break  # end of stream
+            runtime.check_frame('camera1.image', camera1_image, (480, 640, 3), np.uint8)
+            runtime.check_frame('camera2.image', camera2_image, (480, 640, 3), np.uint8)
             camera1_image_gpu = adapter1_cpu2gpu.transfer(camera1_image)
             camera2_image_gpu = adapter2_cpu2gpu.transfer(camera2_image)
             blur1_to_detector_mask = blur1_to_detector.execute(

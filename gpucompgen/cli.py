@@ -1,4 +1,4 @@
-"""gpucompgen's command line: build, run, check, plan, graph, bench, devices, schema.
+"""gpucompgen's command line: build, run, check, plan, graph, bench, devices, types, schema.
 
 Exit codes as in black and datamodel-codegen: 0 ok, 1 problems found (or stale output with
 --check), 2 usage or internal error.  A user sees a traceback only with --debug.
@@ -16,7 +16,7 @@ import traceback
 from pathlib import Path
 
 from . import __version__
-from .errors import GpucompgenError, OutputError
+from .errors import GpucompgenError, OutputError, UsageError
 from .ir import MODES
 from .model import EXECUTIONS, FUSION, ZERO_COPY
 from .runtime import add_program_options
@@ -24,7 +24,8 @@ from .runtime import add_program_options
 EPILOG = """\
 exit codes: 0 ok; 1 problems in the model, stale output with --check, or a failed run;
 2 usage or internal error (and a missing Graphviz for graph).
-A run stopped by SIGINT or SIGTERM exits 130 or 143.
+A run stopped by SIGINT or SIGTERM exits 130 or 143; a program killed by a signal
+exits 128 + its number (139 for SIGSEGV), and 'run' names the signal.
 
 examples:
   gpucompgen build models/vision_system.yaml              write generated/vision_system.py
@@ -55,6 +56,22 @@ def _common(p: argparse.ArgumentParser,
     p.add_argument("--fusion", choices=FUSION,
                    help="auto: chains of fusable GPU components run as one kernel; off: one "
                         "kernel per component (default: the model's platform.fusion, else auto)")
+    p.add_argument("--place", action="append", type=_place, default=[], metavar="NAME=SIDE",
+                   help="run flexible component NAME on SIDE: gpu, cpu or auto (chosen with "
+                        "the others by the cost model); repeatable; overrides the model")
+
+
+def _place(text: str) -> tuple[str, str]:
+    name, sep, side = text.partition("=")
+    if not sep or not name.strip() or side.strip() not in ("gpu", "cpu", "auto"):
+        raise argparse.ArgumentTypeError(
+            f"{text!r}: write COMPONENT=gpu, COMPONENT=cpu or COMPONENT=auto")
+    return name.strip(), side.strip()
+
+
+def places(args) -> dict[str, str]:
+    """--place options as {component: side}; the last one for a component wins."""
+    return dict(getattr(args, "place", None) or [])
 
 
 def _sub(sub, name: str, summary: str, description: str) -> argparse.ArgumentParser:
@@ -114,6 +131,19 @@ def parser() -> argparse.ArgumentParser:
               "between CPU and GPU per frame.")
     _common(pl)
 
+    tu = _sub(sub, "tune", "time flexible components on the CPU and the device (profile)",
+              "Run every flexible component of MODEL at the model's sizes, its CPU function\n"
+              "and its kernel on the OpenCL device (PYOPENCL_CTX), for a few frames each, and\n"
+              "time one copy between host and device. Writes the profile that\n"
+              "'placement: auto' reads: the model's platform.profile, else\n"
+              "tune/<system>.yaml beside the model.")
+    tu.add_argument("model", type=Path, metavar="MODEL", help="the system model (.yaml)")
+    tu.add_argument("-o", "--output", type=Path, metavar="FILE",
+                    help="where to write the profile (default: the model's platform.profile, "
+                         "else tune/<system>.yaml beside the model)")
+    tu.add_argument("--frames", type=int, default=20, metavar="N",
+                    help="frames timed per component and side (default: 20)")
+
     g = _sub(sub, "graph", "draw the architecture (.dot, .svg, .png)",
              "Draw MODEL's architecture as in the paper's Figure 3: components (GPU-aware\n"
              "ones and their GPU ports marked), the generated adapters as nodes of their own,\n"
@@ -148,6 +178,16 @@ def parser() -> argparse.ArgumentParser:
     dv.add_argument("-q", "--quiet", action="store_true",
                     help="print nothing; only the exit code says whether a device is usable")
 
+    ty = sub.add_parser(
+        "types", help="list the component types a model can use, or show one in full",
+        description="List every component type available to a model: the library's, plus the "
+                    "model's own with --model (name, kind, one line of description). With "
+                    "NAME: its ports, parameters (types, defaults, ranges), requirements, the "
+                    "forms it runs in and its description, as gst-inspect does for GStreamer.")
+    ty.add_argument("name", nargs="?", metavar="NAME", help="the type to show in full")
+    ty.add_argument("--model", type=Path, metavar="MODEL",
+                    help="also the types this system model declares (its 'types:' files)")
+
     sc = sub.add_parser("schema", help="print the JSON Schema of model files",
                         description="Print the JSON Schema of system models (or, with "
                                     "--types, of component-type files) for editors and tools.")
@@ -163,11 +203,12 @@ def main(argv: list[str] | None = None) -> int:
         model = getattr(args, "model", None)
         if model is not None and not model.is_file():
             # The command line names no model file: a usage error, like argparse's own.
-            what = "is a directory, not a model file" if model.is_dir() else "no such file"
+            what = "is a directory, not a model file" if model.is_dir() else \
+                "not a regular file" if model.exists() else "no such file"
             print(f"gpucompgen {args.command}: error: {model}: {what}", file=sys.stderr)
             return 2
         return COMMANDS[args.command](args)
-    except OutputError as exc:
+    except (OutputError, UsageError) as exc:
         print(f"gpucompgen {args.command}: error: {exc}", file=sys.stderr)
         return 2
     except GpucompgenError as exc:
@@ -203,7 +244,7 @@ def _compile(args, out_dir: Path):
             print(text, file=sys.stderr)
     result = compile_model(args.model, out_dir, args.mode, args.device, dump,
                            execution=args.execution, zero_copy=args.zero_copy,
-                           verify=True if args.debug else None,
+                           verify=True if args.debug else None, places=places(args),
                            fusion=getattr(args, "fusion", None))
     for w in result.warnings:
         print(w.format(), file=sys.stderr)
@@ -234,38 +275,142 @@ def cmd_build(args) -> int:
 
 
 def cmd_run(args) -> int:
+    def stop_building(signum, frame):
+        # SIGTERM while building: remove the temporary folder on the way out (SIGINT
+        # raises KeyboardInterrupt, which does the same)
+        print("gpucompgen run: stopped by SIGTERM while building", file=sys.stderr)
+        raise SystemExit(128 + signum)
+
+    # installed before the folder exists and kept until run_program forwards SIGTERM
+    previous = signal.signal(signal.SIGTERM, stop_building)
+    try:
+        with tempfile.TemporaryDirectory(prefix="gpucompgen-run-") as tmp:
+            return _build_and_run(args, Path(tmp))
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def _build_and_run(args, out: Path) -> int:
     from .build import write
 
-    with tempfile.TemporaryDirectory(prefix="gpucompgen-run-") as tmp:
-        out = Path(tmp)
-        result = _compile(args, out)
-        write(result, out)
-        program = out / f"{result.system.name}.py"
-        cmd = [sys.executable, str(program)]
-        for flag, value in (("--frames", args.frames), ("--stats-json", args.stats_json),
-                            ("--decisions", args.decisions),
-                            ("--save-images", args.save_images)):
-            if value is not None:
-                cmd += [flag, str(value)]
-        if args.quiet:
-            cmd.append("--quiet")
-        if args.debug:
-            cmd.append("--debug")
-        if args.profile:
-            cmd.append("--profile")
-        # The program stops cleanly on SIGINT (which a terminal sends it too) and SIGTERM
-        # (forwarded here); wait for it to free everything and take its exit code.
-        with subprocess.Popen(cmd, env=dict(os.environ)) as proc:
-            previous = signal.signal(signal.SIGTERM,
-                                     lambda signum, frame: proc.send_signal(signum))
-            try:
-                while True:
-                    try:
-                        return proc.wait()
-                    except KeyboardInterrupt:
+    result = _compile(args, out)
+    write(result, out)
+    program = out / f"{result.system.name}.py"
+    cmd = [sys.executable, str(program)]
+    for flag, value in (("--frames", args.frames), ("--stats-json", args.stats_json),
+                        ("--decisions", args.decisions),
+                        ("--save-images", args.save_images)):
+        if value is not None:
+            cmd += [flag, str(value)]
+    if args.quiet:
+        cmd.append("--quiet")
+    if args.debug:
+        cmd.append("--debug")
+    if args.profile:
+        cmd.append("--profile")
+    return run_program(cmd)
+
+
+FORWARDED_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+# A program still running this long after a forwarded signal is killed: its own limit is
+# 1.5 s once its runtime has taken the signal over, after a start that can take seconds.
+KILL_AFTER_SECONDS = 10.0
+
+# What a program killed by a signal most likely met, for the message of 'gpucompgen run'.
+_DEATHS = {
+    signal.SIGSEGV: "a kernel (or other native code) accessed memory out of bounds; see "
+                    "'Finding an out-of-bounds kernel' in the README",
+    signal.SIGBUS: "a kernel (or other native code) accessed memory out of bounds; see "
+                   "'Finding an out-of-bounds kernel' in the README",
+    signal.SIGILL: "native code (a kernel or the OpenCL driver) crashed",
+    signal.SIGFPE: "native code (a kernel or the OpenCL driver) crashed",
+    signal.SIGABRT: "native code (the OpenCL driver?) aborted",
+    signal.SIGKILL: "killed from outside, often by the out-of-memory killer (see "
+                    "'dmesg')",
+}
+
+
+def _signal_name(signum: int) -> str:
+    try:
+        return f"{signal.Signals(signum).name} ({signum})"
+    except ValueError:
+        return f"signal {signum}"
+
+
+def run_program(cmd: list[str], kill_after: float = KILL_AFTER_SECONDS) -> int:
+    """Run a generated program, forward SIGINT and SIGTERM to it, take its exit code.
+
+    The program stops cleanly on either (freeing everything, within about 2 s even when
+    a kernel never ends) and ignores repeats while it stops: a terminal's Ctrl-C reaches
+    it directly and through here. It starts with SIGINT ignored until its runtime takes
+    the signal over (no KeyboardInterrupt traceback while it imports), so a signal is
+    forwarded again every half second until it ends, and after kill_after seconds it is
+    killed. A program killed by a signal is reported with the signal's name; the exit
+    code is then 128 + its number, as a shell gives.
+    """
+    import contextlib
+    import time
+
+    received: list[int] = []
+    sent_at = 0.0
+    proc = None
+
+    def forward(signum, frame):
+        nonlocal sent_at
+        if not received:
+            received.append(signum)
+            sent_at = time.monotonic()
+        if proc is not None:  # else sent once it exists (the loop below re-sends)
+            with contextlib.suppress(OSError):
+                proc.send_signal(signum)
+
+    previous = {s: signal.getsignal(s) for s in FORWARDED_SIGNALS}
+    signal.signal(signal.SIGTERM, forward)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # inherited by the program
+    try:
+        proc = subprocess.Popen(cmd, env=dict(os.environ))
+    except BaseException:
+        for s, h in previous.items():
+            signal.signal(s, h)
+        raise
+    signal.signal(signal.SIGINT, forward)
+    if received:
+        with contextlib.suppress(OSError):
+            proc.send_signal(received[0])
+    killed = False
+    with proc:
+        try:
+            while True:
+                try:
+                    code = proc.wait(timeout=0.5)
+                    break
+                except subprocess.TimeoutExpired:
+                    if not received:
                         continue
-            finally:
-                signal.signal(signal.SIGTERM, previous)
+                    if time.monotonic() - sent_at > kill_after:
+                        proc.kill()
+                        code, killed = proc.wait(), True
+                        break
+                    with contextlib.suppress(OSError):
+                        proc.send_signal(received[0])
+        finally:
+            for s, h in previous.items():
+                signal.signal(s, h)
+    if killed:
+        print(f"gpucompgen run: error: the program did not stop within {kill_after:g} s of "
+              f"{signal.Signals(received[0]).name}; killed it", file=sys.stderr)
+        return 128 + received[0]
+    if code >= 0:
+        return code
+    signum = -code
+    if received and signum == received[0]:  # it had not taken the signal over yet
+        print(f"gpucompgen run: the program was stopped by {_signal_name(signum)} while "
+              "starting", file=sys.stderr)
+    else:
+        why = _DEATHS.get(signum, "")
+        print(f"gpucompgen run: error: the program was killed by signal "
+              f"{_signal_name(signum)}" + (f": {why}" if why else ""), file=sys.stderr)
+    return 128 + signum
 
 
 def cmd_check(args) -> int:
@@ -291,6 +436,30 @@ def cmd_plan(args) -> int:
     result = _compile(args, Path("generated"))
     for line in plan_lines(result.system.plan):
         print(line)
+    return 0
+
+
+def cmd_tune(args) -> int:
+    from .model import load_system
+    from .runtime import PipelineError
+    from .tune import default_profile_path, tune
+
+    if args.frames < 1:
+        print("gpucompgen tune: error: --frames must be 1 or more", file=sys.stderr)
+        return 2
+    try:
+        text, rows = tune(args.model, args.frames, str(args.model))
+    except PipelineError as exc:
+        print(f"gpucompgen tune: error: {exc}", file=sys.stderr)
+        return 2
+    out = args.output or default_profile_path(args.model, load_system(args.model))
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(text, encoding="utf-8")
+    width = max([len(r[0]) for r in rows] + [9])
+    print(f"{'component':<{width}}  {'CPU us':>10}  {'GPU us':>10}")
+    for name, _, _, cpu_us, gpu_us in rows:
+        print(f"{name:<{width}}  {cpu_us:>10,.1f}  {gpu_us:>10,.1f}")
+    print(f"wrote {out}")
     return 0
 
 
@@ -359,5 +528,29 @@ def cmd_schema(args) -> int:
     return 0
 
 
+def cmd_types(args) -> int:
+    """The types available (library, and the model's own with --model), or one in full."""
+    from .errors import did_you_mean
+    from .model import library_types, load_system
+    from .typeinfo import details, listing
+
+    types = load_system(args.model).types if args.model else library_types()
+    if args.name is None:
+        lines = listing(types)
+    elif args.name in types:
+        lines = details(types[args.name])
+    else:
+        where = f"available to {args.model}" if args.model else "in the library"
+        hint = did_you_mean(args.name, types)
+        if not args.model:
+            hint += " (a model's own types are listed with --model MODEL)"
+        print(f"gpucompgen types: error: no component type '{args.name}' {where}\n"
+              f"  hint: {hint}", file=sys.stderr)
+        return 1
+    print("\n".join(lines))
+    return 0
+
+
 COMMANDS = {"build": cmd_build, "run": cmd_run, "check": cmd_check, "plan": cmd_plan,
+            "tune": cmd_tune, "types": cmd_types,
             "graph": cmd_graph, "bench": cmd_bench, "devices": cmd_devices, "schema": cmd_schema}

@@ -39,6 +39,42 @@ PROFILES: dict[str, DeviceFacts] = {
 }
 
 FACT_KEYS = tuple(f.name for f in fields(DeviceFacts))
+# the range a declared integer fact must be in: beyond it, it is a typo, not a device
+FACT_RANGES = {
+    "compute_units": (1, 1 << 20),
+    "max_work_group_size": (1, 1 << 20),
+    "max_work_item_sizes": (1, (1 << 31) - 1),
+    "local_mem_size": (1, 1 << 30),
+    "global_mem_size": (1 * MiB, 1 << 50),
+    "max_mem_alloc_size": (1 * MiB, 1 << 50),
+    "threads_per_compute_unit": (1, 1 << 16),
+}
+MAX_NAME = 100
+
+
+def _fact_problem(key: str, value: Any) -> str:
+    """Why value cannot be the device fact key ('' when it can)."""
+    if key == "name":
+        if not isinstance(value, str) or not 0 < len(value) <= MAX_NAME:
+            return f"device name must be a string of 1 to {MAX_NAME} characters"
+        return ""
+    if key == "host_unified_memory":
+        return "" if isinstance(value, bool) else "host_unified_memory must be true or false"
+    low, high = FACT_RANGES[key]
+    if key == "max_work_item_sizes":
+        if not (isinstance(value, list) and len(value) == 3 and all(
+                isinstance(v, int) and not isinstance(v, bool) and low <= v <= high
+                for v in value)):
+            return (f"max_work_item_sizes must be a list of three integers from {low:,} "
+                    f"to {high:,}")
+        return ""
+    if isinstance(value, bool) or not isinstance(value, int) or value <= 0:
+        return f"device fact '{key}' must be a positive integer, not {value!r}"
+    if not low <= value <= high:
+        unit = " bytes" if key.endswith("_size") and key != "max_work_group_size" else ""
+        return (f"device fact '{key}' is {value:,}{unit}, outside the range of real devices "
+                f"({low:,} to {high:,}{unit})")
+    return ""
 
 
 def resolve(spec: Any, pos: Pos, rep: Reporter,
@@ -80,27 +116,20 @@ def resolve(spec: Any, pos: Pos, rep: Reporter,
             rep.error(key_pos, f"unknown device fact '{key}'",
                       did_you_mean(str(key), FACT_KEYS + ("profile",)))
             continue
-        if key == "name":
-            if not isinstance(value, str):
-                rep.error(value_pos, "device name must be a string")
-                continue
-        elif key == "host_unified_memory":
-            if not isinstance(value, bool):
-                rep.error(value_pos, "host_unified_memory must be true or false")
-                continue
-        elif key == "max_work_item_sizes":
-            if not (isinstance(value, list) and len(value) == 3 and all(
-                    isinstance(v, int) and not isinstance(v, bool) and v > 0 for v in value)):
-                rep.error(value_pos,
-                          "max_work_item_sizes must be a list of three positive integers")
-                continue
-            value = tuple(value)
-        elif isinstance(value, bool) or not isinstance(value, int) or value <= 0:
-            rep.error(value_pos,
-                      f"device fact '{key}' must be a positive integer, not {value!r}")
+        problem = _fact_problem(key, value)
+        if problem:
+            rep.error(value_pos, problem)
             continue
-        changes[key] = value
-    return replace(PROFILES[base_name], **changes)
+        changes[key] = tuple(value) if key == "max_work_item_sizes" else value
+    facts = replace(PROFILES[base_name], **changes)
+    if facts.max_mem_alloc_size > facts.global_mem_size:
+        key = "max_mem_alloc_size" if "max_mem_alloc_size" in changes else "global_mem_size"
+        rep.error(positions.get(key, (pos, pos))[1],
+                  f"max_mem_alloc_size ({facts.max_mem_alloc_size:,} bytes) is larger than "
+                  f"global_mem_size ({facts.global_mem_size:,} bytes)",
+                  "one allocation cannot be larger than the device's memory")
+        return None
+    return facts
 
 
 def query_device(device: Any = None) -> DeviceFacts:

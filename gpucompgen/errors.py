@@ -34,6 +34,11 @@ class OutputError(Exception):
     """An output path that cannot take what gpucompgen writes (a usage error, exit 2)."""
 
 
+class UsageError(Exception):
+    """A command-line option that does not fit the model, e.g. --place of an unknown
+    component (a usage error, exit 2)."""
+
+
 class GpucompgenError(Exception):
     """The project's one error type: carries one or more diagnostics."""
 

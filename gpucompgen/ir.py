@@ -101,11 +101,21 @@ class ComponentNode(Node):
     placement: str = "cpu"  # "gpu" | "cpu"
     order: int = 0  # position in the model: ties in the run order follow it
     fuse: bool = True  # the model's 'fuse: false' keeps it out of every group
+    # a flexible component: what was asked ("gpu" | "cpu" | "auto") and by whom ("model",
+    # "platform.placement", "command line", "default"); the place pass decides "auto"
+    asked: str = ""
+    placed_by: str = ""
     kind: ClassVar[str] = "component"
 
     @property
     def on_gpu(self) -> bool:
         return self.placement == "gpu"
+
+    def place(self, side: str, mode: str) -> None:
+        """Run on side ("gpu" | "cpu"): a flexible component's ports live there too."""
+        self.placement = side
+        for port in self.ports:
+            port.memory = port_memory(mode, side)
 
 
 @dataclass
@@ -201,11 +211,20 @@ class System:
     frame_end_waits: list[str] = field(default_factory=list)
     unmap_after: dict[str, list[str]] = field(default_factory=dict)
     plan: Any = None  # lower: the ProgramPlan
+    # place: how the flexible components were placed (passes/place.py's Placement)
+    placement: Any = None
 
     # --- queries -----------------------------------------------------------------------
     @property
     def components(self) -> dict[str, ComponentNode]:
         return {n: node for n, node in self.nodes.items() if isinstance(node, ComponentNode)}
+
+    def component(self, name: str) -> ComponentNode:
+        """A component by name, also when a fused group holds it."""
+        node = self.nodes.get(name)
+        if isinstance(node, ComponentNode):
+            return node
+        return next(m for g in self.groups for m in g.members if m.name == name)
 
     @property
     def groups(self) -> list[GroupNode]:
@@ -379,24 +398,48 @@ def port_memory(mode: str, decl_memory: str) -> str:
 
 
 def component_node(name: str, ctype: ComponentType, params: dict[str, Any], pos: Pos,
-                   order: int, mode: str = "gpu-aware", fuse: bool = True) -> ComponentNode:
+                   order: int, mode: str = "gpu-aware", asked: str = "",
+                   placed_by: str = "", fuse: bool = True) -> ComponentNode:
+    """A node of one instance; a flexible one starts where it is asked to run (on the GPU
+    when asked "auto", until the place pass decides)."""
+    side = "gpu" if ctype.gpu_aware else "cpu"
+    if ctype.flexible and asked == "cpu":
+        side = "cpu"
+
     def ports(decls):
-        return {p: Port(p, d.direction, port_memory(mode, d.memory), d.dtype, d.channels)
+        return {p: Port(p, d.direction, port_memory(mode, side if d.memory == "any" else d.memory),
+                        d.dtype, d.channels)
                 for p, d in decls.items()}
 
     return ComponentNode(name, pos, ports(ctype.inputs), ports(ctype.outputs), type=ctype,
-                         params=dict(params), placement="gpu" if ctype.gpu_aware else "cpu",
-                         order=order, fuse=fuse)
+                         params=dict(params), placement=side, order=order,
+                         asked=asked if ctype.flexible else "",
+                         placed_by=placed_by if ctype.flexible else "", fuse=fuse)
+
+
+def asked_placement(model: SystemModel, name: str,
+                    places: dict[str, str] | None = None) -> tuple[str, str]:
+    """Where a flexible component is asked to run, and by whom: the command line
+    (--place), its own 'placement:', platform.placement, else the GPU (the default)."""
+    inst = model.components[name]
+    if places and name in places:
+        return places[name], "command line"
+    if inst.placement:
+        return inst.placement, "model"
+    if model.placement != "gpu":
+        return model.placement, "platform.placement"
+    return "gpu", "default"
 
 
 def build_system(model: SystemModel, device: DeviceFacts, mode: str = "gpu-aware",
-                 execution: str = "parallel") -> System:
+                 execution: str = "parallel", places: dict[str, str] | None = None) -> System:
     """The IR of a parsed model: one node per instance, one edge per connection (duplicates
-    included: check-connections reports and drops them)."""
+    included: check-connections reports and drops them).  places: --place COMPONENT=SIDE."""
     system = System(model.name, model, device, mode, execution)
     for inst in sorted(model.components.values(), key=lambda i: i.order):
+        asked, by = asked_placement(model, inst.name, places)
         system.add_node(component_node(inst.name, inst.type, inst.params, inst.pos, inst.order,
-                                       mode, inst.fuse))
+                                       mode, asked, by, inst.fuse))
     for conn in model.connections:
         system.edges.append(Edge(conn.source, conn.target, conn.pos))
     return system
@@ -431,6 +474,8 @@ def _node_lines(system: System, node: Node) -> list[str]:
     if isinstance(node, ComponentNode):
         params = ", ".join(f"{k}={v!r}" for k, v in node.params.items())
         head = (f"component {node.name}: {node.type.name} on {node.placement.upper()}"
+                + (f" [asked {node.asked} by {node.placed_by}]"
+                   if node.placed_by not in ("", "default") else "")
                 + (f" ({params})" if params else ""))
     elif isinstance(node, AdapterNode):
         head = (f"adapter {node.name}: {node.direction} of {node.source}"

@@ -8,7 +8,9 @@ position, so later passes can point at the exact line and column of any value.
 
 from __future__ import annotations
 
+import os
 import re
+import stat
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -17,8 +19,10 @@ import yaml
 
 from .errors import Diagnostic, GpucompgenError, Pos
 
-MAX_FILE_BYTES = 1 << 20
+MAX_FILE_BYTES = 1 << 20  # a model or component-type file
+MAX_SOURCE_BYTES = 1 << 20  # a kernel (.cl) or Python file of a component type
 MAX_DEPTH = 32
+MAX_PROBLEMS = 100  # problems of the safe subset reported before reading stops
 
 PathKey = tuple  # a tuple of str keys and int indices
 
@@ -55,12 +59,13 @@ def _fail(file: str, mark: Any, message: str, hint: str = "") -> GpucompgenError
 def load_text(text: str, file: str) -> Document:
     """Parse YAML text into a Document, or raise GpucompgenError with every problem found.
 
-    A syntax error stops parsing, so it is reported alone; the safe-subset problems
-    (anchors, aliases, tags, merge and duplicate keys, YAML 1.1 numbers) are collected
-    over the whole file and reported together.
+    A syntax error stops parsing, so it is reported alone.  Anchors, aliases and tags are
+    found first, from the parser's events, and reported together; only a file without
+    them is composed, and then merge and duplicate keys and YAML 1.1 numbers are reported
+    together.
     """
     if len(text.encode("utf-8", "surrogatepass")) > MAX_FILE_BYTES:
-        raise _fail(file, None, f"file is larger than {MAX_FILE_BYTES} bytes",
+        raise _fail(file, None, f"file is larger than {MAX_FILE_BYTES:,} bytes",
                     "a model file should be a few kilobytes; split component types into files")
     problems: list[Diagnostic] = []
 
@@ -93,6 +98,14 @@ def load_text(text: str, file: str) -> Document:
                                 f"nesting is deeper than {MAX_DEPTH} levels", "flatten the model")
             elif isinstance(event, (yaml.MappingEndEvent, yaml.SequenceEndEvent)):
                 depth -= 1
+            if len(problems) >= MAX_PROBLEMS:
+                problems.append(Diagnostic(file, 0, 0, "error", f"more than {MAX_PROBLEMS} "
+                                           "problems: stopped reading the file"))
+                break
+        if problems:
+            # A file known to be bad is never composed: aliases (an "alias bomb" of nested
+            # [*a, *a, ...]) would be expanded exponentially by composing and converting.
+            raise GpucompgenError(problems)
         node = yaml.compose(text, Loader=yaml.SafeLoader)
     except yaml.MarkedYAMLError as exc:
         mark = exc.problem_mark or exc.context_mark
@@ -125,31 +138,105 @@ def _char(c: object) -> str:
     return f"U+{code:04X}" if code is not None else repr(c)
 
 
-def load_file(path: Path, display: str | None = None) -> Document:
-    """Read and parse a YAML file; display is the name used in messages."""
-    shown = display or str(path)
+class FileProblem(Exception):
+    """Why a file cannot be read as text; line and col > 0 place it inside the file."""
+
+    def __init__(self, message: str, hint: str = "", line: int = 0, col: int = 0,
+                 prefix: str = ""):
+        super().__init__(message)
+        self.message, self.hint, self.line, self.col = message, hint, line, col
+        self.prefix = prefix  # the text before a byte that is not UTF-8
+
+
+def read_text(path: Path, limit: int, what: str = "file") -> str:
+    """Read a UTF-8 text file of at most limit bytes, or raise FileProblem.
+
+    Only regular files are read: the path is looked at (``stat``) before it is opened, so
+    a FIFO, a directory or a device node is refused without blocking on it, and the file
+    opened is checked again (``fstat``) in case it changed in between.  No more than
+    limit + 1 bytes are ever read, whatever the file's size.
+    """
     try:
-        size = path.stat().st_size
-        if size > MAX_FILE_BYTES:
-            raise _fail(shown, None, f"file is larger than {MAX_FILE_BYTES} bytes")
-        raw = path.read_bytes()
-        text = raw.decode("utf-8")
+        info = os.stat(path)
     except FileNotFoundError:
-        raise GpucompgenError([Diagnostic(shown, 0, 0, "error", "file not found",
-                                          "check the path")]) from None
-    except IsADirectoryError:
-        raise GpucompgenError([Diagnostic(shown, 0, 0, "error", "is a directory, not a file",
-                                          "give the path of a .yaml file")]) from None
+        raise FileProblem(f"{what} not found", "check the path") from None
+    except OSError as exc:
+        raise FileProblem(f"cannot read {what}: {exc.strerror}") from None
+    _regular(info.st_mode, what)
+    _small(info.st_size, limit, what)
+    try:
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) |
+                     getattr(os, "O_NOCTTY", 0))
+    except OSError as exc:
+        raise FileProblem(f"cannot read {what}: {exc.strerror}") from None
+    try:
+        _regular(os.fstat(fd).st_mode, what)
+        chunks, size = [], 0
+        while size <= limit:
+            chunk = os.read(fd, limit + 1 - size)
+            if not chunk:
+                break
+            chunks.append(chunk)
+            size += len(chunk)
+    except OSError as exc:
+        raise FileProblem(f"cannot read {what}: {exc.strerror}") from None
+    finally:
+        os.close(fd)
+    raw = b"".join(chunks)
+    _small(len(raw), limit, what)
+    try:
+        return raw.decode("utf-8")
     except UnicodeDecodeError as exc:
         line = raw.count(b"\n", 0, exc.start) + 1
         col = exc.start - (raw.rfind(b"\n", 0, exc.start) + 1) + 1
-        raise GpucompgenError([Diagnostic(
-            shown, line, col, "error",
-            f"file is not UTF-8 text: byte 0x{raw[exc.start]:02x} ({exc.reason})",
-            "save the file as UTF-8")]) from None
-    except OSError as exc:
-        raise GpucompgenError([Diagnostic(shown, 0, 0, "error",
-                                          f"cannot read file: {exc.strerror}")]) from None
+        raise FileProblem(f"{what} is not UTF-8 text: byte 0x{raw[exc.start]:02x} "
+                          f"({exc.reason})", "save the file as UTF-8", line, col,
+                          raw[:exc.start].decode("utf-8")) from None
+
+
+def _regular(mode: int, what: str) -> None:
+    if stat.S_ISDIR(mode):
+        raise FileProblem(f"{what} is a directory, not a regular file",
+                          "give the path of a file")
+    if not stat.S_ISREG(mode):
+        kind = ("a FIFO" if stat.S_ISFIFO(mode) else "a device node"
+                if stat.S_ISCHR(mode) or stat.S_ISBLK(mode) else "a socket"
+                if stat.S_ISSOCK(mode) else "special")
+        raise FileProblem(f"{what} is {kind}, not a regular file", "give the path of a file")
+
+
+def _small(size: int, limit: int, what: str) -> None:
+    if size > limit:
+        raise FileProblem(f"{what} is larger than {limit:,} bytes ({size:,} bytes)",
+                          "keep it smaller: split it into several files")
+
+
+def starts_with_key(text: str, key: str) -> bool:
+    """The YAML text is a mapping whose first key is key (read no further than that key,
+    so nothing of a file that is not what it should be gets quoted in messages)."""
+    expected = (yaml.StreamStartEvent, yaml.DocumentStartEvent, yaml.MappingStartEvent)
+    try:
+        for i, event in enumerate(yaml.parse(text, Loader=yaml.SafeLoader)):
+            if i < len(expected):
+                if not isinstance(event, expected[i]) or getattr(event, "anchor", None) \
+                        or (i == 2 and event.tag is not None and not event.implicit):
+                    return False
+                continue
+            return isinstance(event, yaml.ScalarEvent) and event.value == key and \
+                event.anchor is None and event.tag is None
+    except yaml.YAMLError:
+        return False
+    return False
+
+
+def load_file(path: Path, display: str | None = None, what: str = "file") -> Document:
+    """Read and parse a YAML file; display is the name used in messages."""
+    shown = display or str(path)
+    try:
+        text = read_text(path, MAX_FILE_BYTES, what)
+    except FileProblem as exc:
+        raise GpucompgenError([Diagnostic(shown, exc.line, exc.col, "error", exc.message,
+                                          exc.hint)]) from None
     return load_text(text, shown)
 
 

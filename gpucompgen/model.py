@@ -16,8 +16,18 @@ from typing import Any
 
 from . import fusable as fusable_forms
 from . import sizeexpr
-from .errors import Pos, Reporter, did_you_mean
-from .loader import Document, load_file
+from .backend.opencl import signature
+from .errors import Diagnostic, GpucompgenError, Pos, Reporter, did_you_mean
+from .loader import (
+    MAX_FILE_BYTES,
+    MAX_SOURCE_BYTES,
+    Document,
+    FileProblem,
+    load_file,
+    load_text,
+    read_text,
+    starts_with_key,
+)
 from .names import CLASS_RESERVED, MODULE_NAMES, fold, member_names, name_problem, snake
 
 DTYPES = {  # element type → (numpy name, OpenCL C type, bytes)
@@ -30,8 +40,11 @@ DTYPES = {  # element type → (numpy name, OpenCL C type, bytes)
     "float32": ("float32", "float", 4),
 }
 MEMORIES = ("gpu", "cpu")
-PARAM_TYPES = {"int": int, "float": float, "bool": bool, "str": str}
-KINDS = ("standard", "gpu-aware")
+# "path": a string naming a file or folder; a relative one is relative to the model file
+PARAM_TYPES = {"int": int, "float": float, "bool": bool, "str": str, "path": str}
+KINDS = ("standard", "gpu-aware", "flexible")
+# where a component runs: "auto" lets the place pass choose (flexible types only)
+PLACEMENTS = ("gpu", "cpu", "auto")
 SETTING_KEYS = ("tile", "block_x", "block_y", "block_z")
 # How a kernel's work-groups cover its grid port: a tile x tile square of pixels each (the
 # paper's contract), or `tile` whole rows each (kernels that copy rows, e.g. VerticalMirror).
@@ -54,7 +67,7 @@ class ParamDecl:
 class PortDecl:
     name: str
     direction: str  # "in" | "out"
-    memory: str  # "gpu" | "cpu"
+    memory: str  # "gpu" | "cpu" | "any" (a flexible type's port: where it is placed)
     dtype: str
     channels: int
     height: ast.Expression | None = None  # outputs only
@@ -110,10 +123,24 @@ class ComponentType:
     python_class: str = ""
     gpu: GpuDecl = field(default_factory=GpuDecl)
     fusable: fusable_forms.FusableDecl | None = None  # None: opaque, never fused
+    # the kernel's and the Python file's text, as checked (build writes this text, never
+    # a file read again later)
+    kernel_text: str = ""
+    python_text: str = ""
+    # a flexible type's CPU implementation: a function in a Python file (never imported
+    # by the generator: checked with ast)
+    cpu_file: Path | None = None
+    cpu_function: str = ""
 
     @property
     def gpu_aware(self) -> bool:
-        return self.kind == "gpu-aware"
+        """The type has a GPU implementation (a kernel): gpu-aware or flexible."""
+        return self.kind in ("gpu-aware", "flexible")
+
+    @property
+    def flexible(self) -> bool:
+        """The type runs on either side: its kernel on the GPU, cpu.function on the CPU."""
+        return self.kind == "flexible"
 
     @property
     def snake(self) -> str:
@@ -130,6 +157,8 @@ class Instance:
     params: dict[str, Any]
     pos: Pos
     order: int
+    placement: str = ""  # "gpu" | "cpu" | "auto" as the model says; "" when it says nothing
+    placement_pos: Pos | None = None
     fuse: bool = True  # 'fuse: false': never fused with its neighbours
 
 
@@ -173,6 +202,12 @@ class SystemModel:
     platform_pos: Pos = Pos("")
     # platform.fusion: "auto" (chains of fusable GPU components become one kernel) | "off"
     fusion: str = "auto"
+    # platform.placement: where flexible components without their own 'placement:' run
+    # ("gpu" by default, "cpu", or "auto"); platform.profile: a `gpucompgen tune` file
+    placement: str = "gpu"
+    placement_pos: Pos | None = None
+    profile: Path | None = None
+    profile_pos: Pos | None = None
 
 
 # --------------------------------------------------------------------------- helpers
@@ -228,15 +263,23 @@ def _positive_int(doc: Document, rep: Reporter, path: tuple, value: Any, what: s
 # --------------------------------------------------------------------------- types
 
 TYPE_KEYS = ("kind", "description", "params", "inputs", "outputs", "requires", "kernel",
-             "python", "gpu", "fusable")
+             "python", "gpu", "cpu", "fusable")
 PORT_KEYS = ("memory", "dtype", "channels", "height", "width", "description")
 PARAM_KEYS = ("type", "default", "min", "max", "description")
+REQUIRE_KEYS = ("check", "message")
+KERNEL_KEYS = ("file", "function", "grid", "cover")
+GPU_KEYS = ("tiles", "block_z", "prefer", "max_threads", "square")
+PYTHON_KEYS = ("file", "class")
+CPU_KEYS = ("file", "function")
+FUSABLE_KEYS = ("form", "value", "radius", "border")
 
 
-def load_types_file(path: Path, display: str, origin: str, rep: Reporter
-                    ) -> dict[str, ComponentType]:
-    """Load one file of component types: ``component_types: {Name: {...}, ...}``."""
-    doc = load_file(path, display)
+def load_types_file(path: Path, display: str, origin: str, rep: Reporter,
+                    doc: Document | None = None) -> dict[str, ComponentType]:
+    """Load one file of component types: ``component_types: {Name: {...}, ...}`` (doc:
+    the file, already loaded)."""
+    if doc is None:
+        doc = load_file(path, display)
     if doc.data is None:
         rep.error(doc.pos(), "the component-type file is empty",
                   "start it with 'component_types:' and one or more types")
@@ -258,6 +301,7 @@ def load_types_file(path: Path, display: str, origin: str, rep: Reporter
 def _load_type(doc: Document, rep: Reporter, path: Path, origin: str, tname: str,
                spec: Any) -> ComponentType | None:
     base = ("component_types", tname)
+    seen = len(rep.diagnostics)
     # a GPU-aware type becomes a class of the generated program: a module-level name
     problem = name_problem(tname, "component type name", top_level=True)
     if problem:
@@ -268,8 +312,9 @@ def _load_type(doc: Document, rep: Reporter, path: Path, origin: str, tname: str
     kind = spec.get("kind")
     if kind not in KINDS:
         rep.error(doc.pos(*base, "kind") if "kind" in spec else doc.key_pos(*base),
-                  f"component type '{tname}' needs kind 'standard' or 'gpu-aware', "
-                  f"not {kind!r}", "add 'kind: gpu-aware' or 'kind: standard'")
+                  f"component type '{tname}' needs kind 'standard', 'gpu-aware' or "
+                  f"'flexible', not {kind!r}",
+                  "add 'kind: gpu-aware', 'kind: standard' or 'kind: flexible'")
         return None
     ctype = ComponentType(
         name=tname, kind=kind,
@@ -279,15 +324,14 @@ def _load_type(doc: Document, rep: Reporter, path: Path, origin: str, tname: str
         pos=doc.key_pos(*base))
     # parameters
     params = _expect_map(doc, rep, base + ("params",), spec.get("params"), "params")
-    for pname, pspec in params.items():
+    for pname, written in params.items():
         ppath = base + ("params", pname)
         problem = name_problem(pname, "parameter name")
         if problem:
             rep.error(doc.key_pos(*ppath), problem)
             continue
-        if isinstance(pspec, str):
-            pspec = {"type": pspec}
-        pspec = _expect_map(doc, rep, ppath, pspec, f"parameter '{pname}'")
+        pspec = _expect_map(doc, rep, ppath, {"type": written} if isinstance(written, str)
+                            else written, f"parameter '{pname}'")
         _unknown_keys(doc, rep, ppath, pspec, PARAM_KEYS, f"parameter '{pname}'")
         ptype = pspec.get("type")
         if not _named(ptype, PARAM_TYPES):
@@ -312,9 +356,13 @@ def _load_type(doc: Document, rep: Reporter, path: Path, origin: str, tname: str
                 bound = None
             bounds[key] = bound
         default = pspec.get("default")
+        if "default" in pspec and default is None:
+            rep.error(doc.pos(*ppath, "default"), f"default of '{pname}' is empty (null)",
+                      f"give {'an' if ptype == 'int' else 'a'} {ptype} default, or remove "
+                      "'default:' to make the parameter required")
         problem = None if default is None else _param_value_problem(
             default, ParamDecl(pname, ptype, minimum=bounds["min"], maximum=bounds["max"]),
-            kind == "gpu-aware")
+            kind in ("gpu-aware", "flexible"))
         if problem:
             rep.error(doc.pos(*ppath, "default"), f"default of '{pname}' {problem}",
                       f"give a {ptype} default within min and max, or none to make "
@@ -344,7 +392,7 @@ def _load_type(doc: Document, rep: Reporter, path: Path, origin: str, tname: str
     if not ctype.inputs and not ctype.outputs:
         rep.error(ctype.pos, f"component type '{tname}' has no ports",
                   "declare 'inputs:' and/or 'outputs:'")
-    if kind == "gpu-aware":
+    if kind in ("gpu-aware", "flexible"):
         _check_class_members(doc, rep, base, ctype)
     # output sizes need the input ports, so parse them after all ports are known
     for pname, port in list(ctype.outputs.items()):
@@ -355,22 +403,37 @@ def _load_type(doc: Document, rep: Reporter, path: Path, origin: str, tname: str
     if not isinstance(requires, list):
         rep.error(doc.pos(*base, "requires"), "requires must be a list of conditions")
         requires = []
-    for i, req in enumerate(requires):
+    for i, written in enumerate(requires):
         rpath = base + ("requires", i)
-        message = ""
-        if isinstance(req, dict):
-            _unknown_keys(doc, rep, rpath, req, ("check", "message"), "a requirement")
-            message = _text(doc, rep, rpath + ("message",), req.get("message"), "message")
-            req = req.get("check")
+        message, req = "", written
+        if isinstance(written, dict):
+            _unknown_keys(doc, rep, rpath, written, REQUIRE_KEYS, "a requirement")
+            message = _text(doc, rep, rpath + ("message",), written.get("message"), "message")
+            req = written.get("check")
         try:
-            tree = sizeexpr.parse(req, set(ctype.inputs), set(_int_params(ctype)))
+            tree = sizeexpr.parse(req, set(ctype.inputs), set(_int_params(ctype)),
+                                  condition=True)
         except sizeexpr.SizeExprError as exc:
             rep.error(doc.pos(*rpath), f"requirement of '{tname}': {exc}")
             continue
         ctype.requires.append((tree, message or f"requires {ast.unparse(tree.body)}"))
     # implementation
-    if kind == "gpu-aware":
-        _load_kernel(doc, rep, base, ctype, spec)
+    if kind == "flexible":
+        _load_kernel(doc, rep, base, ctype, spec, signature_check=len(rep.diagnostics) == seen)
+        _load_cpu(doc, rep, base, ctype, spec)
+        if "fusable" in spec:
+            _load_fusable(doc, rep, base, ctype, spec["fusable"])
+        if "python" in spec:
+            rep.error(doc.key_pos(*base, "python"),
+                      "a flexible type's CPU side is a function, 'cpu: {file, function}', "
+                      "not 'python'", "write 'cpu: {file: x.py, function: f}'")
+    elif kind == "gpu-aware":
+        _load_kernel(doc, rep, base, ctype, spec, signature_check=len(rep.diagnostics) == seen)
+        if "cpu" in spec:
+            rep.error(doc.key_pos(*base, "cpu"),
+                      f"'cpu' is only for flexible types; '{tname}' is gpu-aware",
+                      "set 'kind: flexible' (and remove 'memory:' from its ports) or "
+                      "remove 'cpu:'")
         if "fusable" in spec:
             _load_fusable(doc, rep, base, ctype, spec["fusable"])
         if "python" in spec:
@@ -379,11 +442,12 @@ def _load_type(doc: Document, rep: Reporter, path: Path, origin: str, tname: str
                       "remove 'python:' or make the type 'kind: standard'")
     else:
         _load_python(doc, rep, base, ctype, spec)
-        for key in ("kernel", "gpu", "fusable"):
+        for key in ("kernel", "gpu", "cpu", "fusable"):
             if key in spec:
                 rep.error(doc.key_pos(*base, key),
-                          f"'{key}' is only for GPU-aware types; '{tname}' is standard",
-                          "set 'kind: gpu-aware' or remove the key")
+                          f"'{key}' is only for GPU-aware or flexible types; '{tname}' is "
+                          "standard", "set 'kind: gpu-aware' or 'kind: flexible', or remove "
+                          "the key")
     return ctype
 
 
@@ -417,7 +481,7 @@ def _check_class_members(doc: Document, rep: Reporter, base: tuple,
 
 
 def gpu_kernel_param_problem(kind: str, ptype: str) -> bool:
-    return kind == "gpu-aware" and ptype == "str"
+    return kind in ("gpu-aware", "flexible") and ptype in ("str", "path")
 
 
 def _int_params(ctype: ComponentType) -> list[str]:
@@ -467,8 +531,16 @@ def _load_port(doc, rep, path, ctype, direction, pname, pspec) -> PortDecl | Non
         return None
     pspec = _expect_map(doc, rep, path, pspec, f"port '{pname}'")
     _unknown_keys(doc, rep, path, pspec, PORT_KEYS, f"port '{pname}'")
-    memory = pspec.get("memory", "cpu")
-    if memory not in MEMORIES:
+    if ctype.kind == "flexible":
+        if "memory" in pspec:
+            rep.error(doc.key_pos(*path, "memory"),
+                      f"port '{pname}' of flexible type '{ctype.name}' has no memory of its "
+                      "own: it lives where the component is placed",
+                      "remove 'memory:'; the system inserts the adapters its neighbours need")
+        memory = "any"
+    else:
+        memory = pspec.get("memory", "cpu")
+    if memory != "any" and memory not in MEMORIES:
         rep.error(doc.pos(*path, "memory"), f"port '{pname}': memory must be 'gpu' or 'cpu', "
                   f"not {memory!r}")
         return None
@@ -526,44 +598,78 @@ def _port_sizes(doc, rep, path, ctype, port: PortDecl, quiet: bool = False) -> P
                     trees.get("height"), trees.get("width"), port.pos)
 
 
-def _resolve_file(doc, rep, path, decl_dir: Path, value: Any, suffix: str) -> Path | None:
+def _resolve_file(doc, rep, path, decl_dir: Path, value: Any, suffix: str,
+                  what: str) -> tuple[Path, str] | None:
+    """A kernel or Python file of a type and its text, or None after reporting why not.
+
+    The file must be a regular file inside the folder of the type file, also after
+    resolving symbolic links, at most MAX_SOURCE_BYTES long and UTF-8 text."""
     if not isinstance(value, str) or not value:
         rep.error(doc.pos(*path), f"expected a file name ending in {suffix}")
         return None
     rel = Path(value)
-    if rel.is_absolute() or ".." in rel.parts or rel.suffix != suffix:
+    if "\0" in value or rel.is_absolute() or ".." in rel.parts or rel.suffix != suffix:
         rep.error(doc.pos(*path), f"file {value!r} must be a relative path ending in {suffix}, "
                   "inside the folder of the type file", "move the file next to the type file")
         return None
     full = decl_dir / rel
-    if not full.is_file():
-        rep.error(doc.pos(*path), f"file {value!r} not found (looked in {decl_dir.name}/)",
-                  "paths are relative to the component-type file")
+    try:
+        real = full.resolve()
+        inside = real.is_relative_to(decl_dir.resolve())
+    except (OSError, RuntimeError):  # a loop of links
+        inside = False
+    if not inside:
+        rep.error(doc.pos(*path), f"file {value!r} is a link to a file outside the folder "
+                  "of the type file", "copy the file next to the type file instead of "
+                  "linking to it")
         return None
-    return full
+    shown = str(Path(doc.file).parent / rel)
+    try:
+        text = read_text(full, MAX_SOURCE_BYTES, f"{what} {value!r}")
+    except FileProblem as exc:
+        if exc.line:  # not UTF-8: say where in that file
+            rep.diagnostics.append(Diagnostic(shown, exc.line, exc.col, "error", exc.message,
+                                              exc.hint))
+        elif exc.message.endswith("not found"):
+            rep.error(doc.pos(*path), f"file {value!r} not found (looked in {decl_dir.name}/)",
+                      "paths are relative to the component-type file")
+        else:
+            rep.error(doc.pos(*path), exc.message, exc.hint)
+        return None
+    return full, text
 
 
-def _load_kernel(doc, rep, base, ctype: ComponentType, spec) -> None:
+def _check_signature(doc, rep, base, ctype: ComponentType, kspec: dict) -> None:
+    """The kernel's real definition takes what the calling convention passes."""
+    pos = doc.pos(*base, "kernel", "function") if "function" in kspec else \
+        doc.key_pos(*base, "kernel")
+    shown = str(Path(doc.file).parent / kspec["file"])
+    try:
+        signature.check(ctype, ctype.kernel_text, ctype.kernel_function)
+    except signature.SignatureError as exc:
+        where = f"{shown}:{exc.line}" if exc.line else shown
+        rep.error(pos, f"kernel file {where}: {exc.message}", exc.hint)
+
+
+def _load_kernel(doc, rep, base, ctype: ComponentType, spec,
+                 signature_check: bool = True) -> None:
     kspec = _expect_map(doc, rep, base + ("kernel",), spec.get("kernel"), "kernel")
     if not kspec:
         rep.error(ctype.pos, f"GPU-aware type '{ctype.name}' needs 'kernel: {{file, function}}'")
         return
-    _unknown_keys(doc, rep, base + ("kernel",), kspec, ("file", "function", "grid", "cover"),
-                  "kernel")
-    ctype.kernel_file = _resolve_file(doc, rep, base + ("kernel", "file"),
-                                      ctype.decl_file.parent, kspec.get("file"), ".cl")
+    _unknown_keys(doc, rep, base + ("kernel",), kspec, KERNEL_KEYS, "kernel")
+    found = _resolve_file(doc, rep, base + ("kernel", "file"), ctype.decl_file.parent,
+                          kspec.get("file"), ".cl", "kernel file")
+    if found is not None:
+        ctype.kernel_file, ctype.kernel_text = found
     function = kspec.get("function", ctype.snake)
     problem = name_problem(function, "kernel function name")
     if problem:
         rep.error(doc.pos(*base, "kernel", "function"), problem)
     else:
         ctype.kernel_function = function
-        if ctype.kernel_file is not None and not re.search(
-                rf"__kernel\s+void\s+{function}\s*\(|kernel\s+void\s+{function}\s*\(",
-                ctype.kernel_file.read_text(encoding="utf-8", errors="replace")):
-            rep.error(doc.pos(*base, "kernel", "function"),
-                      f"kernel file {ctype.kernel_file.name} defines no "
-                      f"'__kernel void {function}(...)'", "check the function name")
+        if found is not None and signature_check:
+            _check_signature(doc, rep, base, ctype, kspec)
     grid = kspec.get("grid", next(iter(ctype.outputs), ""))
     if not _named(grid, ctype.outputs):
         rep.error(doc.pos(*base, "kernel", "grid") if "grid" in kspec else ctype.pos,
@@ -579,8 +685,7 @@ def _load_kernel(doc, rep, base, ctype: ComponentType, spec) -> None:
     else:
         ctype.cover = cover
     gspec = _expect_map(doc, rep, base + ("gpu",), spec.get("gpu"), "gpu")
-    _unknown_keys(doc, rep, base + ("gpu",), gspec,
-                  ("tiles", "block_z", "prefer", "max_threads", "square"), "gpu")
+    _unknown_keys(doc, rep, base + ("gpu",), gspec, GPU_KEYS, "gpu")
     decl = GpuDecl()
     tiles = gspec.get("tiles", list(decl.tiles))
     block_z = gspec.get("block_z", list(decl.block_z))
@@ -617,7 +722,7 @@ def _load_fusable(doc, rep, base, ctype: ComponentType, fspec) -> None:
     a device."""
     path = base + ("fusable",)
     fspec = _expect_map(doc, rep, path, fspec, "fusable")
-    _unknown_keys(doc, rep, path, fspec, ("form", "value", "radius", "border"), "fusable")
+    _unknown_keys(doc, rep, path, fspec, FUSABLE_KEYS, "fusable")
     form = fspec.get("form")
     if not _named(form, fusable_forms.FORMS):
         rep.error(doc.pos(*path, "form") if "form" in fspec else doc.key_pos(*path),
@@ -673,25 +778,161 @@ def _load_fusable(doc, rep, base, ctype: ComponentType, fspec) -> None:
                                               radius, border)
 
 
+def _check_class(doc, rep, base, ctype: ComponentType, pspec: dict) -> None:
+    """The Python file defines the class at module level: read with ast, never imported."""
+    shown = str(Path(doc.file).parent / pspec["file"])
+    try:
+        module = ast.parse(ctype.python_text, shown)
+    except SyntaxError as exc:
+        rep.diagnostics.append(Diagnostic(shown, exc.lineno or 1, exc.offset or 1, "error",
+                                          f"syntax error in Python file: {exc.msg}",
+                                          "fix the module: the generated program imports it"))
+        return
+    except (ValueError, RecursionError, MemoryError) as exc:
+        rep.error(doc.pos(*base, "python", "file"),
+                  f"Python file {pspec['file']!r} cannot be read as Python: "
+                  f"{type(exc).__name__}", "fix the module: the generated program imports it")
+        return
+    defined = module_names(module.body)
+    if ctype.python_class not in defined:
+        classes = [n for n, kind in defined.items() if kind == "class"]
+        pos = doc.pos(*base, "python", "class") if "class" in pspec else \
+            doc.key_pos(*base, "python")
+        rep.error(pos, f"class '{ctype.python_class}' is not defined in {shown}",
+                  did_you_mean(ctype.python_class, classes) if classes else
+                  f"define 'class {ctype.python_class}:' at the top level of {pspec['file']}")
+
+
+def module_names(body: list[ast.stmt]) -> dict[str, str]:
+    """Names a module's top level binds: name -> "class" | "other" (also inside if/try/with
+    blocks at module level, never inside functions or classes)."""
+    names: dict[str, str] = {}
+    for node in body:
+        if isinstance(node, ast.ClassDef):
+            names[node.name] = "class"
+        elif isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+            names.setdefault(node.name, "other")
+        elif isinstance(node, (ast.Import, ast.ImportFrom)):
+            for alias in node.names:
+                if alias.name != "*":
+                    names.setdefault(alias.asname or alias.name.split(".")[0], "other")
+        elif isinstance(node, (ast.Assign, ast.AnnAssign, ast.AugAssign)):
+            targets = node.targets if isinstance(node, ast.Assign) else [node.target]
+            for target in targets:
+                for sub in ast.walk(target):
+                    if isinstance(sub, ast.Name):
+                        names.setdefault(sub.id, "other")
+        elif isinstance(node, (ast.If, ast.Try, ast.With, ast.For, ast.While)):
+            blocks = [node.body, getattr(node, "orelse", []), getattr(node, "finalbody", [])]
+            blocks += [h.body for h in getattr(node, "handlers", [])]
+            for block in blocks:
+                for name, kind in module_names(block).items():
+                    if names.get(name) != "class":
+                        names[name] = kind
+    return names
+
+
 def _load_python(doc, rep, base, ctype: ComponentType, spec) -> None:
     pspec = _expect_map(doc, rep, base + ("python",), spec.get("python"), "python")
     if not pspec:
         rep.error(ctype.pos, f"standard type '{ctype.name}' needs 'python: {{file, class}}'")
         return
-    _unknown_keys(doc, rep, base + ("python",), pspec, ("file", "class"), "python")
-    ctype.python_file = _resolve_file(doc, rep, base + ("python", "file"),
-                                      ctype.decl_file.parent, pspec.get("file"), ".py")
+    _unknown_keys(doc, rep, base + ("python",), pspec, PYTHON_KEYS, "python")
+    found = _resolve_file(doc, rep, base + ("python", "file"), ctype.decl_file.parent,
+                          pspec.get("file"), ".py", "Python file")
+    if found is not None:
+        ctype.python_file, ctype.python_text = found
     cls = pspec.get("class", ctype.name)
     problem = name_problem(cls, "class name", top_level=True)  # imported at module level
     if problem:
         rep.error(doc.pos(*base, "python", "class"), problem)
     else:
         ctype.python_class = cls
+        if found is not None:
+            _check_class(doc, rep, base, ctype, pspec)
     if ctype.python_file is not None and ctype.origin == "user":
         problem = name_problem(ctype.python_file.stem, "Python module name")
         if problem:
             rep.error(doc.pos(*base, "python", "file"), problem,
                       "rename the file to a valid module name")
+
+
+def _load_cpu(doc, rep, base, ctype: ComponentType, spec) -> None:
+    """A flexible type's CPU side: ``cpu: {file: x.py, function: f}``.
+
+    The function takes every input port (a numpy array) and every parameter as keywords
+    and returns the output array (a tuple of them for several outputs, in the type's
+    order).  Its file is parsed with ast, never imported: it must define the function at
+    module level, and the function must accept those keywords.
+    """
+    path = base + ("cpu",)
+    cspec = _expect_map(doc, rep, path, spec.get("cpu"), "cpu")
+    if not cspec:
+        if "cpu" not in spec:
+            rep.error(ctype.pos, f"flexible type '{ctype.name}' needs "
+                      "'cpu: {file, function}', its CPU implementation",
+                      "write a numpy function taking the inputs and parameters as keywords "
+                      "and returning the output(s)")
+        return
+    _unknown_keys(doc, rep, path, cspec, CPU_KEYS, "cpu")
+    found = _resolve_file(doc, rep, path + ("file",), ctype.decl_file.parent,
+                          cspec.get("file"), ".py", "Python file")
+    cpu_text = ""
+    if found is not None:
+        ctype.cpu_file, cpu_text = found
+    function = cspec.get("function", ctype.snake)
+    fpos = doc.pos(*path, "function") if "function" in cspec else doc.key_pos(*path)
+    problem = name_problem(function, "function name")
+    if problem:
+        rep.error(fpos, problem)
+        return
+    ctype.cpu_function = function
+    if ctype.cpu_file is None:
+        return
+    if ctype.origin == "user":
+        problem = name_problem(ctype.cpu_file.stem, "Python module name")
+        if problem:
+            rep.error(doc.pos(*path, "file"), problem, "rename the file to a valid module name")
+    try:
+        tree = ast.parse(cpu_text, str(ctype.cpu_file))
+    except SyntaxError as exc:
+        rep.error(doc.pos(*path, "file"), f"{ctype.cpu_file.name}:{exc.lineno}: {exc.msg}",
+                  "fix the Python syntax of the CPU implementation")
+        return
+    found = next((n for n in tree.body if isinstance(n, (ast.FunctionDef, ast.AsyncFunctionDef))
+                  and n.name == function), None)
+    if found is None:
+        defined = [n.name for n in tree.body if isinstance(n, ast.FunctionDef)]
+        rep.error(fpos, f"{ctype.cpu_file.name} defines no function '{function}' at module "
+                  "level", did_you_mean(function, defined) or
+                  f"define 'def {function}({', '.join(ctype.inputs)}, ...)' there")
+        return
+    if isinstance(found, ast.AsyncFunctionDef):
+        rep.error(fpos, f"'{function}' in {ctype.cpu_file.name} is async", "make it a plain def")
+        return
+    a = found.args
+    named = [x.arg for x in a.posonlyargs + a.args + a.kwonlyargs]
+    wanted = list(ctype.inputs) + list(ctype.params)
+    positional_only = {x.arg for x in a.posonlyargs}
+    missing = [w for w in wanted if w not in named or w in positional_only]
+    if missing and a.kwarg is None:
+        rep.error(fpos, f"function '{function}' in {ctype.cpu_file.name} does not take "
+                  + ", ".join(f"'{m}'" for m in missing) + " as keyword"
+                  + ("s" if len(missing) > 1 else ""),
+                  f"it is called as {function}("
+                  + ", ".join(f"{w}=..." for w in wanted) + "): add the missing parameters")
+    # parameters it has that the call never passes must have defaults
+    n_pos = len(a.posonlyargs) + len(a.args)
+    pos_defaults = n_pos - len(a.defaults)
+    unfilled = [x.arg for i, x in enumerate(a.posonlyargs + a.args)
+                if i < pos_defaults and x.arg not in wanted]
+    unfilled += [x.arg for x, d in zip(a.kwonlyargs, a.kw_defaults)
+                 if d is None and x.arg not in wanted]
+    if unfilled:
+        rep.error(fpos, f"function '{function}' in {ctype.cpu_file.name} needs "
+                  + ", ".join(f"'{u}'" for u in unfilled) + f", which is no input or "
+                  f"parameter of '{ctype.name}'",
+                  "give it a default, or declare it as a parameter of the type")
 
 
 _LIBRARY_CACHE: dict[str, ComponentType] | None = None
@@ -715,12 +956,59 @@ def library_types() -> dict[str, ComponentType]:
 
 SYSTEM_KEYS = ("system", "description", "types", "platform", "components", "connections")
 PLATFORM_KEYS = ("device", "gpu_settings", "thread_budget", "execution", "zero_copy",
-                 "fusion")
+                 "placement", "profile", "fusion")
 FUSION = ("auto", "off")
 EXECUTIONS = ("parallel", "sequential")
 ZERO_COPY = ("auto", "on", "off")
-INSTANCE_KEYS = ("type", "params", "description", "fuse")
+INSTANCE_KEYS = ("type", "params", "description", "placement", "fuse")
 CONNECTION_RE = re.compile(r"^\s*([^\s.]+)\.([^\s.]+)\s*->\s*([^\s.]+)\.([^\s.]+)\s*$")
+
+
+TYPE_FILE_SUFFIXES = (".yaml", ".yml")
+
+
+def _load_user_types(doc: Document, rep: Reporter, path: Path, display: str, i: int,
+                     rel: Any) -> dict[str, ComponentType] | None:
+    """The types of entry i of the model's 'types:' list, or None after reporting why not.
+
+    A type file is any .yaml/.yml file, relative to the model (``../shared/types.yaml``)
+    or absolute, so models can share type files.  Nothing of a file that does not start
+    as a component-type file (``component_types:``) is ever quoted in a message."""
+    pos = doc.pos("types", i)
+    if not isinstance(rel, str) or not rel:
+        rep.error(pos, "expected the path of a component-type .yaml file")
+        return None
+    if "\0" in rel or not rel.endswith(TYPE_FILE_SUFFIXES):
+        rep.error(pos, f"component-type file {rel!r} must be a .yaml or .yml file",
+                  "component types are declared in YAML files that start with "
+                  "'component_types:'")
+        return None
+    tpath = path.parent / rel
+    shown = str(Path(display).parent / rel)
+    what = f"component-type file {rel!r}"
+    try:
+        text = read_text(tpath, MAX_FILE_BYTES, what)
+    except FileProblem as exc:
+        if exc.line and starts_with_key(exc.prefix, "component_types"):
+            rep.diagnostics.append(Diagnostic(shown, exc.line, exc.col, "error",
+                                              exc.message, exc.hint))
+        elif exc.line:
+            rep.error(pos, f"{what} is not a component-type file (it is not UTF-8 text)",
+                      "a component-type file starts with 'component_types:'")
+        else:
+            rep.error(pos, exc.message, "paths are relative to the model file"
+                      if exc.message.endswith("not found") else exc.hint)
+        return None
+    if not starts_with_key(text, "component_types"):
+        rep.error(pos, f"{what} is not a component-type file",
+                  "a component-type file starts with 'component_types:' (its content is "
+                  "not shown)")
+        return None
+    try:
+        return load_types_file(tpath.resolve(), shown, "user", rep, load_text(text, shown))
+    except GpucompgenError as exc:
+        rep.diagnostics.extend(exc.diagnostics)
+        return None
 
 
 def load_system(path: Path, display: str | None = None) -> SystemModel:
@@ -755,22 +1043,11 @@ def load_system(path: Path, display: str | None = None) -> SystemModel:
     if not isinstance(type_files, list):
         rep.error(doc.pos("types"), "types must be a list of component-type files")
         type_files = []
+    types_failed = False  # a type file could not be read: its types are not "unknown"
     for i, rel in enumerate(type_files):
-        if not isinstance(rel, str) or not rel:
-            rep.error(doc.pos("types", i), "expected the path of a component-type .yaml file")
-            continue
-        tpath = (path.parent / rel)
-        shown = str(Path(display).parent / rel)
-        if not tpath.is_file():
-            rep.error(doc.pos("types", i), f"component-type file {rel!r} not found",
-                      "paths are relative to the model file")
-            continue
-        from .errors import GpucompgenError
-        try:
-            user = load_types_file(tpath.resolve(), shown, "user", rep)
-        except GpucompgenError as exc:
-            rep.diagnostics.extend(exc.diagnostics)
-            continue
+        user = _load_user_types(doc, rep, path, display, i, rel)
+        types_failed |= user is None
+        user = user or {}
         for tname, ctype in user.items():
             clash = next((t for t in types if fold(t) == fold(tname)), None)
             if clash is not None:
@@ -787,9 +1064,9 @@ def load_system(path: Path, display: str | None = None) -> SystemModel:
     overrides: dict[str, tuple[dict[str, int], Pos]] = {}
     settings = _expect_map(doc, rep, ("platform", "gpu_settings"), platform.get("gpu_settings"),
                            "gpu_settings")
-    for cname, sspec in settings.items():
+    for cname, written in settings.items():
         spath = ("platform", "gpu_settings", cname)
-        sspec = _expect_map(doc, rep, spath, sspec, f"gpu_settings of '{cname}'")
+        sspec = _expect_map(doc, rep, spath, written, f"gpu_settings of '{cname}'")
         _unknown_keys(doc, rep, spath, sspec, SETTING_KEYS, f"gpu_settings of '{cname}'")
         values = {}
         for key in SETTING_KEYS:
@@ -820,6 +1097,21 @@ def load_system(path: Path, display: str | None = None) -> SystemModel:
                   f"platform.fusion must be 'auto' or 'off', not {fusion!r}",
                   "auto: chains of fusable GPU components run as one kernel")
         fusion = "auto"
+    placement = platform.get("placement", "gpu")
+    if not _named(placement, PLACEMENTS):
+        rep.error(doc.pos("platform", "placement"),
+                  f"platform.placement must be 'gpu', 'cpu' or 'auto', not {placement!r}",
+                  "it places the flexible components that say nothing themselves")
+        placement = "gpu"
+    profile = None
+    if "profile" in platform:
+        rel = platform["profile"]
+        ppos = doc.pos("platform", "profile")
+        if not isinstance(rel, str) or not rel.endswith((".yaml", ".yml")):
+            rep.error(ppos, "platform.profile must be the path of a .yaml profile",
+                      "e.g. 'profile: tune/my_system.yaml', written by 'gpucompgen tune'")
+        else:  # read (and found missing) only where a placement is 'auto'
+            profile = path.parent / rel
     # components
     components: dict[str, Instance] = {}
     comps = _expect_map(doc, rep, ("components",), root.get("components"), "components")
@@ -831,7 +1123,7 @@ def load_system(path: Path, display: str | None = None) -> SystemModel:
     # imports (a GPU-aware type's own class, or a standard type's Python class)
     class_names = {t.python_class or t.name: t.name for t in types.values()}
     class_names.update({t.name: t.name for t in types.values()})
-    for order, (cname, cspec) in enumerate(comps.items()):
+    for order, (cname, written) in enumerate(comps.items()):
         cpath = ("components", cname)
         problem = name_problem(cname, "component name", top_level=True)
         if problem:
@@ -843,12 +1135,13 @@ def load_system(path: Path, display: str | None = None) -> SystemModel:
                       "names must differ by more than case and underscores")
             continue
         folded[fold(cname)] = cname
-        if isinstance(cspec, str):
-            cspec = {"type": cspec}
-        cspec = _expect_map(doc, rep, cpath, cspec, f"component '{cname}'")
+        cspec = _expect_map(doc, rep, cpath, {"type": written} if isinstance(written, str)
+                            else written, f"component '{cname}'")
         _unknown_keys(doc, rep, cpath, cspec, INSTANCE_KEYS, f"component '{cname}'")
         tname = cspec.get("type")
         if not _named(tname, types):
+            if types_failed and isinstance(tname, str):
+                continue
             rep.error(doc.pos(*cpath, "type") if "type" in cspec else doc.key_pos(*cpath),
                       f"unknown component type {tname!r} for '{cname}'",
                       did_you_mean(str(tname), types))
@@ -869,7 +1162,12 @@ def load_system(path: Path, display: str | None = None) -> SystemModel:
             rep.error(doc.pos(*cpath, "fuse"), f"fuse of '{cname}' must be true or false, "
                       f"not {fuse!r}", "'fuse: false' keeps the component's own kernel")
             fuse = True
-        components[cname] = Instance(cname, ctype, params, doc.key_pos(*cpath), order, fuse)
+        where, where_pos = cspec.get("placement", ""), None
+        if "placement" in cspec:
+            where_pos = doc.pos(*cpath, "placement")
+            where = placement_problem(rep, where_pos, cname, ctype, where)
+        components[cname] = Instance(cname, ctype, params, doc.key_pos(*cpath), order,
+                                     where, where_pos, fuse=fuse)
     for cname, (_, pos) in overrides.items():
         if cname not in components and cname in comps:
             continue
@@ -898,10 +1196,30 @@ def load_system(path: Path, display: str | None = None) -> SystemModel:
                        thread_budget=budget,
                        thread_budget_pos=doc.pos("platform", "thread_budget"), types=types, execution=execution,
                        zero_copy=zero_copy, platform_pos=doc.pos("platform"), fusion=fusion,
+                       placement=placement, placement_pos=doc.pos("platform", "placement"),
+                       profile=profile, profile_pos=doc.pos("platform", "profile"),
                        device_positions={k: (doc.key_pos("platform", "device", k),
                                              doc.pos("platform", "device", k))
                                          for k in (device if isinstance(device, dict) else {})
                                          if isinstance(k, str)})
+
+
+def placement_problem(rep: Reporter, pos: Pos, cname: str, ctype: ComponentType,
+                      where: Any) -> str:
+    """The placement asked for a component, or "" after reporting why it cannot be."""
+    if not _named(where, PLACEMENTS):
+        rep.error(pos, f"placement of '{cname}' must be 'gpu', 'cpu' or 'auto', not {where!r}",
+                  did_you_mean(str(where), PLACEMENTS))
+        return ""
+    side = {"gpu-aware": "gpu", "standard": "cpu"}.get(ctype.kind)
+    if side is not None and where != side:
+        shown = "automatically ('auto')" if where == "auto" else f"on the {where.upper()}"
+        rep.error(pos, f"'{cname}' cannot be placed {shown}: its type '{ctype.name}' is "
+                  f"{ctype.kind} and runs on the {side.upper()} only",
+                  "only flexible types (kind: flexible, with a kernel and a 'cpu:' function) "
+                  "can be placed; remove 'placement:'")
+        return ""
+    return where
 
 
 def _instance_params(doc, rep, cpath, ctype: ComponentType, given) -> dict[str, Any]:
@@ -917,22 +1235,21 @@ def _instance_params(doc, rep, cpath, ctype: ComponentType, given) -> dict[str, 
         problem = _param_value_problem(value, decl, ctype.gpu_aware)
         if problem:
             hint = ""
-            if isinstance(value, bool) and decl.type == "str":
+            if isinstance(value, bool) and decl.type in ("str", "path"):
                 hint = "YAML 1.1 reads yes/no/on/off as booleans: quote the value"
             elif decl.type in ("int", "float") and _value_fits(value, decl.type):
                 hint = "give a value within the parameter's range"
             else:
                 example = decl.default if decl.default not in (None, "") else \
-                    {"int": 1, "float": 1.0, "bool": True, "str": "text"}[decl.type]
+                    {"int": 1, "float": 1.0, "bool": True, "str": "text", "path": "images"}[decl.type]
                 wanted = {"int": "an integer", "float": "a number", "bool": "true or false",
-                          "str": "a string (quoted if it looks like a number or boolean)"}
+                          "str": "a string (quoted if it looks like a number or boolean)",
+                          "path": "a path, relative to the model file or absolute"}
                 hint = f"give {wanted[decl.type]}, e.g. '{pname}: {py_yaml(example)}'"
             rep.error(doc.pos(*cpath, "params", pname),
                       f"parameter '{pname}' of '{ctype.name}' {problem}", hint)
             continue
-        if decl.type == "float":
-            value = float(value)
-        params[pname] = value
+        params[pname] = float(value) if decl.type == "float" else value
     for pname, decl in ctype.params.items():
         if pname not in params and pname not in given:
             if decl.required:

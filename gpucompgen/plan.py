@@ -99,18 +99,26 @@ class Part:
     init_inputs: tuple[str, ...] = ()
     init_outputs: tuple[tuple[str, str, Size], ...] = ()
     dtype: str = ""
+    # a flexible component placed on the CPU: the variable of its type's CPU function, and
+    # its ports: (input names, ((output name, element type), ...))
+    function: str = ""
+    ports: tuple = ()
 
 
 @dataclass(frozen=True)
 class Step:
     """One statement of the stream loop."""
 
-    kind: str  # "execute" | "transfer" | "unmap" | "end_of_stream"
+    kind: str  # "execute" | "transfer" | "unmap" | "end_of_stream" | "check"
     part: str = ""
     inputs: tuple[str, ...] = ()  # variables
     outputs: tuple[str, ...] = ()  # variables
     waits: tuple[str, ...] = ()  # parts whose last event it waits for
     note: str = ""
+    # "check": a CPU component's output entering another part must have this host shape
+    # and numpy element type (note names the port)
+    shape: tuple[int, ...] = ()
+    dtype: str = ""
 
 
 @dataclass(frozen=True)
@@ -140,6 +148,7 @@ class UserClass:
     name: str
     file: str  # in the lib folder
     cls: str
+    kind: str = "class"  # "class" (a standard type) | "function" (a flexible type's CPU side)
 
 
 @dataclass(frozen=True)
@@ -178,6 +187,7 @@ class ProgramPlan:
     fusion: str = "off"
     groups: tuple[GroupPlan, ...] = ()
     unfused: tuple[tuple[str, str], ...] = ()  # (GPU-to-GPU edge, why it was not fused)
+    placement: tuple[str, ...] = ()  # where each flexible component runs, who decided, costs
 
     # --- the facts everything reads --------------------------------------------------------
     def device_buffers(self) -> list[Buffer]:
@@ -194,6 +204,10 @@ class ProgramPlan:
     @property
     def copied_bytes(self) -> int:
         return sum(t.copied for t in self.transfers)
+
+    def lib_files_of(self, key: str) -> str:
+        """The lib folder's file of a source (see lower.lib_files)."""
+        return next(f for f, k in self.lib_files.items() if k == key)
 
     def launch(self, part: str) -> Launch | None:
         return next((la for la in self.launches if la.part == part), None)
@@ -251,6 +265,10 @@ def plan_lines(plan: ProgramPlan) -> list[str]:
             rows.append((f"{t.part} ({t.source})", f"{view} view", str(t.data), "0"))
     lines += _table(rows, right=(3,))
     lines.append("")
+    if plan.placement:
+        lines.append("placement of flexible components:")
+        lines += [f"  {line}" for line in plan.placement]
+        lines.append("")
     lines.append(f"device: {plan.device_name}")
     lines.append(f"peak device memory: {plan.device_bytes:,} bytes; peak host memory: "
                  f"{plan.host_bytes:,} bytes")
@@ -315,6 +333,9 @@ def summary_lines(plan: ProgramPlan) -> list[str]:
             bx, by, bz = la.local_size
             lines.append(f"GPU settings of {p.name}: tile {la.tile}, block {bx}x{by}x{bz} "
                          f"({la.settings_source})")
+    if plan.placement:
+        lines.append("placement of flexible components:")
+        lines += [f"  {line}" for line in plan.placement]
     lines += fusion_lines(plan)
     lines.append("device: " + plan.device_name.encode("unicode_escape").decode("ascii"))
     return lines

@@ -210,8 +210,9 @@ def test_real_device_allocation_fits_its_limits(tmp_path):
 def _cli(tmp_path, text, *args):
     model = tmp_path / "m.yaml"
     model.write_text(text)
-    return subprocess.run([sys.executable, "-m", "gpucompgen", "plan", str(model), *args],
-                          capture_output=True, text=True)
+    # allocation of single components: fusion would make groups of them
+    return subprocess.run([sys.executable, "-m", "gpucompgen", "plan", str(model),
+                           "--fusion", "off", *args], capture_output=True, text=True)
 
 
 BRANCHES = (ROOT / "models" / "parallel_branches.yaml").read_text()
@@ -312,7 +313,9 @@ def test_block_shape_constraints_hold_when_fitting_and_sharing_the_budget(tmp_pa
     two concurrent components shrink to share the budget."""
     (tmp_path / "shaped.yaml").write_text(SHAPED_TYPES)
     (tmp_path / "shaped.cl").write_text(
-        "__kernel void shaped(__global const uchar *image, __global uchar *out) {}\n")
+        "__kernel void shaped(__global const uchar *image, __global uchar *out,\n"
+        "    const int image_height, const int image_width, const int out_height,\n"
+        "    const int out_width, const int tile) {}\n")
     platform = {"device": device} | ({"thread_budget": budget} if budget else {})
     comps = {"camera1": {"type": "Camera", "params": {"width": 320, "height": 240}},
              "camera2": {"type": "Camera", "params": {"width": 320, "height": 240, "seed": 2}},

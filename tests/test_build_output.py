@@ -158,8 +158,8 @@ def test_a_generated_program_that_would_not_compile_is_refused_before_writing(tm
     """The names checks are the first defence; compiling the program is the last."""
     real_render = build_mod.render
 
-    def broken_render(system, source):
-        files = real_render(system, source)
+    def broken_render(system, source, *args):
+        files = real_render(system, source, *args)
         program = files[0]
         files[0] = type(program)(program.path,
                                  program.text.replace("def run(", "def run(frames, frames, ", 1))

@@ -22,7 +22,7 @@ def test_file_problems(tmp_path):
     assert "is a directory" in _error(load_file, tmp_path, "dir")
     big = tmp_path / "big.yaml"
     big.write_text("a: 1\n" * (MAX_FILE_BYTES // 5 + 1))
-    assert f"larger than {MAX_FILE_BYTES} bytes" in _error(load_file, big, "big.yaml")
+    assert f"larger than {MAX_FILE_BYTES:,} bytes" in _error(load_file, big, "big.yaml")
     bad = tmp_path / "bad.yaml"
     bad.write_bytes(b"a: 1\nb: \xff\n")
     assert _error(load_file, bad, "bad.yaml").startswith(

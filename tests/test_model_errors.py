@@ -77,7 +77,10 @@ def test_a_true_cycle_is_reported(tmp_path):
             outputs: {o: {memory: gpu, channels: 3, height: a.height, width: a.width}}
             kernel: {file: k.cl, function: pass_through}
         """))
-    (tmp_path / "k.cl").write_text("__kernel void pass_through() {}\n")
+    (tmp_path / "k.cl").write_text(
+        "__kernel void pass_through(__global const uchar *a, __global const uchar *b,\n"
+        "    __global uchar *o, const int a_height, const int a_width, const int b_height,\n"
+        "    const int b_width, const int o_height, const int o_width, const int tile) {}\n")
     proc = _check(tmp_path, textwrap.dedent("""\
         system: s
         types: [t.yaml]

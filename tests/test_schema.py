@@ -13,7 +13,7 @@ import pytest
 import yaml
 from conftest import ROOT
 
-from gpucompgen import model
+from gpucompgen import fusable, model
 from gpucompgen.device import FACT_KEYS, PROFILES
 from gpucompgen.schema import MODEL, TYPES, schema
 
@@ -116,3 +116,62 @@ def test_schema_command_prints_the_shipped_schema(args, which):
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout == (ROOT / "gpucompgen" / "schema" / which).read_text(encoding="utf-8")
     assert Path(ROOT / "pyproject.toml").read_text().count('"gpucompgen.schema" = ["*.json"]') == 1
+
+
+def test_checked_in_schemas_are_the_generated_ones():
+    """The schemas are generated from the loader's key tables and enums (one declaration):
+    after changing the language, run ``python -m gpucompgen.schema.generate --write``."""
+    from gpucompgen.schema import generate
+
+    for name, text in generate.generated().items():
+        assert (ROOT / "gpucompgen" / "schema" / name).read_text(encoding="utf-8") == text, name
+    assert generate.main([]) == 0
+
+
+def test_the_generator_refuses_keys_the_loader_does_not_declare():
+    from gpucompgen.schema import generate
+
+    with pytest.raises(ValueError, match="disagree on keys"):
+        generate._object(("a", "b"), {"a": {}})
+    with pytest.raises(ValueError, match="disagree on keys"):
+        generate._object(("a",), {"a": {}, "extra": {}})
+
+
+def _walk(node, path=()):
+    """Every (path, sub-schema) of a schema."""
+    yield path, node
+    if isinstance(node, dict):
+        for key, value in node.items():
+            yield from _walk(value, path + (key,))
+    elif isinstance(node, list):
+        for i, value in enumerate(node):
+            yield from _walk(value, path + (i,))
+
+
+def test_every_enum_and_closed_mapping_agrees_with_the_loader():
+    """Independently of the generator: each enum in the schemas is one of the loader's
+    enums, and each closed mapping's keys are one of the loader's key tables."""
+    from gpucompgen.device import FACT_KEYS
+
+    enums = {frozenset(e) for e in (model.KINDS, model.DTYPES, model.MEMORIES,
+                                    model.PARAM_TYPES, model.COVERS, model.EXECUTIONS,
+                                    model.ZERO_COPY, model.PLACEMENTS, model.FUSION,
+                                    fusable.FORMS, fusable.BORDERS, PROFILES,
+                                    [*PROFILES, "auto"])}
+    tables = {frozenset(t) for t in (
+        model.SYSTEM_KEYS, model.PLATFORM_KEYS, model.INSTANCE_KEYS, model.TYPE_KEYS,
+        model.PORT_KEYS, set(model.PORT_KEYS) - {"height", "width"}, model.PARAM_KEYS,
+        model.REQUIRE_KEYS, model.KERNEL_KEYS, model.GPU_KEYS, model.PYTHON_KEYS,
+        model.CPU_KEYS, model.FUSABLE_KEYS,
+        model.SETTING_KEYS, set(FACT_KEYS) | {"profile"}, ("from", "to"),
+        ("component_types",))}
+    seen_enums, seen_tables = set(), set()
+    for which in (MODEL, TYPES):
+        for path, node in _walk(schema(which)):
+            if isinstance(node, dict) and "enum" in node and path[-1:] != ("properties",):
+                assert frozenset(node["enum"]) in enums, (which, path)
+                seen_enums.add(frozenset(node["enum"]))
+            if isinstance(node, dict) and node.get("additionalProperties") is False:
+                assert frozenset(node["properties"]) in tables, (which, path)
+                seen_tables.add(frozenset(node["properties"]))
+    assert seen_enums == enums and seen_tables == tables

@@ -38,7 +38,25 @@ class Lower(Pass):
 
     def apply(self, system, rep):
         system.plan = lower(system)
+        check_device_memory(system, rep)
         return system
+
+
+def check_device_memory(system: System, rep) -> None:
+    """Every device buffer is allocated at start: all of them must fit the device's memory
+    (each buffer's own limit, max_mem_alloc_size, is checked when sizes propagate)."""
+    plan, device = system.plan, system.device
+    if plan.device_bytes <= device.global_mem_size:
+        return
+    largest = sorted(plan.device_buffers(), key=lambda b: (-b.nbytes, b.what))[:3]
+    shown = ", ".join(f"{b.what} {b.nbytes:,}" for b in largest)
+    where = system.model.device_positions.get("global_mem_size", (None, None))[1] \
+        or system.model.device_pos
+    rep.error(where, f"the system needs {plan.device_bytes:,} bytes of device memory at peak "
+              f"(largest buffers: {shown}), more than device '{device.name}' has "
+              f"({device.global_mem_size:,} bytes)",
+              "use smaller frames, zero-copy adapters on a device with unified memory, or a "
+              "device (platform.device) with more memory")
 
 
 def lib_dir_name(system_name: str) -> str:
@@ -54,37 +72,65 @@ def lib_files(system: System) -> dict[str, str]:
     """
     names: dict[str, str] = {}  # source path -> lib file name
     taken: set[str] = set()
-    for t in used_types(system) + [g.type for g in system.groups]:
-        if t.origin == "group":
-            key, wanted = lib_key(t), f"group_{t.kernel_function}.cl"
-        elif t.gpu_aware:
-            key, wanted = f"kernel:{t.name}", f"{t.snake}.cl"
-        elif t.origin == "user":
-            key, wanted = str(t.python_file.resolve()), t.python_file.name
-        else:
-            continue
-        if key in names:
-            continue
-        name, stem, suffix, i = wanted, wanted.rsplit(".", 1)[0], wanted.rsplit(".", 1)[1], 2
-        while name.lower() in taken:
-            name, i = f"{stem}_{i}.{suffix}", i + 1
-        taken.add(name.lower())
-        names[key] = name
+    for t in used_types(system):
+        keys = []
+        if t in gpu_used_types(system):
+            keys.append((kernel_key(t), t.kernel_file.name))
+        if t.flexible and t.origin == "user" and t in cpu_used_types(system):
+            keys.append((cpu_lib_key(t), t.cpu_file.name))
+        if not t.gpu_aware and t.origin == "user":
+            keys.append((str(t.python_file.resolve()), t.python_file.name))
+        for key, wanted in keys:
+            _name_lib_file(names, taken, key, wanted)
+    for g in system.groups:
+        _name_lib_file(names, taken, lib_key(g.type), f"group_{g.type.kernel_function}.cl")
     return names
+
+
+def _name_lib_file(names: dict[str, str], taken: set[str], key: str, wanted: str) -> None:
+    """names[key]: wanted, or wanted with a numbered suffix when another file took it."""
+    if key in names:
+        return
+    name, stem, suffix, i = wanted, wanted.rsplit(".", 1)[0], wanted.rsplit(".", 1)[1], 2
+    while name.lower() in taken:
+        name, i = f"{stem}_{i}.{suffix}", i + 1
+    taken.add(name.lower())
+    names[key] = name
+
+
+def kernel_key(t: ComponentType) -> str:
+    """A kernel file in the lib folder: one per file, whatever number of types share it."""
+    return f"kernel:{t.kernel_file.resolve()}"
 
 
 def lib_key(t: ComponentType) -> str:
     if t.origin == "group":
         return f"group:{t.kernel_function}"
-    return f"kernel:{t.name}" if t.gpu_aware else str(t.python_file.resolve())
+    return kernel_key(t) if t.gpu_aware else str(t.python_file.resolve())
 
 
-def used_types(system: System) -> list[ComponentType]:
+def cpu_lib_key(t: ComponentType) -> str:
+    """A flexible type's CPU file in the lib folder (a user's; the library's is imported)."""
+    return f"cpu:{t.cpu_file.resolve()}"
+
+
+def used_types(system: System, side: str | None = None) -> list[ComponentType]:
+    """The types of the system's components (those placed on side, when given)."""
     found: dict[str, ComponentType] = {}
     for node in system.nodes.values():
-        if isinstance(node, ComponentNode):
+        if isinstance(node, ComponentNode) and side in (None, node.placement):
             found.setdefault(node.type.name, node.type)
     return [found[k] for k in sorted(found)]
+
+
+def gpu_used_types(system: System) -> list[ComponentType]:
+    """Types with a kernel that some component runs on the GPU."""
+    return [t for t in used_types(system, "gpu") if t.gpu_aware]
+
+
+def cpu_used_types(system: System) -> list[ComponentType]:
+    """Flexible types that some component runs on the CPU (through its function)."""
+    return [t for t in used_types(system, "cpu") if t.flexible]
 
 
 def np_name(dtype: str) -> str:
@@ -165,8 +211,15 @@ def lower(system: System) -> ProgramPlan:
     model = system.model
     files = lib_files(system)
     types = used_types(system)
-    gpu_types = [t for t in types if t.gpu_aware] + [g.type for g in system.groups]
+    gpu_types = gpu_used_types(system) + [g.type for g in system.groups]
     taken = set(system.nodes)
+    functions: dict[str, str] = {}  # flexible type on the CPU -> its function's variable
+    for t in cpu_used_types(system):
+        var = f"{t.snake}_on_cpu"
+        while var in taken:
+            var += "_"
+        functions[t.name] = var
+        taken.add(var)
     programs: dict[str, str] = {}
     for t in gpu_types:
         var = f"{t.snake}_program"
@@ -187,6 +240,7 @@ def lower(system: System) -> ProgramPlan:
     parts, buffers, launches, transfers, steps = [], [], [], [], []
     sources = [n for n in system.order if isinstance(system.nodes[n], ComponentNode)
                and not system.nodes[n].inputs and not system.nodes[n].on_gpu]
+    pending_checks: list[Step] = []
     for name in system.order:
         node = system.nodes[name]
         in_vars = tuple(f"{system.input_var(Endpoint(name, p))}_size" for p in node.inputs)
@@ -241,15 +295,33 @@ def lower(system: System) -> ProgramPlan:
         else:
             for p, port in node.outputs.items():
                 buffers.append(Buffer(name, p, f"{name}.{p}", "host", port.data))
-        type_name = "fused group" if group else t.name
-        parts.append(Part(name, "component", t.name, type_name, "GPU" if node.on_gpu else "CPU",
-                          system.stages[name], queue_of(name) if node.on_gpu else None,
-                          programs.get(t.name) if node.on_gpu else None, params,
-                          tuple(options), init_inputs=in_vars, init_outputs=outs))
+        if t.flexible and not node.on_gpu:
+            parts.append(Part(name, "component", "runtime.CpuFunctionComponent", t.name, "CPU",
+                              system.stages[name], params=params, init_inputs=in_vars,
+                              init_outputs=outs, function=functions[t.name],
+                              ports=tuple(tuple((p, np_name(d.dtype)) for p, d in ports.items())
+                                          for ports in (t.inputs, t.outputs))))
+        else:
+            parts.append(Part(name, "component", t.name, "fused group" if group else t.name,
+                              "GPU" if node.on_gpu else "CPU", system.stages[name],
+                              queue_of(name) if node.on_gpu else None,
+                              programs.get(t.name) if node.on_gpu else None, params,
+                              tuple(options), init_inputs=in_vars, init_outputs=outs))
         steps.append(Step("execute", name,
                           tuple(system.input_var(Endpoint(name, p)) for p in node.inputs),
                           tuple(system.output_vars[Endpoint(name, p)] for p in node.outputs),
                           tuple(system.waits.get(name, ())) if not standard else ()))
+        # what a CPU component returns is checked where it enters another part (a
+        # source's after the end-of-stream test: None ends the stream there)
+        checks = [Step("check", name, (system.output_vars[Endpoint(name, p)],),
+                       note=f"{name}.{p}", shape=port.data.size.shape,
+                       dtype=np_name(port.data.dtype))
+                  for p, port in node.outputs.items()
+                  if not node.on_gpu and system.readers(Endpoint(name, p))]
+        if name in sources:
+            pending_checks += checks
+        else:
+            steps += checks
         for a in system.unmap_after.get(name, []):
             steps.append(Step("unmap", a, note=f"the device may write "
                               f"{system.nodes[a].source} again"))
@@ -258,8 +330,17 @@ def lower(system: System) -> ProgramPlan:
                          for p in system.nodes[s].outputs)
             if ends:
                 steps.append(Step("end_of_stream", inputs=ends))
+            steps += pending_checks
+            pending_checks = []
 
     imports, user_classes = [], []
+    for t in cpu_used_types(system):
+        if t.origin == "library":
+            imports.append((f"gpucompgen.library.{t.cpu_file.stem}", t.cpu_function,
+                            functions[t.name]))
+        else:
+            user_classes.append(UserClass(functions[t.name], files[cpu_lib_key(t)],
+                                          t.cpu_function, "function"))
     for t in types:
         if t.gpu_aware:
             continue
@@ -270,7 +351,8 @@ def lower(system: System) -> ProgramPlan:
             user_classes.append(UserClass(t.name, files[lib_key(t)], t.python_class))
     users = {t.name: ", ".join(n for n in system.order
                                if isinstance(system.nodes[n], (ComponentNode, GroupNode))
-                               and system.nodes[n].type is t) for t in gpu_types}
+                               and system.nodes[n].type is t and system.nodes[n].on_gpu)
+             for t in gpu_types}
     groups = {g.type.name: g for g in system.groups}
     asked = model.thread_budget
     budget_source = ("platform.thread_budget" if asked and asked <= system.thread_budget else
@@ -295,4 +377,5 @@ def lower(system: System) -> ProgramPlan:
         thread_budget=system.thread_budget, thread_budget_source=budget_source,
         concurrent=tuple((g, sum(resident_threads(system, n) for n in g))
                          for g in system.concurrent),
-        lib_files={v: k for k, v in files.items()})
+        lib_files={v: k for k, v in files.items()},
+        placement=tuple(system.placement.lines()) if system.placement else ())

@@ -1,6 +1,6 @@
 """The pipeline: every pass in order, verified after each when asked, dumped when asked.
 
-    check-connections → check-port-types → schedule → propagate-sizes → insert-adapters
+    check-connections → check-port-types → schedule → propagate-sizes → place → insert-adapters
     → fuse → allocate-gpu → name-variables → assign-queues → lower
 """
 
@@ -9,7 +9,7 @@ from __future__ import annotations
 import os
 from collections.abc import Callable
 
-from ..errors import GpucompgenError, Reporter
+from ..errors import GpucompgenError, Reporter, UsageError, did_you_mean
 from ..ir import MODES, System, build_system
 from ..model import EXECUTIONS, FUSION, ZERO_COPY, SystemModel
 from ..runtime.facts import DeviceFacts
@@ -22,24 +22,27 @@ from .fuse import Fuse
 from .insert_adapters import InsertAdapters
 from .lower import Lower
 from .name_variables import NameVariables
+from .place import Place
 from .propagate_sizes import PropagateSizes
 from .schedule import Schedule
 
 PIPELINE: tuple[Pass, ...] = (CheckConnections(), CheckPortTypes(), Schedule(),
-                             PropagateSizes(), InsertAdapters(), Fuse(), AllocateGpu(),
-                             NameVariables(),
-                             AssignQueues(), Lower())
+                             PropagateSizes(), Place(), InsertAdapters(), Fuse(), AllocateGpu(),
+                             NameVariables(), AssignQueues(), Lower())
 
 
 def new_system(model: SystemModel, device: DeviceFacts, mode: str = "gpu-aware",
                execution: str | None = None, zero_copy: str | None = None,
+               places: dict[str, str] | None = None,
                fusion: str | None = None) -> System:
     """The IR of a model with its platform decisions (mode, execution, zero-copy, fusion)
     taken.
 
     execution ("parallel" | "sequential"), zero_copy ("auto" | "on" | "off") and fusion
     ("auto" | "off") override the model's platform settings (the command line's
-    --execution, --zero-copy and --fusion).
+    --execution, --zero-copy and --fusion); places (--place COMPONENT=gpu|cpu) overrides
+    flexible components' placements and raises UsageError for an unknown component or one
+    whose type cannot run on that side.
     """
     execution = execution or model.execution
     zero_copy = zero_copy or model.zero_copy
@@ -47,8 +50,9 @@ def new_system(model: SystemModel, device: DeviceFacts, mode: str = "gpu-aware",
             or (fusion or "auto") not in FUSION:
         raise ValueError(f"mode {mode!r}, execution {execution!r}, zero_copy {zero_copy!r}, "
                          f"fusion {fusion!r}")
+    check_places(model, places or {})
     system = build_system(model, device, mode,
-                          "sequential" if mode == "standard" else execution)
+                          "sequential" if mode == "standard" else execution, places)
     if mode == "standard":
         system.fusion, system.fusion_reason = "off", "standard mode: one kernel per component"
     else:
@@ -65,6 +69,23 @@ def new_system(model: SystemModel, device: DeviceFacts, mode: str = "gpu-aware",
         system.zero_copy = zero_copy == "on"
         system.zero_copy_reason = "forced by the model or the command line"
     return system
+
+
+def check_places(model: SystemModel, places: dict[str, str]) -> None:
+    """--place COMPONENT=gpu|cpu names a flexible component of the model."""
+    for name, side in places.items():
+        inst = model.components.get(name)
+        if inst is None:
+            hint = did_you_mean(name, model.components)
+            raise UsageError(f"--place {name}={side}: the model has no component '{name}'"
+                             + (f" ({hint})" if hint else ""))
+        if side not in ("gpu", "cpu", "auto"):
+            raise UsageError(f"--place {name}={side}: the side must be gpu, cpu or auto")
+        if not inst.type.flexible and side != ("gpu" if inst.type.gpu_aware else "cpu"):
+            raise UsageError(f"--place {name}={side}: '{name}' is {inst.type.kind} "
+                             f"({inst.type.name}) and runs on the "
+                             f"{'GPU' if inst.type.gpu_aware else 'CPU'} only; only "
+                             "flexible types can be placed")
 
 
 def verify_by_default() -> bool:
@@ -100,9 +121,10 @@ def run_pipeline(system: System, passes: tuple[Pass, ...] = PIPELINE,
 def run_passes(model: SystemModel, device: DeviceFacts, mode: str = "gpu-aware",
                dump: Callable[[str], None] | None = None, execution: str | None = None,
                zero_copy: str | None = None, verify: bool | None = None,
+               places: dict[str, str] | None = None,
                fusion: str | None = None) -> tuple[System, list]:
     """Build the IR of a model and run every pass on it."""
-    return run_pipeline(new_system(model, device, mode, execution, zero_copy, fusion),
+    return run_pipeline(new_system(model, device, mode, execution, zero_copy, places, fusion),
                         PIPELINE, dump, verify)
 
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from .. import sizeexpr
 from ..ir import ComponentNode, Data, Size
-from ..model import Endpoint
+from ..model import DTYPES, Endpoint
 from .base import Pass
 
 
@@ -75,5 +75,12 @@ class PropagateSizes(Pass):
             if h < 1 or w < 1:
                 rep.error(node.pos, f"output '{name}.{pname}' would be {h}x{w}",
                           "sizes must be positive; check parameters and inputs")
+                continue
+            # bounded in bytes as well as per side, CPU ports as GPU ports: a frame no
+            # machine could hold is refused here, not by an allocation at run time
+            problem = sizeexpr.frame_problem(h, w, port.channels, DTYPES[port.dtype][2])
+            if problem:
+                rep.error(node.pos, f"output '{name}.{pname}': {problem}",
+                          "use smaller frames; check parameters and inputs")
                 continue
             port.data = Data(Size(h, w, port.channels), port.dtype)

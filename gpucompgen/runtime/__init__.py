@@ -10,6 +10,7 @@ pyopencl and numpy only. One module per concern:
     adapters    the CPU<->GPU adapters (copying and zero-copy), the same in every system
     components  KernelComponent, the base class of generated GPU-aware component classes
     programs    building kernel files, with the component named in errors
+    frames      shape and element type of frames crossing components
     lifecycle   size checks, user modules, failures named by component, freeing
     profiling   --profile: event times and bytes moved
     monitor     progress, --stats-json, runtime options
@@ -28,7 +29,7 @@ from .adapters import (
     ZeroCopyGpuToCpuAdapter,
 )
 from .cli import add_program_options, main
-from .components import KernelComponent
+from .components import CpuFunctionComponent, KernelComponent
 from .devices import (
     NO_DEVICE_HINT,
     DeviceLimits,
@@ -47,6 +48,7 @@ from .devices import (
     unusable_message,
 )
 from .errors import PipelineError, Stopped
+from .frames import check_frame
 from .lifecycle import (
     Result,
     component_failure,
@@ -54,7 +56,9 @@ from .lifecycle import (
     failing_component,
     free_all,
     load_class,
+    load_function,
     load_module,
+    model_path,
 )
 from .monitor import Monitor
 from .profiling import Profile
@@ -64,6 +68,7 @@ from .sizes import Size
 
 __all__ = [
     "NO_DEVICE_HINT",
+    "CpuFunctionComponent",
     "CpuToGpuAdapter",
     "DeviceLimits",
     "DeviceStatus",
@@ -82,7 +87,7 @@ __all__ = [
     "_stop_on_signals",
     "add_program_options",
     "build_program",
-    "check_device_memory",
+    "check_device_memory", "check_frame",
     "check_work_group",
     "component_failure",
     "create_context",
@@ -93,8 +98,9 @@ __all__ = [
     "free_all",
     "kernel_limits",
     "load_class",
+    "load_function",
     "load_module",
-    "main",
+    "main", "model_path",
     "probe_device",
     "quiet_compiler",
     "select_device",

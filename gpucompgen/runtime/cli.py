@@ -3,14 +3,18 @@
 from __future__ import annotations
 
 import argparse
+import faulthandler
+import functools
+import os
 import sys
+import threading
 import traceback
 from collections.abc import Callable
 
 from .errors import PipelineError, Stopped
 from .lifecycle import Result
 from .monitor import Monitor
-from .signals import _stop_on_signals
+from .signals import GRACE_SECONDS, StopOnSignals, running_kernels
 
 
 def add_program_options(parser: argparse.ArgumentParser) -> None:
@@ -41,7 +45,9 @@ def main(run: Callable[..., Result], description: str, argv: list[str] | None = 
     parser = argparse.ArgumentParser(
         description=description,
         epilog="Exit codes: 0 done, 1 a component or the device failed, 2 usage, "
-               "130 on SIGINT, 143 on SIGTERM. Select the OpenCL device with PYOPENCL_CTX.")
+               "130 on SIGINT, 143 on SIGTERM (a run blocked in OpenCL, e.g. by a kernel "
+               f"that never ends, is given up {GRACE_SECONDS:g} s after the signal). Select "
+               "the OpenCL device with PYOPENCL_CTX.")
     add_program_options(parser)
     parser.add_argument("--debug", action="store_true", help="show tracebacks on errors")
     args = parser.parse_args(argv)
@@ -50,14 +56,26 @@ def main(run: Callable[..., Result], description: str, argv: list[str] | None = 
     monitor = Monitor(progress=False if args.quiet else None, stats_path=args.stats_json,
                       options={"decisions": args.decisions, "save_images": args.save_images,
                                "quiet": args.quiet})
-    restore = _stop_on_signals()
+    if args.debug:
+        faulthandler.enable()  # a crash (SIGSEGV in a kernel) prints where the host was
+    call = functools.partial(run, frames=args.frames, monitor=monitor, profile=args.profile)
     try:
-        result = run(frames=args.frames, monitor=monitor, profile=args.profile)
+        if threading.current_thread() is threading.main_thread():
+            stopper = StopOnSignals(monitor)
+            stopper.install()
+            try:
+                result = stopper.run(call)
+            finally:
+                stopper.restore()
+        else:  # signal handlers can only be set in the main thread
+            result = call()
     except Stopped as exc:
-        print(f"stopped by {exc} after {monitor.frames} frame(s); every component was freed",
-              file=sys.stderr)
+        freed = ("every other component was freed" if getattr(exc, "free_failures", 0)
+                 else "every component was freed")
+        print(f"stopped by {exc} after {monitor.frames} frame(s); {freed}", file=sys.stderr)
+        _exit_now_if_something_would_wait(monitor, 128 + exc.signum)
         return 128 + exc.signum
-    except KeyboardInterrupt:
+    except KeyboardInterrupt:  # raised by a component itself: SIGINT is handled above
         print(f"interrupted after {monitor.frames} frame(s)", file=sys.stderr)
         return 130
     except PipelineError as exc:
@@ -65,16 +83,35 @@ def main(run: Callable[..., Result], description: str, argv: list[str] | None = 
             traceback.print_exc()
         print(f"error: {exc}", file=sys.stderr)
         return 1
-    except Exception as exc:  # a bug outside any component: still no traceback by default
+    except (Exception, GeneratorExit) as exc:  # a bug outside any component: no traceback
         if args.debug:
             traceback.print_exc()
         print(f"error: {type(exc).__name__}: {exc}", file=sys.stderr)
         print("  (run with --debug for the traceback)", file=sys.stderr)
         return 1
-    finally:
-        restore()
     if result.profile is not None:
         print(result.profile.report(result.frames), file=sys.stderr)
     if not args.quiet:
         print(f"processed {result.frames} frame(s)", file=sys.stderr)
     return 0
+
+
+def _exit_now_if_something_would_wait(monitor: Monitor, code: int) -> None:
+    """After a stop by a signal the program must end now: with a kernel still running (a
+    driver may wait for it as the interpreter releases the queue) or a thread a component
+    started and left running (the interpreter waits for those), exit without waiting."""
+    running = running_kernels(monitor.parts)
+    threads = [t.name for t in threading.enumerate()
+               if t is not threading.current_thread() and not t.daemon and t.is_alive()]
+    if not running and not threads:
+        return
+    if running:
+        print(f"note: the last command of {', '.join(running)} is still running on the "
+              "device (a kernel that never ends?); exiting without waiting for it",
+              file=sys.stderr)
+    if threads:
+        print(f"note: thread(s) {', '.join(threads)} started by a component are still "
+              "running; exiting without waiting for them", file=sys.stderr)
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(code)

@@ -9,7 +9,6 @@ scalars as values).  This class allocates, launches and frees.
 
 from __future__ import annotations
 
-import inspect
 from typing import Any, ClassVar
 
 from .devices import check_work_group
@@ -131,8 +130,75 @@ class KernelComponent:
 
 def _check_work_group(kernel, device, local_size, component: str, settings_source: str):
     # settings_source says who chose the settings ("model" for gpu_settings), so that a
-    # run-time limit error says what to change; passed where check_work_group takes it
-    if settings_source and "settings_source" in inspect.signature(check_work_group).parameters:
-        return check_work_group(kernel, device, local_size, component,
-                                settings_source=settings_source)
-    return check_work_group(kernel, device, local_size, component)
+    # run-time limit error says what to change
+    return check_work_group(kernel, device, local_size, component,
+                            settings_source=settings_source)
+
+
+class CpuFunctionComponent:
+    """A flexible component placed on the CPU: its type's numpy function, called per frame.
+
+    The function takes the input arrays and the parameters as keywords and returns the
+    output array (a tuple of arrays for several outputs, in the type's order).
+    initialize() calls it once on zero-filled inputs of the propagated sizes to learn the
+    output sizes (the program then checks them against the plan's); execute() checks every
+    result's shape and element type and names the component and port when one is wrong.
+    """
+
+    def __init__(self, function, name: str, *, inputs: tuple[tuple[str, Any], ...],
+                 outputs: tuple[tuple[str, Any], ...], **params: Any):
+        self.function = function
+        self.name = name
+        self.inputs = tuple(inputs)
+        self.outputs = tuple(outputs)
+        self.params = params
+        self.sizes: dict[str, Size] = {}
+        self.profile = None  # a runtime.Profile with --profile: nothing to time on a queue
+        self.event = None  # never waited for: results are ready when execute returns
+
+    def initialize(self, *inputs: Size):
+        import numpy as np
+
+        arrays = {}
+        for (port, dtype), size in zip(self.inputs, inputs):
+            self.sizes[port] = Size(*size)
+            arrays[port] = np.zeros(self.sizes[port].shape, dtype)
+        results = self._call(arrays)
+        out_sizes = []
+        for (port, _), result in zip(self.outputs, results):
+            shape = getattr(result, "shape", ())
+            size = Size(shape[0], shape[1], shape[2] if len(shape) == 3 else 1) \
+                if len(shape) in (2, 3) else Size(0, 0, 0)
+            self.sizes[port] = size
+            out_sizes.append(size)
+        return out_sizes[0] if len(out_sizes) == 1 else tuple(out_sizes)
+
+    def _call(self, arrays) -> tuple:
+        results = self.function(**arrays, **self.params)
+        if len(self.outputs) == 1:
+            results = (results,)
+        elif not isinstance(results, tuple) or len(results) != len(self.outputs):
+            raise TypeError(f"{self.name}: the CPU function {self.function.__name__}() must "
+                            f"return {len(self.outputs)} arrays (a tuple, in the order "
+                            f"{', '.join(p for p, _ in self.outputs)})")
+        return results
+
+    def execute(self, *inputs):
+        import numpy as np
+
+        results = self._call({port: x for (port, _), x in zip(self.inputs, inputs)})
+        checked = []
+        for (port, dtype), result in zip(self.outputs, results):
+            want = self.sizes[port].shape
+            if not isinstance(result, np.ndarray) or result.shape != want or \
+                    result.dtype != np.dtype(dtype):
+                got = (f"{result.dtype} {result.shape}" if isinstance(result, np.ndarray)
+                       else type(result).__name__)
+                raise ValueError(f"{self.name}.{port}: the CPU function "
+                                 f"{self.function.__name__}() returned {got}, not "
+                                 f"{np.dtype(dtype)} {want}")
+            checked.append(np.ascontiguousarray(result))
+        return checked[0] if len(checked) == 1 else tuple(checked)
+
+    def free_memory(self):
+        self.sizes.clear()

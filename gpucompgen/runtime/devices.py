@@ -8,7 +8,7 @@ from typing import Any, NamedTuple
 from .errors import PipelineError
 from .facts import DeviceFacts
 from .facts import query as query_facts
-from .programs import quiet_compiler
+from .programs import _captured_stderr, quiet_compiler
 
 # A kernel every OpenCL C compiler must accept: whether a device can build it is whether
 # the device is usable at all.
@@ -44,7 +44,7 @@ def probe_device(device) -> str | None:
 
     try:
         context = cl.Context([device])
-        with quiet_compiler():
+        with _captured_stderr(), quiet_compiler():  # no stray '1 error generated.'
             cl.Program(context, _PROBE_SOURCE).build()
     except Exception as exc:  # any failure means: not usable
         return _build_problem(exc)
@@ -160,20 +160,55 @@ def kernel_limits(kernel, device) -> KernelLimits:
                                                    device))
 
 
-def check_work_group(kernel, device, local_size: tuple[int, ...], component: str
-                     ) -> KernelLimits:
-    """The system chose local_size for a described device; check it fits the real one."""
+def fitting_block(local_size: tuple[int, ...], work_group_size: int,
+                  item_sizes: tuple[int, ...]) -> tuple[int, ...]:
+    """local_size made to fit: each dimension within its limit, then the largest halved
+    until the threads fit the kernel's work-group limit."""
+    block = [max(1, min(v, d)) for v, d in zip(local_size, item_sizes)]
+    block += [max(1, v) for v in local_size[len(block):]]
+    while block and _product(block) > max(1, work_group_size):
+        i = block.index(max(block))
+        block[i] = max(1, block[i] // 2)
+    return tuple(block)
+
+
+def _product(values) -> int:
     threads = 1
-    for v in local_size:
+    for v in values:
         threads *= v
+    return threads
+
+
+def check_work_group(kernel, device, local_size: tuple[int, ...], component: str,
+                     settings_source: str = "") -> KernelLimits:
+    """The system chose local_size for a described device; check it fits the real one.
+
+    settings_source says where the settings came from: "model" for the model's
+    platform.gpu_settings (the error then says to change them there, with values that
+    fit); anything else, chosen at build time (the error says to rebuild for this device).
+    """
+    threads = _product(local_size)
     limits = kernel_limits(kernel, device)
-    dims = device_limits(device).max_work_item_sizes
+    device_info = device_limits(device)
+    dims = device_info.max_work_item_sizes
     if threads > limits.work_group_size or any(v > d for v, d in zip(local_size, dims)):
+        fit = fitting_block(tuple(local_size), limits.work_group_size, tuple(dims))
+        problem = (f"{component}: GPU settings {tuple(local_size)} ({threads:,} threads) do "
+                   f"not fit device '{device_info.name}' (kernel limit "
+                   f"{limits.work_group_size:,} threads, per dimension "
+                   f"[{', '.join(f'{d:,}' for d in dims)}], preferred multiple "
+                   f"{limits.preferred_multiple})")
+        if settings_source == "model":
+            if len(fit) == 3:
+                values = f"block_x: {fit[0]}, block_y: {fit[1]}, block_z: {fit[2]}"
+            else:
+                values = f"a block of {fit}"
+            raise PipelineError(
+                f"{problem}; the settings come from the model: change "
+                f"platform.gpu_settings.{component} there to fit, e.g. {values} "
+                f"({_product(fit):,} threads)")
         raise PipelineError(
-            f"{component}: GPU settings {local_size} ({threads} threads) do not fit device "
-            f"'{device_limits(device).name}' (kernel limit {limits.work_group_size}, per "
-            f"dimension {list(dims)}, preferred multiple {limits.preferred_multiple}); "
-            "rebuild for this device with 'gpucompgen build --device auto'")
+            f"{problem}; rebuild for this device with 'gpucompgen build --device auto'")
     return limits
 
 

@@ -2,13 +2,16 @@
 
 from __future__ import annotations
 
+import contextlib
 import importlib.util
 import sys
+import traceback
 from pathlib import Path
 from typing import Any, NamedTuple
 
 from .errors import PipelineError
 from .profiling import Profile
+from .signals import freeing
 from .sizes import Size
 
 
@@ -23,27 +26,96 @@ def expect_size(component: str, got: Any, expected: Size) -> Size:
 def load_module(path: Path, module_name: str, fresh: bool = True):
     """Import a Python file as a module: a generated program, or a user's component file.
 
-    With fresh=False a module already imported from the same file is reused.
+    With fresh=False a module already imported from the same file is reused. A file that
+    cannot be imported (missing, a syntax error, an exception while it runs) raises
+    PipelineError with one line naming the file and the problem, file:line where known;
+    the original exception is its __cause__.
     """
+    path = Path(path)
     module = sys.modules.get(module_name)
     if not fresh and module is not None and getattr(module, "__file__", None) == str(path):
         return module
     spec = importlib.util.spec_from_file_location(module_name, path)
     if spec is None or spec.loader is None:
-        raise PipelineError(f"cannot load module {path}")
+        raise PipelineError(f"{path}: error: cannot load it as a Python module "
+                            "(the file name must end in .py)")
     module = importlib.util.module_from_spec(spec)
     sys.modules[module_name] = module
-    spec.loader.exec_module(module)
+    try:
+        spec.loader.exec_module(module)
+    except PipelineError:  # already says which file (a user module the program loads)
+        sys.modules.pop(module_name, None)
+        raise
+    except (Exception, SystemExit) as exc:
+        sys.modules.pop(module_name, None)
+        raise PipelineError(_import_problem(path, exc)) from exc
     return module
 
 
+def _one_line(text: object) -> str:
+    return " ".join(str(text).split())
+
+
+def _import_problem(path: Path, exc: BaseException) -> str:
+    """file[:line[:col]]: error: what went wrong importing path, on one line."""
+    if isinstance(exc, FileNotFoundError) and Path(exc.filename or "") == path:
+        return f"{path}: error: cannot import it: no such file"
+    if isinstance(exc, OSError) and Path(exc.filename or "") == path:
+        return f"{path}: error: cannot read it: {exc.strerror}"
+    if isinstance(exc, SyntaxError) and exc.filename and Path(exc.filename) == path:
+        where = f"{path}:{exc.lineno}" + (f":{exc.offset}" if exc.offset else "")
+        return f"{where}: error: {type(exc).__name__}: {_one_line(exc.msg)}"
+    line = None
+    tb = exc.__traceback__
+    while tb is not None:  # the innermost line of the file itself
+        if Path(tb.tb_frame.f_code.co_filename) == path:
+            line = tb.tb_lineno
+        tb = tb.tb_next
+    where = f"{path}:{line}" if line else str(path)
+    if isinstance(exc, SystemExit):
+        return f"{where}: error: it exits while being imported (sys.exit({exc.code!r}))"
+    what = f"{type(exc).__name__}: {_one_line(exc)}" if str(exc) else type(exc).__name__
+    return f"{where}: error: importing it raised {what}"
+
+
 def load_class(path: Path, name: str) -> type:
-    """Load a user's standard component class from a file copied beside the program."""
-    module = load_module(path, f"gpucompgen_user_{Path(path).stem}", fresh=False)
+    """Load a user's standard component class from a file copied beside the program.
+
+    A file that cannot be imported, or defines no class of that name, raises PipelineError.
+    Called at the top of a program run as a script (outside main()), it prints that
+    error as one line instead, with no traceback (unless --debug is on the command
+    line), and exits 1.
+    """
+    path = Path(path)
     try:
-        return getattr(module, name)
-    except AttributeError:
-        raise PipelineError(f"{path.name} defines no class {name}") from None
+        module = load_module(path, f"gpucompgen_user_{path.stem}", fresh=False)
+        found = getattr(module, name, None)
+        if found is None:
+            raise PipelineError(f"{path}: error: defines no class {name}; the component type "
+                                "names it in its 'python: {class: ...}'")
+        if not isinstance(found, type):
+            raise PipelineError(f"{path}: error: {name} is a {type(found).__name__}, not a "
+                                "class")
+        return found
+    except (PipelineError, KeyboardInterrupt) as exc:
+        if sys._getframe(1).f_globals.get("__name__") != "__main__":
+            raise
+        if "--debug" in sys.argv[1:]:
+            traceback.print_exception(exc.__cause__ or exc)
+        if isinstance(exc, KeyboardInterrupt):
+            print(f"{path}: interrupted while importing it", file=sys.stderr)
+            raise SystemExit(130) from None
+        print(exc, file=sys.stderr)
+        raise SystemExit(1) from None
+
+
+def load_function(path: Path, name: str):
+    """Load a flexible type's CPU function from a file copied beside the program."""
+    module = load_module(path, f"gpucompgen_user_{Path(path).stem}", fresh=False)
+    function = getattr(module, name, None)
+    if not callable(function):
+        raise PipelineError(f"{path.name} defines no function {name}")
+    return function
 
 
 class Result(NamedTuple):
@@ -75,7 +147,8 @@ def component_failure(exc: BaseException, frame: int | None,
     configured; parts maps every planned name to its object, None until constructed, so
     a constructor that raises is the first name still None.
     """
-    who = failing_component(exc, parts)
+    # a check of what a part returned names that part (runtime.check_frame)
+    who = failing_component(exc, parts) or getattr(exc, "component", None)
     when = "while initializing" if frame is None else f"at frame {frame}"
     if who is None and frame is None:
         unbuilt = next((name for name, obj in parts.items() if obj is None), None)
@@ -95,7 +168,9 @@ def free_all(parts: dict[str, Any]) -> None:
     When run() is already failing, failures to free are printed as notes so the first
     error stays the one reported; otherwise they raise one PipelineError naming them all.
     """
+    freeing()  # a signal from now on does not cut freeing short
     failed = []
+    escaping: BaseException | None = None  # SystemExit, KeyboardInterrupt: after the rest
     for name in reversed(list(parts)):
         if parts[name] is None:  # never constructed
             continue
@@ -103,10 +178,24 @@ def free_all(parts: dict[str, Any]) -> None:
             parts[name].free_memory()
         except Exception as exc:
             failed.append(f"{name}.free_memory() failed: {type(exc).__name__}: {exc}")
+        except BaseException as exc:
+            escaping = escaping or exc
+    if escaping is not None:
+        raise escaping
     if not failed:
         return
-    if sys.exc_info()[1] is not None:
+    in_flight = sys.exc_info()[1]
+    if in_flight is not None:
         for line in failed:
             print(f"note: {line}", file=sys.stderr)
+        with contextlib.suppress(AttributeError):  # for the report of a stop (runtime.main)
+            in_flight.free_failures = len(failed)
         return
     raise PipelineError("; ".join(failed) + " (every other component was freed)")
+
+
+def model_path(program_file: str, relative: str) -> str:
+    """A 'path' parameter of the model: written relative to the model's folder, stored in
+    the program relative to the program's folder, resolved here to an absolute path (so
+    errors name the path that was looked at, whatever the working directory)."""
+    return str((Path(program_file).resolve().parent / relative).resolve())

@@ -9,7 +9,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from .errors import PipelineError
+from .errors import PipelineError, Stopped
 
 
 class _ClearsProgress:
@@ -56,6 +56,7 @@ class Monitor:
         self._drawn = 0.0  # when the progress line was last drawn
         self._shown = False  # whether it is on the screen now
         self._stdout = None  # the real sys.stdout while _ClearsProgress stands in
+        self.stop_signal: int | None = None  # set by request_stop (SIGINT, SIGTERM)
 
     def attach(self, parts: dict[str, Any]) -> None:
         """Called by run() once every component and adapter is constructed."""
@@ -99,9 +100,20 @@ class Monitor:
 
         return timed
 
+    def request_stop(self, signum: int) -> None:
+        """Ask the run to stop: the next frame_done() raises Stopped (runtime.main calls
+        this on SIGINT and SIGTERM)."""
+        self.stop_signal = signum
+
     def frame_done(self, frames: int) -> None:
-        """Called by run() after each frame with the number of frames processed so far."""
+        """Called by run() after each frame with the number of frames processed so far.
+
+        Raises Stopped once a stop was requested, which ends the stream loop; run() then
+        frees everything.
+        """
         self.frames = frames
+        if self.stop_signal is not None:
+            raise Stopped(self.stop_signal)
         if self.calls is not None or self.progress:
             now = time.perf_counter()
             if self.calls is not None and self._frame_start is not None:

@@ -36,6 +36,13 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 #   mirror5.mirrored         device  864x1152x3 uint8  2,985,984
 #   mirror5.mirrored (host)  host    864x1152x3 uint8  2,985,984
 #
+#   placement of flexible components:
+#     mirror1: GPU (by default)
+#     mirror2: GPU (by default)
+#     mirror3: GPU (by default)
+#     mirror4: GPU (by default)
+#     mirror5: GPU (by default)
+#
 #   device: portable OpenCL 1.2 device
 #   peak device memory: 29,859,840 bytes; peak host memory: 17,915,904 bytes
 #   (every buffer is allocated once, at start)
@@ -227,6 +234,7 @@ def run(frames=None, context=None, monitor=None, profile=False):
             source_image = source.execute()
             if source_image is None:
                 break  # end of stream
+            runtime.check_frame('source.image', source_image, (864, 1152, 3), np.uint8)
             mirror1_mirrored = mirror1.execute(source_image)
             mirror2_mirrored = mirror2.execute(mirror1_mirrored)
             mirror3_mirrored = mirror3.execute(mirror2_mirrored)

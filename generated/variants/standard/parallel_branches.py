@@ -35,6 +35,12 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 #   detector.mask         device  480x1280x1 uint8    614,400
 #   detector.mask (host)  host    480x1280x1 uint8    614,400
 #
+#   placement of flexible components:
+#     blur1: GPU (by default)
+#     blur2: GPU (by default)
+#     merger: GPU (by default)
+#     detector: GPU (by default)
+#
 #   device: portable OpenCL 1.2 device
 #   peak device memory: 9,830,400 bytes; peak host memory: 6,144,000 bytes
 #   (every buffer is allocated once, at start)
@@ -257,6 +263,8 @@ def run(frames=None, context=None, monitor=None, profile=False):
             camera2_image = camera2.execute()
             if camera1_image is None or camera2_image is None:
                 break  # end of stream
+            runtime.check_frame('camera1.image', camera1_image, (480, 640, 3), np.uint8)
+            runtime.check_frame('camera2.image', camera2_image, (480, 640, 3), np.uint8)
             blur1_smooth = blur1.execute(camera1_image)
             blur2_smooth = blur2.execute(camera2_image)
             merger_merged = merger.execute(blur1_smooth, blur2_smooth)

@@ -26,6 +26,12 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 #   adapter2_cpu2gpu (camera2.image)  host view           480x640x3 uint8         0
 #   adapter3_gpu2cpu (detector.mask)  mapped device view  480x1280x1 uint8        0
 #
+#   placement of flexible components:
+#     blur1: GPU (by default)
+#     blur2: GPU (by default)
+#     merger: GPU (by default)
+#     detector: GPU (by default)
+#
 #   device: portable OpenCL 1.2 device
 #   peak device memory: 614,400 bytes; peak host memory: 1,843,200 bytes
 #   (every buffer is allocated once, at start)
@@ -172,6 +178,8 @@ def run(frames=None, context=None, monitor=None, profile=False):
             camera2_image = camera2.execute()
             if camera1_image is None or camera2_image is None:
                 break  # end of stream
+            runtime.check_frame('camera1.image', camera1_image, (480, 640, 3), np.uint8)
+            runtime.check_frame('camera2.image', camera2_image, (480, 640, 3), np.uint8)
             camera1_image_gpu = adapter1_cpu2gpu.transfer(camera1_image)
             camera2_image_gpu = adapter2_cpu2gpu.transfer(camera2_image)
             blur1_to_detector_mask = blur1_to_detector.execute(camera1_image_gpu, camera2_image_gpu)

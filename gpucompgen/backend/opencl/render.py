@@ -8,7 +8,10 @@ only between its tokens, never inside a literal.
 
 from __future__ import annotations
 
+import dataclasses
 import os
+import posixpath
+import re
 import textwrap
 from dataclasses import dataclass
 from importlib import resources
@@ -17,7 +20,15 @@ from pathlib import Path, PurePosixPath
 import jinja2
 
 from ...ir import ComponentNode, System
-from ...passes.lower import lib_dir_name, lib_key, used_types
+from ...passes.lower import (
+    cpu_lib_key,
+    cpu_used_types,
+    gpu_used_types,
+    kernel_key,
+    lib_dir_name,
+    lib_key,
+    used_types,
+)
 from ...plan import Argument, ProgramPlan
 from .fused import group_kernel
 
@@ -105,10 +116,19 @@ def comment_lines(text: str, indent: int) -> list[str]:
                                                    break_on_hyphens=False)] or ["#"]
 
 
+class ModelPath(str):
+    """A path parameter relative to the model's folder, as seen from the program's folder:
+    printed as a call that resolves it when the program runs, wherever it is started."""
+
+
 def py_literal(value) -> str:
     """A Python literal for a model value (escaped: no model text becomes code)."""
+    if isinstance(value, ModelPath):
+        return f"runtime.model_path(__file__, {str(value)!r})"
     if isinstance(value, (bool, int, float, str)) or value is None:
         return repr(value)
+    if isinstance(value, tuple) and all(type(v) is int for v in value):
+        return repr(value)  # a shape
     raise TypeError(f"no literal for {type(value).__name__}")
 
 
@@ -158,10 +178,31 @@ def source_path(model_file: Path, out_dir: Path) -> str:
     return PurePosixPath(Path(rel)).as_posix()
 
 
-def render(system: System, source: str) -> list[OutputFile]:
+URI = re.compile(r"[A-Za-z][A-Za-z0-9+.-]*:")  # e.g. a camera's device:0, not a path
+
+
+def with_model_paths(system: System, plan: ProgramPlan, model_dir: str) -> ProgramPlan:
+    """The plan with every relative 'path' parameter made relative to the program's folder
+    (model_dir: the model's folder as seen from there), so that it names the same file
+    whatever the working directory of the program."""
+    parts = []
+    for part in plan.parts:
+        node = system.nodes.get(part.name)
+        decls = getattr(getattr(node, "type", None), "params", {})
+        params = tuple(
+            (k, ModelPath(posixpath.normpath(posixpath.join(model_dir, v))))
+            if decls.get(k) is not None and decls[k].type == "path" and isinstance(v, str)
+            and v and not posixpath.isabs(v) and not URI.match(v) else (k, v)
+            for k, v in part.params)
+        parts.append(dataclasses.replace(part, params=params))
+    return dataclasses.replace(plan, parts=parts)
+
+
+def render(system: System, source: str, model_dir: str = ".") -> list[OutputFile]:
     """All files of one system, in a stable order: the program, then its lib folder (each
-    kernel and user Python file once, whatever number of types use it)."""
-    plan: ProgramPlan = system.plan
+    kernel and user Python file once, whatever number of types use it).  model_dir: the
+    model's folder relative to the output folder ('path' parameters start there)."""
+    plan: ProgramPlan = with_model_paths(system, system.plan, model_dir)
     env = environment()
     model = system.model
     lib = lib_dir_name(system.name)
@@ -169,27 +210,43 @@ def render(system: System, source: str) -> list[OutputFile]:
     files: list[OutputFile] = []
     written: set[str] = set()
     for t in used_types(system):
-        if not t.gpu_aware and t.origin != "user":
+        if t in gpu_used_types(system):
+            name = plan.lib_files_of(kernel_key(t))
+            if name not in written:  # a kernel file several types share is copied once
+                written.add(name)
+                users = sorted(u.name for u in gpu_used_types(system)
+                               if kernel_key(u) == kernel_key(t))
+                text = t.kernel_text  # as checked (size, UTF-8, inside its folder)
+                files.append(OutputFile(PurePosixPath(lib, name),
+                                        f"// {header}\n// Kernel of component type"
+                                        f"{'s' if len(users) > 1 else ''} {', '.join(users)}."
+                                        f"\n\n{text}"))
+        if t.flexible and t.origin == "user" and t in cpu_used_types(system):
+            name = plan.lib_files_of(cpu_lib_key(t))
+            if name not in written:
+                written.add(name)
+                users = sorted(u.name for u in cpu_used_types(system)
+                               if u.origin == "user" and cpu_lib_key(u) == cpu_lib_key(t))
+                text = t.cpu_file.read_text(encoding="utf-8")
+                files.append(OutputFile(PurePosixPath(lib, name),
+                                        f"# {header}\n# CPU implementation of "
+                                        f"{', '.join(users)}, copied from its type file.\n\n"
+                                        f"{text}"))
+        if t.gpu_aware or t.origin != "user":
             continue
-        name = next(f for f, key in plan.lib_files.items() if key == lib_key(t))
+        name = plan.lib_files_of(lib_key(t))
         if name in written:
             continue
         written.add(name)
-        if t.gpu_aware:
-            text = t.kernel_file.read_text(encoding="utf-8")
-            files.append(OutputFile(PurePosixPath(lib, name),
-                                    f"// {header}\n// Kernel of component type {t.name}.\n\n"
-                                    f"{text}"))
-        else:
-            users = sorted(u.name for u in used_types(system)
-                           if not u.gpu_aware and u.origin == "user"
-                           and lib_key(u) == lib_key(t))
-            text = t.python_file.read_text(encoding="utf-8")
-            files.append(OutputFile(PurePosixPath(lib, name),
-                                    f"# {header}\n# Copied from the component type file of "
-                                    f"{', '.join(users)}.\n\n{text}"))
+        users = sorted(u.name for u in used_types(system)
+                       if not u.gpu_aware and u.origin == "user"
+                       and lib_key(u) == lib_key(t))
+        text = t.python_text  # as checked
+        files.append(OutputFile(PurePosixPath(lib, name),
+                                f"# {header}\n# Copied from the component type file of "
+                                f"{', '.join(users)}.\n\n{text}"))
     for g in system.groups:
-        name = next(f for f, key in plan.lib_files.items() if key == lib_key(g.type))
+        name = plan.lib_files_of(lib_key(g.type))
         files.append(OutputFile(PurePosixPath(lib, name), group_kernel(g, header)))
     from ...plan import plan_lines
 

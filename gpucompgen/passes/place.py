@@ -1,0 +1,277 @@
+"""place: where each flexible component runs, the GPU or the CPU.
+
+A flexible type has a kernel and a CPU function (``kind: flexible``).  Each of its
+components runs where it is asked — ``--place NAME=SIDE`` on the command line, its own
+``placement:``, ``platform.placement``, else the GPU (the default) — and those asked
+``auto`` are placed together, minimising the estimated time of one frame:
+
+    frame time = sum over auto components of compute(component, side)
+               + sum over producing ports whose data crosses memories of transfer(bytes)
+
+A producing port crosses when a reader sits on the other side (one adapter serves every
+reader there, as insert-adapters makes it); in standard mode a GPU component copies each
+of its inputs and outputs itself.  transfer(bytes) = latency + bytes / bandwidth per copy
+(latency only with zero-copy adapters: nothing is copied).  compute() comes from the
+model's profile (``platform.profile``, written by ``gpucompgen tune``), else from the
+static estimate below.  Up to EXHAUSTIVE_LIMIT auto components every combination is
+tried; beyond, a greedy start (all on the GPU and all on the CPU) improved by moving one
+component at a time while that lowers the estimate, the better of the two kept.  Ties go
+to the GPU (the default placement).
+
+The pass runs after propagate-sizes (the costs need the bytes) and before
+insert-adapters (which puts adapters wherever neighbours are now on different sides).
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from ..errors import Reporter
+from ..ir import ComponentNode, System
+from ..loader import load_file
+from ..model import Endpoint
+from .base import Pass
+
+EXHAUSTIVE_LIMIT = 16
+# The static estimate, used without a profile (documented in the README): a component
+# reads its inputs and writes its outputs once; numpy on the CPU moves about 1 GB/s
+# through a filter, a GPU kernel 20 GB/s after a 20 µs launch; a copy between memories
+# costs 10 µs plus its bytes at 6 GB/s (PCIe 3 x8 in practice).
+STATIC = {"cpu_bytes_per_s": 1e9, "gpu_bytes_per_s": 20e9, "gpu_launch_s": 20e-6,
+          "transfer_bytes_per_s": 6e9, "transfer_latency_s": 10e-6}
+
+
+@dataclass(frozen=True)
+class Cost:
+    """Estimated time per frame of one component on each side, in seconds."""
+
+    cpu_s: float
+    gpu_s: float
+    source: str  # "profile" | "static estimate"
+
+
+@dataclass
+class Placement:
+    """How the flexible components were placed, for the plan."""
+
+    decided: dict[str, tuple[str, str]] = field(default_factory=dict)  # name -> (side, by)
+    costs: dict[str, Cost] = field(default_factory=dict)
+    transfer: tuple[float, float, str] = (0.0, 0.0, "")  # latency s, bytes/s, source
+    # auto only: the estimated frame time of the choice and of the alternatives
+    estimate_s: float | None = None
+    all_gpu_s: float | None = None
+    all_cpu_s: float | None = None
+    search: str = ""  # "exhaustive over 2^n" | "greedy + local improvement"
+
+    def lines(self) -> list[str]:
+        out = []
+        for name, (side, by) in self.decided.items():
+            c = self.costs.get(name)
+            est = (f"; est. CPU {c.cpu_s * 1e3:.3f} ms, GPU {c.gpu_s * 1e3:.3f} ms "
+                   f"({c.source})" if c else "")
+            out.append(f"{name}: {side.upper()} (by {by}{est})")
+        if self.estimate_s is not None:
+            lat, bw, src = self.transfer
+            out.append(f"auto ({self.search}): est. {self.estimate_s * 1e3:.3f} ms a frame "
+                       f"(all on GPU {self.all_gpu_s * 1e3:.3f} ms, all on CPU "
+                       f"{self.all_cpu_s * 1e3:.3f} ms); transfers {lat * 1e6:.1f} µs + "
+                       f"{bw / 1e6:,.0f} MB/s per copy ({src})")
+        return out
+
+
+class Place(Pass):
+    name = "place"
+
+    def apply(self, system, rep):
+        flexible = [n for n in system.components.values() if n.type.flexible]
+        placement = Placement()
+        for node in flexible:
+            if node.asked in ("gpu", "cpu"):
+                node.place(node.asked, system.mode)
+        auto = [n for n in flexible if n.asked == "auto"]
+        if auto:
+            profile = read_profile(system, rep)
+            model = CostModel(system, profile)
+            for node in flexible:
+                placement.costs[node.name] = model.compute(node)
+            placement.transfer = model.transfer_facts()
+            sides, search = choose(model, [n.name for n in auto])
+            for node in auto:
+                node.place(sides[node.name], system.mode)
+            placement.estimate_s = model.frame(sides)
+            placement.all_gpu_s = model.frame(dict.fromkeys(sides, "gpu"))
+            placement.all_cpu_s = model.frame(dict.fromkeys(sides, "cpu"))
+            placement.search = search
+        for node in flexible:
+            placement.decided[node.name] = (node.placement,
+                                            "auto" if node.asked == "auto" else node.placed_by)
+        system.placement = placement
+        return system
+
+
+# --------------------------------------------------------------------------- cost model
+
+class CostModel:
+    """Estimated frame time of a placement of a system's auto components."""
+
+    def __init__(self, system: System, profile: dict | None = None):
+        self.system = system
+        self.profile = profile or {}
+        t = self.profile.get("transfer")
+        if t:
+            self.latency, self.bandwidth, self.transfer_source = t[0], t[1], "profile"
+        else:
+            self.latency = STATIC["transfer_latency_s"]
+            self.bandwidth = STATIC["transfer_bytes_per_s"]
+            self.transfer_source = "static estimate"
+        self._compute = {n.name: self.compute(n) for n in system.components.values()
+                         if n.type.flexible}
+
+    def transfer_facts(self) -> tuple[float, float, str]:
+        return self.latency, self.bandwidth, self.transfer_source
+
+    def transfer_s(self, nbytes: int) -> float:
+        if self.system.zero_copy and self.system.mode != "standard":
+            return self.latency
+        return self.latency + nbytes / self.bandwidth
+
+    def compute(self, node: ComponentNode) -> Cost:
+        measured = self.profile.get("components", {}).get(node.name)
+        if measured is not None:
+            return Cost(measured[0], measured[1], "profile")
+        nbytes = sum(p.data.nbytes for p in node.ports if p.data is not None)
+        return Cost(nbytes / STATIC["cpu_bytes_per_s"],
+                    STATIC["gpu_launch_s"] + nbytes / STATIC["gpu_bytes_per_s"],
+                    "static estimate")
+
+    def side(self, name: str, sides: dict[str, str]) -> str:
+        if name in sides:
+            return sides[name]
+        node = self.system.nodes[name]
+        return node.placement if isinstance(node, ComponentNode) else "cpu"
+
+    def frame(self, sides: dict[str, str]) -> float:
+        """Compute of the placed components + transfers the placement causes."""
+        total = sum(getattr(self._compute[n], f"{s}_s") for n, s in sides.items())
+        system = self.system
+        if system.mode == "standard":  # a GPU component copies its own data both ways
+            for name, node in system.components.items():
+                if self.side(name, sides) == "gpu":
+                    total += sum(self.transfer_s(p.data.nbytes) for p in node.ports
+                                 if p.data is not None)
+            return total
+        for name, node in system.components.items():
+            here = self.side(name, sides)
+            for pname, port in node.outputs.items():
+                readers = system.readers(Endpoint(name, pname))
+                if port.data is not None and any(self.side(r.component, sides) != here
+                                                 for r in readers):
+                    total += self.transfer_s(port.data.nbytes)
+        return total
+
+
+def choose(model: CostModel, names: list[str]) -> tuple[dict[str, str], str]:
+    """The sides of names with the lowest estimated frame time (ties: more on the GPU)."""
+    def key(sides):
+        return (round(model.frame(sides), 12), sum(s == "cpu" for s in sides.values()))
+
+    if len(names) <= EXHAUSTIVE_LIMIT:
+        best = min((dict(zip(names, combo)) for combo in
+                    itertools.product(("gpu", "cpu"), repeat=len(names))), key=key)
+        return best, f"exhaustive over {2 ** len(names):,} placements"
+    results = []
+    for start in ("gpu", "cpu"):
+        sides = dict.fromkeys(names, start)
+        improved = True
+        while improved:
+            improved = False
+            for n in names:
+                trial = {**sides, n: "cpu" if sides[n] == "gpu" else "gpu"}
+                if key(trial) < key(sides):
+                    sides, improved = trial, True
+        results.append(sides)
+    return min(results, key=key), "greedy + local improvement"
+
+
+# --------------------------------------------------------------------------- profiles
+
+def read_profile(system: System, rep: Reporter) -> dict | None:
+    """The model's platform.profile as {"components": {name: (cpu_s, gpu_s)},
+    "transfer": (latency_s, bytes_per_s)}; problems are reported at their position."""
+    model = system.model
+    path: Path | None = model.profile
+    if path is None:
+        return None
+    if not path.is_file():
+        rel = os.path.relpath(path, model.file.parent)
+        rep.error(model.profile_pos, f"profile {rel!r} not found (paths are relative to the "
+                  "model)", f"write it with 'gpucompgen tune {model.display}'")
+        return None
+    shown = str(Path(model.display).parent / os.path.relpath(path, model.file.parent))
+    doc = load_file(path, shown)
+    data = doc.data
+    if not isinstance(data, dict):
+        rep.error(doc.pos(), "a profile is a mapping written by 'gpucompgen tune'",
+                  f"rewrite it with 'gpucompgen tune {model.display}'")
+        return None
+    result: dict = {"components": {}}
+
+    def number(path_, value, what) -> float | None:
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or \
+                not math.isfinite(value) or value < 0:
+            rep.error(doc.pos(*path_), f"{what} must be a number, 0 or more, not {value!r}",
+                      f"rewrite the profile with 'gpucompgen tune {model.display}'")
+            return None
+        return float(value)
+
+    t = data.get("transfer")
+    if isinstance(t, dict):
+        lat = number(("transfer", "latency_us"), t.get("latency_us"), "transfer.latency_us")
+        bw = number(("transfer", "bandwidth_mb_s"), t.get("bandwidth_mb_s"),
+                    "transfer.bandwidth_mb_s")
+        if lat is not None and bw:
+            result["transfer"] = (lat * 1e-6, bw * 1e6)
+    elif t is not None:
+        rep.error(doc.pos("transfer"), "transfer must be a mapping of latency_us and "
+                  "bandwidth_mb_s")
+    comps = data.get("components")
+    if not isinstance(comps, dict):
+        rep.error(doc.pos("components") if "components" in data else doc.pos(),
+                  "the profile lists no components",
+                  f"rewrite it with 'gpucompgen tune {model.display}'")
+        return result
+    for name, entry in comps.items():
+        node = system.nodes.get(name) if isinstance(name, str) else None
+        if not isinstance(node, ComponentNode) or not node.type.flexible:
+            rep.warning(doc.key_pos("components", name),
+                        f"the profile times '{name}', which is no flexible component of "
+                        f"'{system.name}'", "rerun 'gpucompgen tune' after changing the model")
+            continue
+        if not isinstance(entry, dict):
+            rep.error(doc.pos("components", name), f"profile entry of '{name}' must be a "
+                      "mapping of cpu_us and gpu_us")
+            continue
+        cpu = number(("components", name, "cpu_us"), entry.get("cpu_us"), "cpu_us")
+        gpu = number(("components", name, "gpu_us"), entry.get("gpu_us"), "gpu_us")
+        sizes = entry.get("sizes")
+        now = sizes_text(system, node)
+        if sizes is not None and sizes != now:
+            rep.warning(doc.pos("components", name, "sizes"),
+                        f"'{name}' was timed at {sizes}, the model now gives {now}: its "
+                        "static estimate is used", "rerun 'gpucompgen tune'")
+            continue
+        if cpu is not None and gpu is not None:
+            result["components"][name] = (cpu * 1e-6, gpu * 1e-6)
+    return result
+
+
+def sizes_text(system: System, node: ComponentNode) -> str:
+    """A component's port sizes as a profile records them: 'in 480x640x3 -> out 480x...'."""
+    def side(ports):
+        return ", ".join(f"{p.data.height}x{p.data.width}x{p.data.channels}"
+                         for p in ports.values() if p.data is not None)
+    return f"{side(node.inputs)} -> {side(node.outputs)}"

@@ -1,0 +1,161 @@
+"""`gpucompgen tune MODEL`: measure each flexible component on the CPU and on the device.
+
+Every flexible component of the model runs its real implementations at the model's sizes
+(propagated as for a build): its CPU function on random frames, and its kernel with the
+launch settings a build would give it, on the OpenCL device programs use (PYOPENCL_CTX).
+Each is timed for a few frames after one warm-up, and the median kept — a kernel from
+enqueue to finish, so the launch cost counts.  One copy each way between host and device
+gives the transfer latency (a 64-byte copy) and bandwidth (the largest port's bytes).
+
+The profile is a small YAML file that the model names (``platform.profile``) and that is
+checked in; the place pass reads it for ``placement: auto``.  Running the components is
+what this command is for: like ``run``, and unlike ``check`` and ``build``, it imports
+the types' CPU functions.
+"""
+
+from __future__ import annotations
+
+import importlib
+import statistics
+import time
+from pathlib import Path
+
+from .ir import ComponentNode
+from .passes.place import sizes_text
+
+TRANSFER_PROBE_BYTES = 64
+
+
+def default_profile_path(model_path: Path, model) -> Path:
+    """The model's platform.profile, else tune/<system>.yaml beside the model."""
+    return model.profile or model_path.parent / "tune" / f"{model.name}.yaml"
+
+
+def tune(model_path: Path, frames: int = 20, display: str | None = None) -> tuple[str, list]:
+    """Measure; return the profile's text and rows (name, type, cpu_us, gpu_us)."""
+    import numpy as np
+    import pyopencl as cl
+
+    from . import device as device_mod
+    from . import runtime
+    from .errors import Reporter
+    from .model import load_system
+    from .passes import run_passes
+
+    model = load_system(model_path, display)
+    flexible = [n for n, inst in model.components.items() if inst.type.flexible]
+    rep = Reporter()
+    facts = device_mod.resolve("auto", model.device_pos, rep, None)
+    rep.raise_if_errors()
+    system, _ = run_passes(model, facts, places=dict.fromkeys(flexible, "gpu"),
+                           zero_copy="off", fusion="off")  # each component's own kernel
+    plan = system.plan
+    context = runtime.create_context()
+    queue = cl.CommandQueue(context)
+    rng = np.random.default_rng(1)
+    rows = []
+    for name in flexible:
+        node: ComponentNode = system.nodes[name]
+        t = node.type
+        inputs = {p: rng.integers(0, 256, port.data.size.shape, dtype=np.uint8)
+                  for p, port in node.inputs.items()}
+        function, kwargs = _cpu_function(t), {**inputs, **node.params}
+        cpu_s = _median(frames, lambda f=function, k=kwargs: f(**k))
+        gpu_s = _gpu_time(context, queue, system, plan, node, inputs, frames)
+        rows.append((name, t.name, sizes_text(system, node), cpu_s * 1e6, gpu_s * 1e6))
+    biggest = max((p.data.nbytes for n in flexible for p in system.nodes[n].ports), default=1)
+    latency, bandwidth = _transfer(context, queue, biggest, frames)
+    device = context.devices[0].name.strip()
+    lines = [f"# Written by 'gpucompgen tune {display or model_path}' on the OpenCL device",
+             f"# '{device}': the median of {frames} frames of each flexible component at the",
+             "# model's sizes, on the CPU (its function) and on the device (its kernel, enqueue",
+             "# to finish), and the cost of one copy between host and device. The model names",
+             "# this file (platform.profile) for placement: auto; rerun after changing sizes,",
+             "# device or implementations.",
+             f"system: {model.name}",
+             f"device: {_quote(device)}",
+             f"frames: {frames}",
+             f"transfer: {{latency_us: {latency * 1e6:.1f}, bandwidth_mb_s: {bandwidth / 1e6:.1f}}}",
+             "components:"]
+    for name, tname, sizes, cpu_us, gpu_us in rows:
+        lines.append(f"  {name}: {{type: {tname}, sizes: {_quote(sizes)}, "
+                     f"cpu_us: {cpu_us:.1f}, gpu_us: {gpu_us:.1f}}}")
+    return "\n".join(lines) + "\n", rows
+
+
+def _quote(text: str) -> str:
+    return '"' + text.replace("\\", "\\\\").replace('"', '\\"') + '"'
+
+
+def _cpu_function(t):
+    if t.origin == "library":
+        module = importlib.import_module(f"gpucompgen.library.{t.cpu_file.stem}")
+        return getattr(module, t.cpu_function)
+    from .runtime import load_function
+    return load_function(t.cpu_file, t.cpu_function)
+
+
+def _median(frames: int, call, finish=None) -> float:
+    call()
+    if finish:
+        finish()
+    times = []
+    for _ in range(max(frames, 1)):
+        start = time.perf_counter()
+        call()
+        if finish:
+            finish()
+        times.append(time.perf_counter() - start)
+    return statistics.median(times)
+
+
+def _gpu_time(context, queue, system, plan, node, inputs, frames) -> float:
+    import numpy as np
+    import pyopencl as cl
+
+    from . import runtime
+
+    t = node.type
+    la = plan.launch(node.name)
+    out_sizes = [p.data.size for p in node.outputs.values()]
+    cls = type(t.name, (runtime.KernelComponent,), {
+        "function": t.kernel_function,
+        "inputs": tuple((p, np.dtype(d.dtype).type) for p, d in t.inputs.items()),
+        "outputs": tuple((p, np.dtype(d.dtype).type) for p, d in t.outputs.items()),
+        "output_sizes": lambda self, *sizes: out_sizes})
+    program = runtime.build_program(context, t.kernel_file, f"{node.name} ({t.name})")
+    comp = cls(context, queue, program, **node.params)
+    try:
+        comp.initialize(*(p.data.size for p in node.inputs.values()))
+        arguments = [a.port if a.kind == "buffer" else getattr(np, a.host_type)(a.value)
+                     for a in la.arguments]
+        comp.config_gpu(la.tile, la.local_size, la.global_size, arguments, la.settings_source)
+        mf = cl.mem_flags
+        buffers = [cl.Buffer(context, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=x)
+                   for x in inputs.values()]
+        return _median(frames, lambda: comp.execute(*buffers), queue.finish)
+    finally:
+        comp.free_memory()
+
+
+def _transfer(context, queue, nbytes: int, frames: int) -> tuple[float, float]:
+    """(seconds per copy, bytes per second): a tiny copy's time, and the largest port's."""
+    import numpy as np
+    import pyopencl as cl
+
+    small = np.zeros(TRANSFER_PROBE_BYTES, np.uint8)
+    big = np.zeros(nbytes, np.uint8)
+    dsmall = cl.Buffer(context, cl.mem_flags.READ_WRITE, small.nbytes)
+    dbig = cl.Buffer(context, cl.mem_flags.READ_WRITE, big.nbytes)
+
+    def both(host, dev):
+        cl.enqueue_copy(queue, dev, host)
+        cl.enqueue_copy(queue, host, dev)
+        queue.finish()
+
+    latency = _median(frames, lambda: both(small, dsmall)) / 2
+    per_copy = _median(frames, lambda: both(big, dbig)) / 2
+    bandwidth = nbytes / max(per_copy - latency, 1e-9)
+    dsmall.release()
+    dbig.release()
+    return latency, bandwidth

@@ -1,0 +1,142 @@
+"""What `gpucompgen types` prints: the component types a model can use, as gst-inspect does.
+
+Without a name, one line per type (name, kind, first sentence of its description), grouped
+by the file that declares it; with a name, the type in full: where it is declared, its
+description, ports, parameters, requirements and forms (the ways it can run).
+
+``forms`` lists each way a type can run as (label, detail) rows, so a new form (a fusable
+snippet, a CPU implementation of a GPU-aware type) is one more row.
+"""
+
+from __future__ import annotations
+
+import ast
+import textwrap
+from collections.abc import Mapping
+
+from .model import ComponentType, ParamDecl, PortDecl, py_yaml
+
+WIDTH = 100  # columns of the listing
+LABEL = 16  # width of the label column in the full view
+
+
+def summary(ctype: ComponentType) -> str:
+    """The description's first sentence (or the whole of a short one)."""
+    text = " ".join(ctype.description.split())
+    end = text.find(". ")
+    return text if end < 0 else text[:end + 1]
+
+
+def listing(types: Mapping[str, ComponentType]) -> list[str]:
+    """Every type, grouped by declaring file (the library's first), one line each."""
+    groups: dict[tuple[int, str], list[ComponentType]] = {}
+    for ctype in types.values():
+        key = (0 if ctype.origin == "library" else 1, _source(ctype))
+        groups.setdefault(key, []).append(ctype)
+    name_width = max((len(n) for n in types), default=0) + 2
+    lines: list[str] = []
+    for (_, source), members in sorted(groups.items()):
+        lines.append(f"{source}:")
+        for ctype in sorted(members, key=lambda t: t.name):
+            head = f"  {ctype.name:<{name_width}}{ctype.kind:<11}"
+            text = summary(ctype)
+            room = WIDTH - len(head)
+            if len(text) > room:
+                text = text[:room - 3].rstrip() + "..."
+            lines.append(head + text)
+        lines.append("")
+    lines.append(f"{len(types)} component types; 'gpucompgen types NAME' shows one in full.")
+    return lines
+
+
+def details(ctype: ComponentType) -> list[str]:
+    """One type in full."""
+    lines = [*_row("Name", ctype.name), *_row("Kind", _kind(ctype)),
+             *_row("Declared in", f"{ctype.pos.file}:{ctype.pos.line}"
+                                   + (" (library)" if ctype.origin == "library" else ""))]
+    lines += _row("Description", " ".join(ctype.description.split()) or "(none)")
+    for title, ports in (("Inputs", ctype.inputs), ("Outputs", ctype.outputs)):
+        lines += ["", f"{title}:"]
+        for name, port in ports.items():
+            lines += _row(f"  {name}", _port(port))
+        if not ports:
+            lines.append("  (none)")
+    lines += ["", "Parameters:"]
+    if not ctype.params:
+        lines.append("  (none)")
+    for name, decl in ctype.params.items():
+        lines += _row(f"  {name}", _param(decl))
+        if decl.description:
+            lines += _row("", decl.description)
+    if ctype.requires:
+        lines += ["", "Requirements:"]
+        for tree, message in ctype.requires:
+            lines += _row("", f"{ast.unparse(tree.body)}: {message}")
+    lines += ["", "Forms:"]
+    for label, detail in forms(ctype):
+        lines += _row(f"  {label}", detail)
+    return lines
+
+
+def forms(ctype: ComponentType) -> list[tuple[str, str]]:
+    """The ways the type can run, as (label, detail) rows."""
+    rows: list[tuple[str, str]] = []
+    if ctype.kernel_file is not None:
+        gpu = ctype.gpu
+        tile, bx, by, bz = gpu.prefer
+        rows.append(("GPU kernel", f"{ctype.kernel_function}() in {ctype.kernel_file.name}; "
+                                   f"tiles {', '.join(map(str, gpu.tiles))}; preferred tile "
+                                   f"{tile}, block {bx}x{by}x{bz}"
+                                   + ("; covers whole rows" if ctype.cover == "rows" else "")))
+    if ctype.python_file is not None:
+        rows.append(("CPU (python)", f"class {ctype.python_class} in {ctype.python_file.name}"))
+    if ctype.fusable is not None:
+        f = ctype.fusable
+        shape = (f"; window radius {f.radius}, border {f.border}" if f.form == "stencil"
+                 else "")
+        rows.append(("fusable", f"{f.form.replace('_', ' ')}{shape}: "
+                                + " ".join(f.value.split())))
+    return rows
+
+
+# -- helpers -----------------------------------------------------------------------------
+def _source(ctype: ComponentType) -> str:
+    return ctype.pos.file or str(ctype.decl_file)
+
+
+def _kind(ctype: ComponentType) -> str:
+    if ctype.gpu_aware:
+        return "gpu-aware (runs on the GPU; its GPU ports stay in device memory)"
+    return "standard (runs on the CPU)"
+
+
+def _port(port: PortDecl) -> str:
+    channels = f"{port.channels} channel{'s' if port.channels != 1 else ''}"
+    text = f"{port.memory.upper()} memory, {port.dtype}, {channels}"
+    if port.direction == "in":
+        return text + ", any size"
+    if port.height is None or port.width is None:
+        return text + ", size: the input's"
+    return (text + f", height {ast.unparse(port.height.body)}, "
+            f"width {ast.unparse(port.width.body)}")
+
+
+def _param(decl: ParamDecl) -> str:
+    parts = [decl.type]
+    parts.append("required" if decl.required else f"default {py_yaml(decl.default)}")
+    if decl.minimum is not None or decl.maximum is not None:
+        low = "" if decl.minimum is None else _number(decl.minimum)
+        high = "" if decl.maximum is None else _number(decl.maximum)
+        parts.append(f"range {low}..{high}")
+    return ", ".join(parts)
+
+
+def _number(value: float) -> str:
+    return str(int(value)) if float(value).is_integer() else str(value)
+
+
+def _row(label: str, text: str) -> list[str]:
+    """label in its column, text beside it, wrapped to the listing's width."""
+    lines = textwrap.wrap(text, WIDTH - LABEL, break_on_hyphens=False) or [""]
+    return [f"{label if i == 0 else '':<{LABEL}}{line}".rstrip()
+            for i, line in enumerate(lines)]

@@ -1,0 +1,9 @@
+
+
+class Displayer:
+    pass
+
+
+class Window:
+    def Display(self):
+        pass

@@ -1,0 +1,3 @@
+class Show:
+    def __init__(self)
+        pass

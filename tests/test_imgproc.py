@@ -1,0 +1,329 @@
+"""The image-processing library (gpucompgen/library/imgproc.yaml) against OpenCV.
+
+Every type runs three ways: OpenCV's function (the reference), the numpy CPU
+implementation (cpu_kernels.py) and the OpenCL kernel, launched directly with pyopencl on
+the pinned device (PoCL in CI) with its arguments in the calling convention's order. On
+real photographs (scikit-image's bundled chelsea 300x451, coffee 400x600 and astronaut
+512x512; their gray versions for the one-channel types) the CPU and GPU outputs must be
+byte for byte the same, and within MAX_DIFF of OpenCV's: 0, bit-exact, for every type
+but bilinear Resize. Hypothesis then draws small frames (odd sizes, one pixel high or
+wide), parameters and GPU settings: GPU equals CPU everywhere, and the CPU equals OpenCV
+where OpenCV's 8-bit algorithm is integer-defined. RgbToGray and RgbToHsv are also
+compared with OpenCV on all 2^24 colours.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+import pytest
+from conftest import ROOT
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from gpucompgen.library import cpu_kernels
+
+cv2 = pytest.importorskip("cv2")
+skdata = pytest.importorskip("skimage.data")
+
+LIBRARY = ROOT / "gpucompgen" / "library"
+PROPERTY = settings(max_examples=12, deadline=None,
+                    suppress_health_check=[HealthCheck.function_scoped_fixture,
+                                           HealthCheck.too_slow])
+KERNEL = np.ones((3, 3), np.uint8)
+
+
+@dataclass
+class Spec:
+    """How one library type compares with OpenCV."""
+
+    opencv: Callable  # (inputs..., **params) -> OpenCV's output
+    cases: list[dict] = field(default_factory=lambda: [{}])  # parameters tried on photos
+    max_diff: int = 0  # largest |ours - OpenCV| allowed (and documented in docs/library.md)
+    inputs: int = 1  # two for AbsDiff and AddWeighted
+
+
+SPECS: dict[str, Spec] = {
+    "RgbToGray": Spec(lambda im: cv2.cvtColor(im, cv2.COLOR_RGB2GRAY)),
+    "RgbToHsv": Spec(lambda im: cv2.cvtColor(im, cv2.COLOR_RGB2HSV)),
+    "InRange": Spec(
+        lambda im, **b: cv2.inRange(im, np.array([b[f"lowerb_{c}"] for c in range(3)]),
+                                    np.array([b[f"upperb_{c}"] for c in range(3)])),
+        [{"lowerb_0": 100, "lowerb_1": 0, "lowerb_2": 50,
+          "upperb_0": 255, "upperb_1": 120, "upperb_2": 200},
+         {"lowerb_0": 0, "lowerb_1": 0, "lowerb_2": 0,
+          "upperb_0": 255, "upperb_1": 255, "upperb_2": 255}]),
+    "InRangeGray": Spec(lambda im, lowerb, upperb: cv2.inRange(im, lowerb, upperb),
+                        [{"lowerb": 60, "upperb": 180}, {"lowerb": 200, "upperb": 100}]),
+    "Threshold": Spec(
+        lambda im, thresh, maxval, thresh_type: cv2.threshold(im, thresh, maxval,
+                                                              thresh_type)[1],
+        [{"thresh": t, "maxval": m, "thresh_type": k}
+         for k in range(5) for t, m in ((100, 200), (0, 255), (255, 7))]),
+    "ConvertScale": Spec(
+        lambda im, alpha, beta: cv2.convertScaleAbs(im, alpha=alpha, beta=beta),
+        [{"alpha": a, "beta": b} for a, b in ((1.7, -30.2), (-0.8, 10.5), (0.37, 0.25),
+                                              (1.0, 0.0), (3.3, -400.1))]),
+    "AbsDiff": Spec(lambda a, b: cv2.absdiff(a, b), inputs=2),
+    "AddWeighted": Spec(
+        lambda a, b, alpha, beta, gamma: cv2.addWeighted(a, alpha, b, beta, gamma),
+        [{"alpha": a, "beta": b, "gamma": g}
+         for a, b, g in ((0.3, 0.7, 0.0), (0.5, 0.5, 0.5), (1.3, -0.4, 12.7), (2.1, 0.9, -99.9))],
+        inputs=2),
+    "Resize": Spec(
+        lambda im, width, height, interpolation: cv2.resize(im, (width, height),
+                                                            interpolation=interpolation),
+        [{"width": w, "height": h, "interpolation": i}
+         for i in (0, 1) for w, h in ((123, 77), (777, 501), (301, 199), (640, 480))],
+        max_diff=1),  # bilinear only: nearest (interpolation 0) is checked bit-exact below
+    "Crop": Spec(lambda im, x, y, width, height: im[y:y + height, x:x + width],
+                 [{"x": 17, "y": 5, "width": 201, "height": 99},
+                  {"x": 0, "y": 0, "width": 1, "height": 1}]),
+    "FlipHorizontal": Spec(lambda im: cv2.flip(im, 1)),
+    "Rotate180": Spec(lambda im: cv2.rotate(im, cv2.ROTATE_180)),
+    "GaussianBlur": Spec(lambda im, ksize: cv2.GaussianBlur(im, (ksize, ksize), 0),
+                         [{"ksize": 3}, {"ksize": 5}]),
+    "Sobel": Spec(lambda im, dx, dy: cv2.Sobel(im, cv2.CV_16S, dx, dy, ksize=3),
+                  [{"dx": 1, "dy": 0}, {"dx": 0, "dy": 1}]),
+    "Erode": Spec(lambda im: cv2.erode(im, KERNEL)),
+    "Dilate": Spec(lambda im: cv2.dilate(im, KERNEL)),
+    "MedianBlur": Spec(lambda im: cv2.medianBlur(im, 3)),
+}
+for _name in ("Threshold", "ConvertScale", "AbsDiff", "AddWeighted", "Resize", "Crop",
+              "FlipHorizontal", "Rotate180", "GaussianBlur", "Sobel", "Erode", "Dilate",
+              "MedianBlur"):
+    SPECS[_name + "Gray"] = SPECS[_name]
+TYPES = sorted(SPECS)
+
+
+def imgproc_types():
+    from gpucompgen.model import library_types
+
+    return {n: t for n, t in library_types().items() if t.decl_file.name == "imgproc.yaml"}
+
+
+def test_every_imgproc_type_is_compared_and_has_a_cpu_implementation():
+    assert set(imgproc_types()) == set(SPECS)
+    assert set(SPECS) <= set(cpu_kernels.CPU_IMPLEMENTATIONS)
+
+
+# -- photographs -------------------------------------------------------------------------
+PHOTOS = {"chelsea": skdata.chelsea, "coffee": skdata.coffee, "astronaut": skdata.astronaut}
+
+
+@pytest.fixture(scope="module")
+def photos():
+    """RGB and gray versions of the photographs (gray with OpenCV's own conversion)."""
+    out = {}
+    for name, load in PHOTOS.items():
+        rgb = np.ascontiguousarray(load())
+        out[name] = {3: rgb, 1: cv2.cvtColor(rgb, cv2.COLOR_RGB2GRAY)}
+    return out
+
+
+def channels_of(type_name: str) -> int:
+    return next(iter(imgproc_types()[type_name].inputs.values())).channels
+
+
+def inputs_for(type_name: str, image: np.ndarray) -> list[np.ndarray]:
+    if SPECS[type_name].inputs == 2:  # a second, different frame of the same size
+        return [image, np.ascontiguousarray(image[::-1, ::-1] // 2 + image // 3)]
+    return [image]
+
+
+class Kernels:
+    """Build each .cl file once; launch a type's kernel as the calling convention says."""
+
+    def __init__(self, context, queue):
+        self.context, self.queue, self.programs = context, queue, {}
+
+    def run(self, type_name: str, arrays: list[np.ndarray], params: dict,
+            setting=(16, 16, 16)) -> np.ndarray:
+        import pyopencl as cl
+
+        from gpucompgen import sizeexpr
+        from gpucompgen.backend.opencl.convention import kernel_parameters
+        from gpucompgen.model import DTYPES
+
+        ctype = imgproc_types()[type_name]
+        path = ctype.kernel_file
+        if path not in self.programs:
+            self.programs[path] = cl.Program(self.context, path.read_text()).build()
+        kernel = cl.Kernel(self.programs[path], ctype.kernel_function)
+        inputs = dict(zip(ctype.inputs, arrays))
+        sizes = {k: v.shape[:2] for k, v in inputs.items()}
+        ints = {k: v for k, v in params.items() if ctype.params[k].type == "int"}
+        (oname, oport), = ctype.outputs.items()
+        shape = (sizeexpr.evaluate(oport.height, sizes, ints),
+                 sizeexpr.evaluate(oport.width, sizes, ints))
+        if oport.channels > 1:
+            shape += (oport.channels,)
+        result = np.empty(shape, np.dtype(DTYPES[oport.dtype][0]))
+        mf = cl.mem_flags
+        buffers = {k: cl.Buffer(self.context, mf.READ_ONLY | mf.COPY_HOST_PTR,
+                                hostbuf=np.ascontiguousarray(v)) for k, v in inputs.items()}
+        buffers[oname] = cl.Buffer(self.context, mf.WRITE_ONLY, max(result.nbytes, 1))
+        all_sizes = {**sizes, oname: shape[:2]}
+        args = []
+        for p in kernel_parameters(ctype):
+            if p.kind == "buffer":
+                args.append(buffers[p.port])
+            elif p.role == "size":
+                args.append(np.int32(all_sizes[p.port][0 if p.dim == "height" else 1]))
+            elif p.role == "param":
+                value = params[p.param]
+                args.append(np.float32(value) if p.c_type == "float" else np.int32(value))
+            else:
+                args.append(np.int32(setting[0]))
+        kernel.set_args(*args)
+        tile, bx, by = setting
+        cl.enqueue_nd_range_kernel(self.queue, kernel,
+                                   (-(-shape[1] // tile) * bx, -(-shape[0] // tile) * by, 1),
+                                   (bx, by, 1))
+        cl.enqueue_copy(self.queue, result, buffers[oname])
+        self.queue.finish()
+        for b in buffers.values():
+            b.release()
+        return result
+
+
+@pytest.fixture(scope="module")
+def kernels(cl_context, cl_queue):
+    return Kernels(cl_context, cl_queue)
+
+
+def largest_difference(ours: np.ndarray, reference: np.ndarray) -> int:
+    assert ours.shape == reference.shape and ours.dtype == reference.dtype
+    return int(np.abs(ours.astype(np.int32) - reference.astype(np.int32)).max(initial=0))
+
+
+@pytest.mark.parametrize("type_name", TYPES)
+def test_photographs_cpu_and_gpu_against_opencv(type_name, photos, kernels):
+    """On each photograph and parameter set: GPU == CPU, and both within max_diff of cv2."""
+    spec = SPECS[type_name]
+    cpu_function = cpu_kernels.CPU_IMPLEMENTATIONS[type_name]
+    channels = channels_of(type_name)
+    worst = 0
+    for name, versions in photos.items():
+        arrays = inputs_for(type_name, versions[channels])
+        for i, params in enumerate(spec.cases):
+            reference = spec.opencv(*arrays, **params)
+            cpu = cpu_function(*arrays, **params)
+            difference = largest_difference(cpu, reference)
+            if params.get("interpolation", 1) == 0:  # nearest resize: bit-exact
+                assert difference == 0, (name, params)
+            worst = max(worst, difference)
+            assert difference <= spec.max_diff, (name, params)
+            if i < 2:  # the kernel on the first two parameter sets of each photograph
+                gpu = kernels.run(type_name, arrays, params)
+                np.testing.assert_array_equal(gpu, cpu, err_msg=f"{name} {params}")
+    assert worst == spec.max_diff, "the documented largest difference is not the measured one"
+
+
+def test_all_colours_gray_and_hsv():
+    """RgbToGray and RgbToHsv against OpenCV on every one of the 2^24 RGB colours."""
+    c = np.arange(1 << 24, dtype=np.uint32)
+    image = np.stack([c >> 16, (c >> 8) & 255, c & 255], -1).astype(np.uint8)
+    image = image.reshape(4096, 4096, 3)
+    np.testing.assert_array_equal(cpu_kernels.rgb_to_gray(image),
+                                  cv2.cvtColor(image, cv2.COLOR_RGB2GRAY))
+    np.testing.assert_array_equal(cpu_kernels.rgb_to_hsv(image),
+                                  cv2.cvtColor(image, cv2.COLOR_RGB2HSV))
+
+
+def test_all_colours_on_the_gpu(kernels):
+    """The colour kernels on every green-blue pair, for every 15th red value (the whole
+    cube is left to the CPU test above)."""
+    g, b = np.meshgrid(np.arange(256), np.arange(256), indexing="ij")
+    for red in range(0, 256, 15):
+        image = np.stack([np.full_like(g, red), g, b], -1).astype(np.uint8)
+        for name in ("RgbToGray", "RgbToHsv"):
+            np.testing.assert_array_equal(kernels.run(name, [image], {}),
+                                          cpu_kernels.CPU_IMPLEMENTATIONS[name](image))
+
+
+# -- random frames, parameters and GPU settings ------------------------------------------
+sizes = st.integers(1, 24) | st.sampled_from([31, 33, 47])
+# (tile, block_x, block_y): few block shapes, as PoCL compiles a kernel once per shape
+SETTINGS = [(8, 1, 1), (16, 16, 16), (32, 8, 3), (64, 2, 5)]
+
+
+@st.composite
+def params_for(draw, type_name: str) -> dict:
+    """Parameters within the declared ranges that satisfy the type's requirements."""
+    ctype = imgproc_types()[type_name]
+    if type_name.startswith("Sobel"):
+        dx = draw(st.integers(0, 1))
+        return {"dx": dx, "dy": 1 - dx}
+    if type_name.startswith("GaussianBlur"):
+        return {"ksize": draw(st.sampled_from([3, 5]))}
+    params = {}
+    for name, decl in ctype.params.items():
+        if decl.type == "float":
+            params[name] = draw(st.floats(-4.0, 4.0, allow_nan=False, width=32)
+                                | st.sampled_from([0.0, 0.5, 1.0, -1.0, 1e-30, 300.0]))
+        elif name in ("width", "height") and not type_name.startswith("Crop"):
+            params[name] = draw(sizes)
+        else:
+            params[name] = draw(st.integers(int(decl.minimum), min(int(decl.maximum), 255)))
+    return params
+
+
+@st.composite
+def cases(draw, type_name: str):
+    height, width = draw(sizes), draw(sizes)
+    channels = channels_of(type_name)
+    shape = (height, width) if channels == 1 else (height, width, channels)
+    rng = np.random.default_rng(draw(st.integers(0, 2 ** 32 - 1)))
+    arrays = [rng.integers(0, 256, shape, dtype=np.uint8)
+              for _ in range(SPECS[type_name].inputs)]
+    params = draw(params_for(type_name))
+    if type_name.startswith("Crop"):  # a rectangle inside the frame
+        params["width"] = draw(st.integers(1, width))
+        params["height"] = draw(st.integers(1, height))
+        params["x"] = draw(st.integers(0, width - params["width"]))
+        params["y"] = draw(st.integers(0, height - params["height"]))
+    return arrays, params, draw(st.sampled_from(SETTINGS))
+
+
+@pytest.mark.parametrize("type_name", TYPES)
+def test_random_frames_gpu_equals_cpu_and_opencv(type_name, kernels):
+    spec = SPECS[type_name]
+
+    @PROPERTY
+    @given(case=cases(type_name))
+    def check(case):
+        arrays, params, setting = case
+        cpu = cpu_kernels.CPU_IMPLEMENTATIONS[type_name](*arrays, **params)
+        np.testing.assert_array_equal(kernels.run(type_name, arrays, params, setting), cpu)
+        if type_name.startswith("Resize") and params["interpolation"] == 1:
+            assert largest_difference(cpu, spec.opencv(*arrays, **params)) <= spec.max_diff
+        else:
+            np.testing.assert_array_equal(cpu, spec.opencv(*arrays, **params))
+
+    check()
+
+
+# -- the CPU functions' own checks -------------------------------------------------------
+def test_cpu_functions_reject_bad_inputs():
+    image = np.zeros((4, 5, 3), np.uint8)
+    with pytest.raises(ValueError, match="thresh_type"):
+        cpu_kernels.threshold(image, thresh=1, maxval=2, thresh_type=5)
+    with pytest.raises(ValueError, match="inside"):
+        cpu_kernels.crop(image, x=3, y=0, width=3, height=1)
+    with pytest.raises(ValueError, match="same size"):
+        cpu_kernels.absdiff(image, image[:3])
+    with pytest.raises(ValueError, match="ksize"):
+        cpu_kernels.gaussian_blur(image, ksize=4)
+    with pytest.raises(ValueError, match="dx=1"):
+        cpu_kernels.sobel(image, dx=1, dy=1)
+    with pytest.raises(TypeError, match="uint8"):
+        cpu_kernels.erode(image.astype(np.float32))
+    with pytest.raises(TypeError, match="lowerb"):
+        cpu_kernels.in_range(image, lowerb=0, upperb=1)
+    out = np.empty((4, 5, 3), np.uint8)
+    assert cpu_kernels.median_blur(image, out=out) is out
+    gradient = np.empty((4, 5, 3), np.int16)
+    assert cpu_kernels.sobel(image, dx=0, dy=1, out=gradient) is gradient

@@ -1,0 +1,141 @@
+"""`gpucompgen types`: every type a model can use, and one type in full (as gst-inspect)."""
+
+from __future__ import annotations
+
+import re
+
+import pytest
+from conftest import ROOT
+
+from gpucompgen.cli import main
+from gpucompgen.model import library_types
+
+USER_MODEL = ROOT / "tests" / "data" / "user_model" / "bright.yaml"
+
+
+def run(capsys, *args) -> tuple[int, str, str]:
+    code = main(["types", *map(str, args)])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_listing_names_every_library_type_once_with_its_kind(capsys):
+    code, out, err = run(capsys)
+    assert code == 0 and err == ""
+    rows = {m.group(1): m.group(2) for m in re.finditer(r"^  (\w+) +(gpu-aware|standard|flexible) ",
+                                                         out, re.MULTILINE)}
+    types = library_types()
+    assert rows == {name: t.kind for name, t in types.items()}
+    assert f"{len(types)} component types" in out
+    assert "<gpucompgen>/library/imgproc.yaml:" in out
+    assert all(len(line) <= 100 for line in out.splitlines())
+    # the one-line description is the first sentence
+    assert re.search(r"^  Resize +gpu-aware  Scales a frame to width x height\.$", out, re.MULTILINE)
+
+
+def test_listing_with_a_model_adds_its_own_types(capsys):
+    code, out, _ = run(capsys, "--model", USER_MODEL)
+    assert code == 0
+    assert "tests/data/user_model/my_types.yaml:" in out
+    assert re.search(r"^  Brighten +gpu-aware  Adds gain to every channel", out, re.MULTILINE)
+    assert re.search(r"^  MeanProbe +standard ", out, re.MULTILINE)
+    assert f"{len(library_types()) + 2} component types" in out
+    # the library first, the model's files after it
+    assert out.index("<gpucompgen>/library/") < out.index("my_types.yaml:")
+
+
+def test_one_gpu_aware_type_in_full(capsys):
+    code, out, _ = run(capsys, "Threshold")
+    assert code == 0
+    lines = out.splitlines()
+    assert lines[0].split() == ["Name", "Threshold"]
+    assert lines[1].startswith("Kind            gpu-aware")
+    assert re.search(r"^Declared in     <gpucompgen>/library/imgproc\.yaml:\d+ \(library\)$",
+                     out, re.MULTILINE)
+    assert "cv2.threshold(image, thresh, maxval, thresh_type)" in " ".join(out.split())
+    assert "  image         GPU memory, uint8, 3 channels, any size" in lines
+    assert ("  thresholded   GPU memory, uint8, 3 channels, height image.height, "
+            "width image.width") in lines
+    assert "  thresh        int, default 127, range 0..255" in lines
+    assert "  thresh_type   int, default 0, range 0..4" in lines
+    assert "4 TOZERO_INV" in out
+    forms = lines[lines.index("Forms:") + 1:]
+    assert forms == ["  GPU kernel    threshold() in threshold.cl; tiles 8, 16, 32, 64; "
+                     "preferred tile 16, block 16x16x1"]
+
+
+def test_requirements_float_parameters_and_int16_ports(capsys):
+    _, out, _ = run(capsys, "SobelGray")
+    assert "  gradient      GPU memory, int16, 1 channel, height image.height" in out
+    assert "dx + dy == 1: give dx=1 dy=0 or dx=0 dy=1" in out
+    _, out, _ = run(capsys, "AddWeighted")
+    assert "  gamma         float, default 0.0" in out
+    assert "  src2          GPU memory, uint8, 3 channels, any size" in out
+
+
+def test_standard_type_and_model_type_in_full(capsys, monkeypatch):
+    _, out, _ = run(capsys, "Camera")
+    assert "Kind            standard (runs on the CPU)" in out
+    assert "  image         CPU memory, uint8, 3 channels, height height, width width" in out
+    assert "  folder        path, default ''" in out
+    assert "  seed          int, default 1, range 0.." in out
+    assert out.splitlines()[-1] == "  CPU (python)  class Camera in camera.py"
+    monkeypatch.chdir(ROOT)  # paths as the user wrote them, relative to the working folder
+    code, out, _ = run(capsys, "Brighten", "--model", USER_MODEL.relative_to(ROOT))
+    assert code == 0
+    assert "Declared in     tests/data/user_model/my_types.yaml:" in out
+    assert ("  brighter      GPU memory, uint8, 3 channels, height image.height, "
+            "width image.width") in out  # no size declared: the input's
+    assert "brighten() in brighten.cl; tiles 16, 32; preferred tile 16, block 8x8x1" in out
+
+
+def test_unknown_type_is_an_error_with_a_hint(capsys):
+    code, out, err = run(capsys, "Thresold")
+    assert code == 1 and out == ""
+    assert "no component type 'Thresold' in the library" in err
+    assert "did you mean 'Threshold'?" in err
+    assert "--model MODEL" in err
+    # a model's type needs the model
+    code, _, err = run(capsys, "Brighten")
+    assert code == 1 and "did you mean" not in err.splitlines()[0]
+
+
+def test_model_problems_are_positioned_errors(capsys, tmp_path):
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("system: s\ntypes: [missing.yaml]\ncomponents: {}\n")
+    code, _, err = run(capsys, "--model", bad)
+    assert code == 1
+    assert re.search(r"bad\.yaml:2:\d+: error: component-type file 'missing.yaml' not found",
+                     err)
+    assert "Traceback" not in err
+    code, _, err = run(capsys, "--model", tmp_path / "none.yaml")
+    assert code == 2 and "no such file" in err
+
+
+@pytest.mark.parametrize("name", sorted(library_types()))
+def test_every_library_type_shows_in_full(capsys, name):
+    code, out, _ = run(capsys, name)
+    assert code == 0
+    assert "Forms:" in out and ("GPU kernel" in out or "CPU (python)" in out)
+    assert all(len(line) <= 100 for line in out.splitlines()), name
+
+
+def test_docs_show_the_current_listing_and_every_imgproc_type(capsys):
+    """docs/library.md quotes `gpucompgen types` and has a row for every library type."""
+    text = (ROOT / "docs" / "library.md").read_text()
+    _, out, _ = run(capsys)
+    assert f"$ gpucompgen types\n{out}```" in text, "docs/library.md: re-paste the listing"
+    _, out, _ = run(capsys, "InRange")
+    assert f"$ gpucompgen types InRange\n{out}```" in text
+    rows = " ".join(line for line in text.splitlines() if line.startswith("| "))
+    for name, ctype in library_types().items():
+        if ctype.decl_file.name == "imgproc.yaml":
+            assert re.search(rf"\b{name}\b", rows), name
+
+
+def test_fusable_forms_are_listed_with_their_snippets(capsys):
+    _, out, _ = run(capsys, "VerticalMirror")
+    assert "  fusable       index map: image(image_height - 1 - y, x, c)" in out.splitlines()
+    _, out, _ = run(capsys, "BoxBlur")
+    text = " ".join(out.split())
+    assert "fusable stencil; window radius radius, border clamp: const int n =" in text
