@@ -9,12 +9,12 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 """
 
 # System plan:
-#   step  name                              stage  queue  runs  GPU settings            threads
-#   1     source (StillImage)               1      -      CPU   -                       -
-#   2     adapter1_cpu2gpu                  1      -      copy  -                       -
-#   3     mirror1_to_mirror5 (fused group)  6      -      GPU   tile 32, block 16x16x1  16,384
-#   4     adapter2_gpu2cpu                  6      -      copy  -                       -
-#   5     sink (FrameSink)                  7      -      CPU   -                       -
+#   step  name                              stage  queue  runs  GPU settings          threads
+#   1     source (StillImage)               1      -      CPU   -                     -
+#   2     adapter1_cpu2gpu                  1      -      copy  -                     -
+#   3     mirror1_to_mirror5 (fused group)  6      -      GPU   tile 32, block 8x8x1  1,728
+#   4     adapter2_gpu2cpu                  6      -      copy  -                     -
+#   5     sink (FrameSink)                  7      -      CPU   -                     -
 #
 #   buffer                               memory  size                  bytes
 #   source.image                         host    864x1152x3 uint8  2,985,984
@@ -36,7 +36,7 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 #   zero-copy adapters: off (auto: device has no unified host memory)
 #   execution: parallel, 1 queue
 #   thread budget: 16,384 (device total); GPU components that can run at the same time:
-#     mirror1_to_mirror5: 16,384 threads
+#     mirror1_to_mirror5: 1,728 threads
 #   fusion: auto, 1 group:
 #     mirror1_to_mirror5: one kernel (group_mirror1_to_mirror5.cl) for
 #       mirror1 (VerticalMirror, index_map)
@@ -68,8 +68,8 @@ class FusedMirror1ToMirror5(runtime.KernelComponent):
     """GPU-aware component FusedMirror1ToMirror5:
     kernel mirror1_to_mirror5() in group_mirror1_to_mirror5.cl.
 
-    One work-group of block_x * block_y * block_z threads covers a tile x tile square
-    of 'mirrored'.
+    One work-group of block_x * block_y * block_z threads covers tile whole rows of
+    'mirrored'.
     """
     # Fuses mirror1 (VerticalMirror), mirror2 (VerticalMirror), mirror3 (VerticalMirror), mirror4
     # (VerticalMirror), mirror5 (VerticalMirror) into one kernel.
@@ -141,22 +141,12 @@ def run(frames=None, context=None, monitor=None, profile=False):
             mirror1_to_mirror5_mirrored_size, np.uint8)
         sink.initialize(mirror5_mirrored_cpu_size)
 
-        # mirror1_to_mirror5: settings preferred, 16,384 resident threads; kernel arguments in the
+        # mirror1_to_mirror5: settings preferred, 1,728 resident threads; kernel arguments in the
         # calling convention's order (a port's name stands for its buffer)
         mirror1_to_mirror5.config_gpu(
-            tile=32, local_size=(16, 16, 1), global_size=(576, 432, 1),
+            tile=32, local_size=(8, 8, 1), global_size=(8, 216, 1),
             settings_source='preferred', arguments=[
                 'mirror1_image', 'mirrored',  # buffers: inputs, then outputs
-                np.int32(864), np.int32(1152),  # mirror1.image: height, width
-                np.int32(864), np.int32(1152),  # mirror1.mirrored: height, width
-                np.int32(864), np.int32(1152),  # mirror2.image: height, width
-                np.int32(864), np.int32(1152),  # mirror2.mirrored: height, width
-                np.int32(864), np.int32(1152),  # mirror3.image: height, width
-                np.int32(864), np.int32(1152),  # mirror3.mirrored: height, width
-                np.int32(864), np.int32(1152),  # mirror4.image: height, width
-                np.int32(864), np.int32(1152),  # mirror4.mirrored: height, width
-                np.int32(864), np.int32(1152),  # mirror5.image: height, width
-                np.int32(864), np.int32(1152),  # mirror5.mirrored: height, width
                 np.int32(32),  # tile
             ])
 

@@ -35,7 +35,9 @@ from ..model import ComponentType, Endpoint, GpuDecl
 from .base import Pass
 
 FUSE_COST_CAP = 64
-GROUP_PREFER = GpuDecl((8, 16, 32, 64), (1,), (32, 16, 16, 1))
+# the generated kernel's settings: tile rows a work-group, 64 threads splitting them
+# (measured on PoCL, as for VerticalMirror: long runs of pixels per work-item)
+GROUP_GPU = GpuDecl((1, 2, 4, 8, 16, 32, 64, 128), (1,), (32, 8, 8, 1))
 
 
 class Fuse(Pass):
@@ -204,17 +206,15 @@ def make_group(system: System, names: list[str]) -> GroupNode:
 
 def group_type(system: System, name: str, members: list[ComponentNode],
                inputs: dict[str, Port]) -> ComponentType:
-    """The stand-in type of a group: its class name in generated code, its ports, and
-    the GPU preferences of its root (a generated group kernel covers tile x tile squares
-    and accepts these tiles)."""
+    """The stand-in type of a group: its class name in generated code, its ports, and the
+    GPU preferences of the generated kernel (backend/opencl/fused.py: work-groups cover
+    tile whole rows of the output, as the VerticalMirror kernel, and any tile)."""
     cls = "Fused" + "".join(part[:1].upper() + part[1:] for part in name.split("_") if part)
     taken = set(system.model.types) | set(system.nodes)
     while cls in taken:
         cls += "_"
     root = members[-1]
     rt = root.type
-    decl = rt.gpu if rt.cover == "squares" else GROUP_PREFER
-    decl = GpuDecl(decl.tiles, (1,), decl.prefer[:3] + (1,))
     from ..model import PortDecl
 
     ports = {p: PortDecl(p, "in", "gpu", port.dtype, port.channels)
@@ -226,4 +226,4 @@ def group_type(system: System, name: str, members: list[ComponentNode],
         + " into one kernel.",
         params={}, inputs=ports, outputs={out_name: out_decl}, requires=[],
         decl_file=rt.decl_file, origin="group", pos=root.pos, kernel_function=name,
-        grid=out_name, cover="squares", gpu=decl)
+        grid=out_name, cover="rows", gpu=GROUP_GPU)

@@ -162,7 +162,7 @@ def kernel_class(t: ComponentType, file: str, group: GroupNode | None = None) ->
             inputs=tuple((p, np_name(port.dtype)) for p, port in group.inputs.items()),
             outputs=((out.name, np_name(out.dtype)),),
             output_sizes=((str(out.data.height), str(out.data.width), out.data.channels),),
-            grid=t.grid, rows=False)
+            grid=t.grid, rows=t.cover == "rows")
     return KernelClass(
         name=t.name, function=t.kernel_function, file=file, description=t.description,
         inputs=tuple((p, np_name(d.dtype)) for p, d in t.inputs.items()),

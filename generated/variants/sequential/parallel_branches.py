@@ -9,14 +9,14 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 """
 
 # System plan:
-#   step  name                             stage  queue  runs  GPU settings            threads
-#   1     camera1 (Camera)                 1      -      CPU   -                       -
-#   2     camera2 (Camera)                 1      -      CPU   -                       -
-#   3     adapter1_cpu2gpu                 1      -      copy  -                       -
-#   4     adapter2_cpu2gpu                 1      -      copy  -                       -
-#   5     blur1_to_detector (fused group)  4      -      GPU   tile 32, block 16x16x1  16,384
-#   6     adapter3_gpu2cpu                 4      -      copy  -                       -
-#   7     manager (VisionManager)          5      -      CPU   -                       -
+#   step  name                             stage  queue  runs  GPU settings          threads
+#   1     camera1 (Camera)                 1      -      CPU   -                     -
+#   2     camera2 (Camera)                 1      -      CPU   -                     -
+#   3     adapter1_cpu2gpu                 1      -      copy  -                     -
+#   4     adapter2_cpu2gpu                 1      -      copy  -                     -
+#   5     blur1_to_detector (fused group)  4      -      GPU   tile 32, block 8x8x1  960
+#   6     adapter3_gpu2cpu                 4      -      copy  -                     -
+#   7     manager (VisionManager)          5      -      CPU   -                     -
 #
 #   buffer                            memory  size                bytes
 #   camera1.image                     host    480x640x3 uint8   921,600
@@ -39,7 +39,7 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 #   zero-copy adapters: off (auto: device has no unified host memory)
 #   execution: sequential
 #   thread budget: 16,384 (device total); GPU components that can run at the same time:
-#     blur1_to_detector: 16,384 threads
+#     blur1_to_detector: 960 threads
 #   fusion: auto, 1 group:
 #     blur1_to_detector: one kernel (group_blur1_to_detector.cl) for
 #       blur1 (BoxBlur, stencil)
@@ -67,8 +67,8 @@ class FusedBlur1ToDetector(runtime.KernelComponent):
     """GPU-aware component FusedBlur1ToDetector:
     kernel blur1_to_detector() in group_blur1_to_detector.cl.
 
-    One work-group of block_x * block_y * block_z threads covers a tile x tile square
-    of 'mask'.
+    One work-group of block_x * block_y * block_z threads covers tile whole rows of
+    'mask'.
     """
     # Fuses blur1 (BoxBlur), blur2 (BoxBlur), merger (ImageMerger), detector (ObjectDetector) into
     # one kernel.
@@ -150,21 +150,12 @@ def run(frames=None, context=None, monitor=None, profile=False):
         detector_mask_cpu_size = adapter3_gpu2cpu.initialize(blur1_to_detector_mask_size, np.uint8)
         manager.initialize(detector_mask_cpu_size)
 
-        # blur1_to_detector: settings preferred, 16,384 resident threads; kernel arguments in the
+        # blur1_to_detector: settings preferred, 960 resident threads; kernel arguments in the
         # calling convention's order (a port's name stands for its buffer)
         blur1_to_detector.config_gpu(
-            tile=32, local_size=(16, 16, 1), global_size=(640, 240, 1),
+            tile=32, local_size=(8, 8, 1), global_size=(8, 120, 1),
             settings_source='preferred', arguments=[
                 'blur1_image', 'blur2_image', 'mask',  # buffers: inputs, then outputs
-                np.int32(480), np.int32(640),  # blur1.image: height, width
-                np.int32(480), np.int32(640),  # blur1.smooth: height, width
-                np.int32(480), np.int32(640),  # blur2.image: height, width
-                np.int32(480), np.int32(640),  # blur2.smooth: height, width
-                np.int32(480), np.int32(640),  # merger.left: height, width
-                np.int32(480), np.int32(640),  # merger.right: height, width
-                np.int32(480), np.int32(1280),  # merger.merged: height, width
-                np.int32(480), np.int32(1280),  # detector.frame: height, width
-                np.int32(480), np.int32(1280),  # detector.mask: height, width
                 np.int32(2),  # blur1_radius
                 np.int32(2),  # blur2_radius
                 np.int32(150),  # detector_red_min

@@ -14,7 +14,7 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 #   2     camera2 (Camera)               1      -      CPU   -                       -
 #   3     adapter1_cpu2gpu               1      -      copy  -                       -
 #   4     adapter2_cpu2gpu               1      -      copy  -                       -
-#   5     merger_detector (fused group)  3      -      GPU   tile 32, block 16x16x1  16,384
+#   5     merger_detector (fused group)  3      -      GPU   tile 32, block 16x16x1  3,840
 #   6     adapter3_gpu2cpu               3      -      copy  -                       -
 #   7     manager (VisionManager)        4      -      CPU   -                       -
 #
@@ -37,7 +37,7 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 #   zero-copy adapters: off (auto: device has no unified host memory)
 #   execution: sequential
 #   thread budget: 16,384 (device total); GPU components that can run at the same time:
-#     merger_detector: 16,384 threads
+#     merger_detector: 3,840 threads
 #   fusion: auto, 1 group:
 #     merger_detector: one kernel (group_merger_detector.cl) for
 #       merger (ImageMerger, index_map)
@@ -63,8 +63,8 @@ class FusedMergerDetector(runtime.KernelComponent):
     """GPU-aware component FusedMergerDetector:
     kernel merger_detector() in group_merger_detector.cl.
 
-    One work-group of block_x * block_y * block_z threads covers a tile x tile square
-    of 'mask'.
+    One work-group of block_x * block_y * block_z threads covers tile whole rows of
+    'mask'.
     """
     # Fuses merger (ImageMerger), detector (ObjectDetector) into one kernel.
 
@@ -144,17 +144,12 @@ def run(frames=None, context=None, monitor=None, profile=False):
         detector_mask_cpu_size = adapter3_gpu2cpu.initialize(merger_detector_mask_size, np.uint8)
         manager.initialize(detector_mask_cpu_size)
 
-        # merger_detector: settings model, 16,384 resident threads; kernel arguments in the calling
+        # merger_detector: settings model, 3,840 resident threads; kernel arguments in the calling
         # convention's order (a port's name stands for its buffer)
         merger_detector.config_gpu(
-            tile=32, local_size=(16, 16, 1), global_size=(640, 240, 1),
+            tile=32, local_size=(16, 16, 1), global_size=(16, 240, 1),
             settings_source='model', arguments=[
                 'merger_left', 'merger_right', 'mask',  # buffers: inputs, then outputs
-                np.int32(480), np.int32(640),  # merger.left: height, width
-                np.int32(480), np.int32(640),  # merger.right: height, width
-                np.int32(480), np.int32(1280),  # merger.merged: height, width
-                np.int32(480), np.int32(1280),  # detector.frame: height, width
-                np.int32(480), np.int32(1280),  # detector.mask: height, width
                 np.int32(150),  # detector_red_min
                 np.int32(80),  # detector_margin
                 np.int32(32),  # tile

@@ -82,10 +82,12 @@ def group_parameters(group) -> list[KernelParam]:
 
     1. one ``__global`` pointer per group input (named <member>_<port>, the member input
        it feeds), then the group's output (named <root>_<port>);
-    2. for every member in run order, for each of its ports (inputs, then outputs), its
-       height then its width, named <member>_<port>_height / _width;
-    3. every member's parameters in declaration order, named <member>_<parameter>;
-    4. ``int tile``.
+    2. every member's parameters in declaration order, named <member>_<parameter>;
+    3. ``int tile``.
+
+    No sizes: the system fixed every port's size when it was built, and the generated
+    kernel states them as constants, so that the compiler folds composed index maps
+    (``h - 1 - (h - 1 - y)`` is ``y``) and drops tests that cannot fail.
     """
     params: list[KernelParam] = []
     for name, port in group.inputs.items():
@@ -93,11 +95,6 @@ def group_parameters(group) -> list[KernelParam]:
     for name, port in group.outputs.items():
         params.append(KernelParam(f"{group.root.name}_{name}", "buffer", C_TYPES[port.dtype],
                                   "output", port=name))
-    for m in group.members:
-        for pname in list(m.inputs) + list(m.outputs):
-            for dim in ("height", "width"):
-                params.append(KernelParam(f"{m.name}_{pname}_{dim}", "scalar", "int", "size",
-                                          port=f"{m.name}.{pname}", dim=dim))
     for m in group.members:
         for pname, decl in m.type.params.items():
             params.append(KernelParam(f"{m.name}_{pname}", "scalar",

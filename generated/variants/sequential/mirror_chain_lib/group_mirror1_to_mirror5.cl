@@ -3,62 +3,22 @@
 // It computes mirror5.mirrored from the group's inputs directly: no buffers between members.
 // Each member's snippet is a function of the element (y, x, c) it computes;
 // an input read <port>(y, x, c) calls the producing member, or loads from a
-// group input.
+// group input.  Sizes are constants: the system fixed them at build time.
 
 #define GROUP_PARAMS \
     __global const uchar *mirror1_image, \
-    __global uchar *mirror5_mirrored, \
-    const int mirror1_image_height, \
-    const int mirror1_image_width, \
-    const int mirror1_mirrored_height, \
-    const int mirror1_mirrored_width, \
-    const int mirror2_image_height, \
-    const int mirror2_image_width, \
-    const int mirror2_mirrored_height, \
-    const int mirror2_mirrored_width, \
-    const int mirror3_image_height, \
-    const int mirror3_image_width, \
-    const int mirror3_mirrored_height, \
-    const int mirror3_mirrored_width, \
-    const int mirror4_image_height, \
-    const int mirror4_image_width, \
-    const int mirror4_mirrored_height, \
-    const int mirror4_mirrored_width, \
-    const int mirror5_image_height, \
-    const int mirror5_image_width, \
-    const int mirror5_mirrored_height, \
-    const int mirror5_mirrored_width
+    __global uchar *mirror5_mirrored
 
 #define GROUP_ARGS \
     mirror1_image, \
-    mirror5_mirrored, \
-    mirror1_image_height, \
-    mirror1_image_width, \
-    mirror1_mirrored_height, \
-    mirror1_mirrored_width, \
-    mirror2_image_height, \
-    mirror2_image_width, \
-    mirror2_mirrored_height, \
-    mirror2_mirrored_width, \
-    mirror3_image_height, \
-    mirror3_image_width, \
-    mirror3_mirrored_height, \
-    mirror3_mirrored_width, \
-    mirror4_image_height, \
-    mirror4_image_width, \
-    mirror4_mirrored_height, \
-    mirror4_mirrored_width, \
-    mirror5_image_height, \
-    mirror5_image_width, \
-    mirror5_mirrored_height, \
-    mirror5_mirrored_width
+    mirror5_mirrored
 
 // mirror1: VerticalMirror (index_map)
-#define image(y_, x_, c_) mirror1_image[3 * ((size_t)(y_) * mirror1_image_width + (x_)) + (c_)]
+#define image(y_, x_, c_) mirror1_image[3 * ((size_t)(y_) * 1152 + (x_)) + (c_)]
 static inline uchar mirror1(GROUP_PARAMS, const int y, const int x, const int c)
 {
-    const int image_height = mirror1_image_height, image_width = mirror1_image_width;
-    const int mirrored_height = mirror1_mirrored_height, mirrored_width = mirror1_mirrored_width;
+    const int image_height = 864, image_width = 1152;
+    const int mirrored_height = 864, mirrored_width = 1152;
     return (image(image_height - 1 - y, x, c));
 }
 #undef image
@@ -67,8 +27,8 @@ static inline uchar mirror1(GROUP_PARAMS, const int y, const int x, const int c)
 #define image(y_, x_, c_) mirror1(GROUP_ARGS, (y_), (x_), (c_))
 static inline uchar mirror2(GROUP_PARAMS, const int y, const int x, const int c)
 {
-    const int image_height = mirror2_image_height, image_width = mirror2_image_width;
-    const int mirrored_height = mirror2_mirrored_height, mirrored_width = mirror2_mirrored_width;
+    const int image_height = 864, image_width = 1152;
+    const int mirrored_height = 864, mirrored_width = 1152;
     return (image(image_height - 1 - y, x, c));
 }
 #undef image
@@ -77,8 +37,8 @@ static inline uchar mirror2(GROUP_PARAMS, const int y, const int x, const int c)
 #define image(y_, x_, c_) mirror2(GROUP_ARGS, (y_), (x_), (c_))
 static inline uchar mirror3(GROUP_PARAMS, const int y, const int x, const int c)
 {
-    const int image_height = mirror3_image_height, image_width = mirror3_image_width;
-    const int mirrored_height = mirror3_mirrored_height, mirrored_width = mirror3_mirrored_width;
+    const int image_height = 864, image_width = 1152;
+    const int mirrored_height = 864, mirrored_width = 1152;
     return (image(image_height - 1 - y, x, c));
 }
 #undef image
@@ -87,8 +47,8 @@ static inline uchar mirror3(GROUP_PARAMS, const int y, const int x, const int c)
 #define image(y_, x_, c_) mirror3(GROUP_ARGS, (y_), (x_), (c_))
 static inline uchar mirror4(GROUP_PARAMS, const int y, const int x, const int c)
 {
-    const int image_height = mirror4_image_height, image_width = mirror4_image_width;
-    const int mirrored_height = mirror4_mirrored_height, mirrored_width = mirror4_mirrored_width;
+    const int image_height = 864, image_width = 1152;
+    const int mirrored_height = 864, mirrored_width = 1152;
     return (image(image_height - 1 - y, x, c));
 }
 #undef image
@@ -97,25 +57,29 @@ static inline uchar mirror4(GROUP_PARAMS, const int y, const int x, const int c)
 #define image(y_, x_, c_) mirror4(GROUP_ARGS, (y_), (x_), (c_))
 static inline uchar mirror5(GROUP_PARAMS, const int y, const int x, const int c)
 {
-    const int image_height = mirror5_image_height, image_width = mirror5_image_width;
-    const int mirrored_height = mirror5_mirrored_height, mirrored_width = mirror5_mirrored_width;
+    const int image_height = 864, image_width = 1152;
+    const int mirrored_height = 864, mirrored_width = 1152;
     return (image(image_height - 1 - y, x, c));
 }
 #undef image
 
+// 864 rows of 1152 pixels, 3 channels stored as one uchar3 a pixel.  Work-group g computes the rows
+// [g * tile, g * tile + tile); its block_y threads take them in turn, its block_x
+// threads each a contiguous run of pixels of the row.
 __kernel void mirror1_to_mirror5(GROUP_PARAMS, const int tile)
 {
-    const int x0 = get_group_id(0) * tile;
     const int y0 = get_group_id(1) * tile;
-    const int x_end = min(x0 + tile, mirror5_mirrored_width);
-    const int y_end = min(y0 + tile, mirror5_mirrored_height);
-    // the bytes of a tile's row, x and channel together: 3 a pixel
-    const int i_end = (x_end - x0) * 3;
-    const int threads = get_local_size(0) * get_local_size(1);
-    const int lid = get_local_id(1) * get_local_size(0) + get_local_id(0);
-    for (int y = y0; y < y_end; y++) {
-        __global uchar *row = mirror5_mirrored + ((size_t)y * mirror5_mirrored_width + x0) * 3;
-        for (int i = lid; i < i_end; i += threads)
-            row[i] = mirror5(GROUP_ARGS, y, x0 + i / 3, i % 3);
+    const int y1 = min(y0 + tile, 864);
+    const int nx = get_local_size(0);
+    const int per = (1152 + nx - 1) / nx;
+    const int x0 = min((int)get_local_id(0) * per, 1152);
+    const int x1 = min(x0 + per, 1152);
+    for (int y = y0 + get_local_id(1); y < y1; y += get_local_size(1)) {
+        __global uchar *row = mirror5_mirrored + (size_t)y * 3456;
+        for (int x = x0; x < x1; x++)
+            vstore3((uchar3)(
+                mirror5(GROUP_ARGS, y, x, 0), mirror5(GROUP_ARGS, y, x, 1),
+                mirror5(GROUP_ARGS, y, x, 2)),
+                x, row);
     }
 }

@@ -3,30 +3,12 @@
 // It computes detector.mask from the group's inputs directly: no buffers between members.
 // Each member's snippet is a function of the element (y, x, c) it computes;
 // an input read <port>(y, x, c) calls the producing member, or loads from a
-// group input.
+// group input.  Sizes are constants: the system fixed them at build time.
 
 #define GROUP_PARAMS \
     __global const uchar *blur1_image, \
     __global const uchar *blur2_image, \
     __global uchar *detector_mask, \
-    const int blur1_image_height, \
-    const int blur1_image_width, \
-    const int blur1_smooth_height, \
-    const int blur1_smooth_width, \
-    const int blur2_image_height, \
-    const int blur2_image_width, \
-    const int blur2_smooth_height, \
-    const int blur2_smooth_width, \
-    const int merger_left_height, \
-    const int merger_left_width, \
-    const int merger_right_height, \
-    const int merger_right_width, \
-    const int merger_merged_height, \
-    const int merger_merged_width, \
-    const int detector_frame_height, \
-    const int detector_frame_width, \
-    const int detector_mask_height, \
-    const int detector_mask_width, \
     const int blur1_radius, \
     const int blur2_radius, \
     const int detector_red_min, \
@@ -36,35 +18,17 @@
     blur1_image, \
     blur2_image, \
     detector_mask, \
-    blur1_image_height, \
-    blur1_image_width, \
-    blur1_smooth_height, \
-    blur1_smooth_width, \
-    blur2_image_height, \
-    blur2_image_width, \
-    blur2_smooth_height, \
-    blur2_smooth_width, \
-    merger_left_height, \
-    merger_left_width, \
-    merger_right_height, \
-    merger_right_width, \
-    merger_merged_height, \
-    merger_merged_width, \
-    detector_frame_height, \
-    detector_frame_width, \
-    detector_mask_height, \
-    detector_mask_width, \
     blur1_radius, \
     blur2_radius, \
     detector_red_min, \
     detector_margin
 
 // blur1: BoxBlur (stencil, radius radius, border clamp)
-#define image(y_, x_, c_) blur1_image[3 * ((size_t)clamp((y_), 0, blur1_image_height - 1) * blur1_image_width + clamp((x_), 0, blur1_image_width - 1)) + (c_)]
+#define image(y_, x_, c_) blur1_image[3 * ((size_t)clamp((y_), 0, 479) * 640 + clamp((x_), 0, 639)) + (c_)]
 static inline uchar blur1(GROUP_PARAMS, const int y, const int x, const int c)
 {
-    const int image_height = blur1_image_height, image_width = blur1_image_width;
-    const int smooth_height = blur1_smooth_height, smooth_width = blur1_smooth_width;
+    const int image_height = 480, image_width = 640;
+    const int smooth_height = 480, smooth_width = 640;
     const int radius = blur1_radius;
     const int n = (2 * radius + 1) * (2 * radius + 1);
     int sum = 0;
@@ -76,11 +40,11 @@ static inline uchar blur1(GROUP_PARAMS, const int y, const int x, const int c)
 #undef image
 
 // blur2: BoxBlur (stencil, radius radius, border clamp)
-#define image(y_, x_, c_) blur2_image[3 * ((size_t)clamp((y_), 0, blur2_image_height - 1) * blur2_image_width + clamp((x_), 0, blur2_image_width - 1)) + (c_)]
+#define image(y_, x_, c_) blur2_image[3 * ((size_t)clamp((y_), 0, 479) * 640 + clamp((x_), 0, 639)) + (c_)]
 static inline uchar blur2(GROUP_PARAMS, const int y, const int x, const int c)
 {
-    const int image_height = blur2_image_height, image_width = blur2_image_width;
-    const int smooth_height = blur2_smooth_height, smooth_width = blur2_smooth_width;
+    const int image_height = 480, image_width = 640;
+    const int smooth_height = 480, smooth_width = 640;
     const int radius = blur2_radius;
     const int n = (2 * radius + 1) * (2 * radius + 1);
     int sum = 0;
@@ -96,9 +60,9 @@ static inline uchar blur2(GROUP_PARAMS, const int y, const int x, const int c)
 #define right(y_, x_, c_) blur2(GROUP_ARGS, (y_), (x_), (c_))
 static inline uchar merger(GROUP_PARAMS, const int y, const int x, const int c)
 {
-    const int left_height = merger_left_height, left_width = merger_left_width;
-    const int right_height = merger_right_height, right_width = merger_right_width;
-    const int merged_height = merger_merged_height, merged_width = merger_merged_width;
+    const int left_height = 480, left_width = 640;
+    const int right_height = 480, right_width = 640;
+    const int merged_height = 480, merged_width = 1280;
     return (x < left_width ? left(y, x, c) : right(y, x - left_width, c));
 }
 #undef left
@@ -108,8 +72,8 @@ static inline uchar merger(GROUP_PARAMS, const int y, const int x, const int c)
 #define frame(y_, x_, c_) merger(GROUP_ARGS, (y_), (x_), (c_))
 static inline uchar detector(GROUP_PARAMS, const int y, const int x, const int c)
 {
-    const int frame_height = detector_frame_height, frame_width = detector_frame_width;
-    const int mask_height = detector_mask_height, mask_width = detector_mask_width;
+    const int frame_height = 480, frame_width = 1280;
+    const int mask_height = 480, mask_width = 1280;
     const int red_min = detector_red_min;
     const int margin = detector_margin;
     const int r = frame(y, x, 0), g = frame(y, x, 1), b = frame(y, x, 2);
@@ -117,19 +81,20 @@ static inline uchar detector(GROUP_PARAMS, const int y, const int x, const int c
 }
 #undef frame
 
+// 480 rows of 1280 pixels, one channel a pixel.  Work-group g computes the rows
+// [g * tile, g * tile + tile); its block_y threads take them in turn, its block_x
+// threads each a contiguous run of pixels of the row.
 __kernel void blur1_to_detector(GROUP_PARAMS, const int tile)
 {
-    const int x0 = get_group_id(0) * tile;
     const int y0 = get_group_id(1) * tile;
-    const int x_end = min(x0 + tile, detector_mask_width);
-    const int y_end = min(y0 + tile, detector_mask_height);
-    // the bytes of a tile's row, x and channel together: 1 a pixel
-    const int i_end = (x_end - x0) * 1;
-    const int threads = get_local_size(0) * get_local_size(1);
-    const int lid = get_local_id(1) * get_local_size(0) + get_local_id(0);
-    for (int y = y0; y < y_end; y++) {
-        __global uchar *row = detector_mask + ((size_t)y * detector_mask_width + x0) * 1;
-        for (int i = lid; i < i_end; i += threads)
-            row[i] = detector(GROUP_ARGS, y, x0 + i / 1, i % 1);
+    const int y1 = min(y0 + tile, 480);
+    const int nx = get_local_size(0);
+    const int per = (1280 + nx - 1) / nx;
+    const int x0 = min((int)get_local_id(0) * per, 1280);
+    const int x1 = min(x0 + per, 1280);
+    for (int y = y0 + get_local_id(1); y < y1; y += get_local_size(1)) {
+        __global uchar *row = detector_mask + (size_t)y * 1280;
+        for (int x = x0; x < x1; x++)
+            row[x] = detector(GROUP_ARGS, y, x, 0);
     }
 }
