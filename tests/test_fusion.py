@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import itertools
 import re
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -85,36 +86,102 @@ def test_vision_system_merger_and_detector_are_one_launch_and_the_merged_buffer_
         [("merger_detector", ["merger", "detector"])]
 
 
+OPAQUE_TYPE = """\
+component_types:
+  Op:
+    kind: gpu-aware
+    description: A user's kernel without a fusable form.
+    inputs:
+      image: {memory: gpu, channels: 3}
+    outputs:
+      out: {memory: gpu, channels: 3}
+    kernel: {file: op.cl, function: op}
+"""
+OPAQUE_KERNEL = """\
+__kernel void op(__global const uchar *image, __global uchar *out,
+                 const int image_height, const int image_width,
+                 const int out_height, const int out_width, const int tile)
+{
+    const size_t n = (size_t)image_height * image_width * 3;
+    for (size_t i = get_global_id(1) * get_global_size(0) + get_global_id(0); i < n;
+         i += get_global_size(0) * get_global_size(1))
+        out[i] = image[i];
+}
+"""
+
+
 def test_plan_and_check_name_groups_and_why_edges_stay_unfused(tmp_path):
+    """Every kind of reason, each on the edge it concerns, in the plan and in plan/check
+    output; the group in between."""
+    (tmp_path / "t.yaml").write_text(OPAQUE_TYPE)
+    (tmp_path / "op.cl").write_text(OPAQUE_KERNEL)
     model = tmp_path / "m.yaml"
     model.write_text(
-        "system: why\ncomponents:\n"
+        "system: why\ntypes: [t.yaml]\ncomponents:\n"
         "  src: {type: StillImage, params: {width: 20, height: 10}}\n"
         "  m1: {type: VerticalMirror}\n  m2: {type: VerticalMirror}\n"
         "  b1: {type: BoxBlur, params: {radius: 2}}\n  b2: {type: BoxBlur, params: {radius: 2}}\n"
-        "  m3: {type: VerticalMirror, fuse: false}\n"
+        "  m3: {type: VerticalMirror, fuse: false}\n  op: {type: Op}\n"
+        "  m4: {type: VerticalMirror, placement: cpu}\n"
         "  s1: {type: FrameSink}\n  s2: {type: FrameSink}\n"
         "connections:\n  - src.image -> m1.image\n  - m1.mirrored -> m2.image\n"
         "  - m1.mirrored -> s1.image\n  - m2.mirrored -> b1.image\n"
-        "  - b1.smooth -> b2.image\n  - b2.smooth -> m3.image\n  - m3.mirrored -> s2.image\n")
+        "  - b1.smooth -> b2.image\n  - b2.smooth -> m3.image\n  - m3.mirrored -> op.image\n"
+        "  - op.out -> m4.image\n  - m4.mirrored -> s2.image\n")
     plan = compile_model(model, tmp_path / "out").system.plan
     why = dict(plan.unfused)
-    assert "also read by the CPU (s1.image, through adapter" in why["m1.mirrored -> m2.image"]
-    assert f"over the cap of {FUSE_COST_CAP}" in why["b1.smooth -> b2.image"]
-    assert "625 loads" in why["b1.smooth -> b2.image"]  # 25 evaluations x 25 taps
-    assert "'fuse: false' on m3" in why["b2.smooth -> m3.image"]
+    expected = {
+        "m1.mirrored -> m2.image": "read by several consumers: m1.mirrored is also read by "
+                                   "the CPU (s1.image, through adapter",
+        "b1.smooth -> b2.image": "stencil cost cap: recomputing b1 25 times per output "
+                                 "element of the group (reading 25 input elements each "
+                                 f"time) costs 625 loads, over the cap of {FUSE_COST_CAP}",
+        "b2.smooth -> m3.image": "fuse: false: the model keeps m3 out of every group",
+        "m3.mirrored -> op.image": "opaque type: op (Op) has no fusable form",
+        "op.out -> m4.image": "placed on the CPU: m4 runs its CPU function (model)",
+    }
+    assert set(why) == set(expected)
+    for edge, text in expected.items():
+        assert why[edge].startswith(text), (edge, why[edge])
     assert [[m for m, _, _ in g.members] for g in plan.groups] == [["m2", "b1"]]
     for command in ("plan", "check"):
         proc = subprocess.run([sys.executable, "-m", "gpucompgen", command, str(model)],
                               capture_output=True, text=True, check=False)
         assert proc.returncode == 0, proc.stderr
         out = "\n".join(line.strip() for line in proc.stdout.splitlines())  # check indents
-        assert "m2_b1: one kernel (group_m2_b1.cl) for\nm2 (VerticalMirror, index_map)\n" \
-            "-> b1 (BoxBlur, stencil)" in out
-        assert "not fused: b2.smooth -> m3.image:\nthe model sets 'fuse: false' on m3" in out
+        assert "fusion: auto, 1 group:\nm2_b1: one kernel (group_m2_b1.cl) for\n" \
+            "m2 (VerticalMirror, index_map)\n-> b1 (BoxBlur, stencil)" in out
+        for edge, text in expected.items():
+            assert f"not fused: {edge}:\n{text}" in out
     off = subprocess.run([sys.executable, "-m", "gpucompgen", "plan", str(model),
                           "--fusion", "off"], capture_output=True, text=True, check=False)
-    assert "fusion: off, 0 groups" in off.stdout and "(--fusion)" in off.stdout
+    out = "\n".join(line.strip() for line in off.stdout.splitlines())
+    assert "fusion: off, 0 groups" in out
+    assert "not fused: m2.mirrored -> b1.image:\nfusion off (--fusion)" in out
+    assert "not fused: op.out -> m4.image:\nplaced on the CPU" in out
+    standard = compile_model(model, tmp_path / "std", "standard").system.plan
+    assert dict(standard.unfused)["m2.mirrored -> b1.image"] == \
+        "fusion off (standard mode: one kernel per component)"
+
+
+def test_graph_draws_each_group_as_a_cluster(tmp_path):
+    from gpucompgen.graph import dot_text
+
+    model = ROOT / "models" / "parallel_branches.yaml"
+    text = dot_text(compile_model(model, tmp_path / "a").system)
+    cluster = text.split('subgraph "cluster_blur1_to_detector" {\n')[1].split("\n  }\n")[0]
+    assert "fused group blur1_to_detector: one kernel, one launch" in cluster
+    for member in ("blur1", "blur2", "merger", "detector"):
+        assert f'\n    "{member}" [label="{member}\\n' in cluster
+    assert '"merger" -> "detector" [style=dashed, label="fused"' in cluster
+    assert text.count('subgraph "cluster_') == 1
+    # edges from outside reach the members the group's inputs feed, the root's output
+    assert '"adapter1_cpu2gpu" -> "blur1"' in text and '"detector" -> "adapter' in text
+    assert '"blur1_to_detector"' not in text.replace('"cluster_blur1_to_detector"', "")
+    assert "cluster_" not in dot_text(compile_model(model, tmp_path / "b",
+                                                   fusion="off").system)
+    if shutil.which("dot"):  # Graphviz reads it
+        subprocess.run(["dot", "-Tsvg"], input=text.encode(), capture_output=True, check=True)
 
 
 def test_platform_fusion_off_and_bad_values(tmp_path):

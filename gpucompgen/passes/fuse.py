@@ -23,7 +23,11 @@ and Inductor's scheduler, which records why two nodes were not fused):
 - A group of one component is no group: the component keeps its own, hand-written kernel.
 
 Every GPU-to-GPU edge between components that ends up outside a group gets its reason in
-system.unfused (shown by `plan`, `check` and --print-between-passes).
+system.unfused (shown by `plan`, `check` and --print-between-passes), and so does every
+connection between two components with kernels that the placement put through the CPU.
+A reason starts with its kind — "fusion off", "placed on the CPU", "fuse: false",
+"opaque type", "read by several consumers", "stencil cost cap", "different groups" — then
+says what, in the model's names.
 """
 
 from __future__ import annotations
@@ -46,9 +50,10 @@ class Fuse(Pass):
     def apply(self, system, rep):
         gpu_edges = [e for e in system.edges if _gpu_component(system, e.source.component)
                      and _gpu_component(system, e.target.component)]
+        _through_the_cpu(system)
         if system.fusion == "off" or not gpu_edges:
             for e in gpu_edges:
-                system.unfused[str(e)] = f"fusion is off ({system.fusion_reason})"
+                system.unfused[str(e)] = f"fusion off ({system.fusion_reason})"
             return system
         at = {n: i for i, n in enumerate(system.order)}
         assigned: dict[str, str] = {}  # member -> the root of its group
@@ -81,12 +86,26 @@ class Fuse(Pass):
             if assigned.get(a) is not None and assigned.get(a) == assigned.get(b):
                 continue
             why = _opaque(system, b) or _opaque(system, a) or reasons.get(str(e)) or \
-                f"{a} and {b} are in different groups"
+                f"different groups: {a} and {b} each end a group of their own"
             system.unfused[str(e)] = why
         for names in groups:
             if len(names) > 1:
                 make_group(system, names)
         return system
+
+
+def _through_the_cpu(system: System) -> None:
+    """Connections between two components with kernels, one of them placed on the CPU
+    (a flexible type): the data goes through the CPU, no fusion there."""
+    for conn in system.model.connections:
+        a, b = (system.nodes.get(end.component) for end in (conn.source, conn.target))
+        if not (isinstance(a, ComponentNode) and isinstance(b, ComponentNode)
+                and a.type.gpu_aware and b.type.gpu_aware) or (a.on_gpu and b.on_gpu):
+            continue
+        on_cpu = a if not a.on_gpu else b
+        by = f" ({on_cpu.placed_by})" if on_cpu.placed_by else ""
+        system.unfused[f"{conn.source} -> {conn.target}"] = (
+            f"placed on the CPU: {on_cpu.name} runs its CPU function{by}")
 
 
 def _gpu_component(system: System, name: str) -> bool:
@@ -98,11 +117,12 @@ def _opaque(system: System, name: str) -> str:
     """Why a GPU component can never be in a group ('' when it can)."""
     node = system.nodes[name]
     if not isinstance(node, ComponentNode) or not node.on_gpu:
-        return f"{name} does not run on the GPU"
+        return f"placed on the CPU: {name} does not run on the GPU"
     if node.type.fusable is None:
-        return f"{name} ({node.type.name}) has no fusable form: its own kernel runs"
+        return (f"opaque type: {name} ({node.type.name}) has no fusable form, its own kernel "
+                "runs")
     if not node.fuse:
-        return f"the model sets 'fuse: false' on {name}"
+        return f"fuse: false: the model keeps {name} out of every group"
     return ""
 
 
@@ -113,14 +133,14 @@ def _why_not(system: System, src: Endpoint, members: set[str], consumer: str) ->
         return why
     outside = [_reader(system, r) for r in system.readers(src) if r.component not in members]
     if outside:
-        return (f"{src} is also read by {', '.join(outside)}, outside the group: "
-                "its output must be materialized")
+        return (f"read by several consumers: {src} is also read by {', '.join(outside)}, "
+                "outside the group; its output must be materialized")
     cost = _worst_recompute(system, members | {src.component})
     if cost is not None:
         member, r, taps = cost
-        return (f"recomputing {member} {r} times per output element of the group "
-                f"(reading {taps} input element{'s' if taps != 1 else ''} each time) "
-                f"costs {r * taps} loads, over the cap of {FUSE_COST_CAP}")
+        return (f"stencil cost cap: recomputing {member} {r} times per output element of "
+                f"the group (reading {taps} input element{'s' if taps != 1 else ''} each "
+                f"time) costs {r * taps} loads, over the cap of {FUSE_COST_CAP}")
     return ""
 
 
