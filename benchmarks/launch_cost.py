@@ -38,7 +38,8 @@ def merger(tmp: Path):
     from gpucompgen.build import compile_model, write
 
     out = tmp / "vision"
-    write(compile_model(ROOT / "models" / "vision_system.yaml", out), out)
+    # unfused: the ImageMerger component and its own kernel, not the merger_detector group
+    write(compile_model(ROOT / "models" / "vision_system.yaml", out, fusion="off"), out)
     module = runtime.load_module(out / "vision_system.py", "launch_cost_vision")
     context = runtime.create_context()
     queue = runtime.create_queue(context, False)

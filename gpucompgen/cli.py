@@ -18,7 +18,7 @@ from pathlib import Path
 from . import __version__
 from .errors import GpucompgenError, OutputError, UsageError
 from .ir import MODES
-from .model import EXECUTIONS, MAX_FRAMES_IN_FLIGHT, STAGING, ZERO_COPY
+from .model import EXECUTIONS, FUSION, MAX_FRAMES_IN_FLIGHT, STAGING, ZERO_COPY
 from .runtime import add_program_options
 
 EPILOG = """\
@@ -63,6 +63,9 @@ def _common(p: argparse.ArgumentParser,
                    help="how copying adapters stage host memory: pinned host buffers or "
                         "pageable arrays; auto is pinned when the device has no unified host "
                         "memory (default: the model's platform.staging, else auto)")
+    p.add_argument("--fusion", choices=FUSION,
+                   help="auto: chains of fusable GPU components run as one kernel; off: one "
+                        "kernel per component (default: the model's platform.fusion, else auto)")
     p.add_argument("--place", action="append", type=_place, default=[], metavar="NAME=SIDE",
                    help="run flexible component NAME on SIDE: gpu, cpu or auto (chosen with "
                         "the others by the cost model); repeatable; overrides the model")
@@ -275,7 +278,8 @@ def _compile(args, out_dir: Path):
     result = compile_model(args.model, out_dir, args.mode, args.device, dump,
                            execution=args.execution, zero_copy=args.zero_copy,
                            frames_in_flight=args.frames_in_flight, staging=args.staging,
-                           verify=True if args.debug else None, places=places(args))
+                           verify=True if args.debug else None, places=places(args),
+                           fusion=getattr(args, "fusion", None))
     for w in result.warnings:
         print(w.format(), file=sys.stderr)
     return result

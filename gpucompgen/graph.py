@@ -4,6 +4,8 @@ gpu-aware mode draws Figure 3: GPU-aware components (double border, green) with 
 ports marked, and every generated adapter as a node of its own between the ports it joins.
 standard mode draws Figure 1/2: every component standard, no adapters (each GPU-aware
 component copies its own data). Edges carry the element type and size of what flows.
+A fused group (passes/fuse.py) is a cluster around its members, labelled as the one
+kernel it runs; the edges between members are drawn inside it, dashed: no buffer.
 
 The DOT text is written here, deterministically (system order, no timestamps); `dot`
 renders .svg and .png.
@@ -16,7 +18,7 @@ import subprocess
 from pathlib import Path
 
 from .errors import OutputError
-from .ir import AdapterNode, ComponentNode, System
+from .ir import AdapterNode, ComponentNode, GroupNode, System
 from .model import Endpoint
 
 FORMATS = (".dot", ".svg", ".png")
@@ -34,8 +36,29 @@ def quote(text: str) -> str:
 
 
 def _port(system: System, end: Endpoint) -> str:
-    port = system.nodes[end.component].port(end.port)
+    port = system.component(end.component).port(end.port)
     return f"{end.port} [GPU]" if port.memory == "gpu" else end.port
+
+
+def _drawn(system: System, end: Endpoint, side: str) -> Endpoint:
+    """Where an edge's end is drawn: a group's port is its member's (the root's output,
+    the member an input feeds)."""
+    node = system.nodes[end.component]
+    if not isinstance(node, GroupNode):
+        return end
+    return Endpoint(node.root.name, end.port) if side == "source" else node.feeds[end.port]
+
+
+def _component_line(name: str, node: ComponentNode, gpu_aware_mode: bool) -> str:
+    t = node.type
+    if node.on_gpu and gpu_aware_mode:
+        label = f"{name}\n{t.name}\nGPU-aware"
+        return f"{quote(name)} [label={quote(label)}, peripheries=2, fillcolor=\"#d9f2d9\"];"
+    if node.on_gpu:
+        label = f"{name}\n{t.name}\nstandard: copies its own GPU data"
+        return f"{quote(name)} [label={quote(label)}];"
+    label = f"{name}\n{t.name}"
+    return f"{quote(name)} [label={quote(label)}];"
 
 
 def dot_text(system: System) -> str:
@@ -64,25 +87,31 @@ def dot_text(system: System) -> str:
             lines.append(f"  {quote(name)} [label={quote(label)}, shape=cds, "
                          'style="filled,dashed", fillcolor="#fff2cc"];')
             continue
-        t = node.type
-        if node.on_gpu and gpu_aware_mode:
-            label = f"{name}\n{t.name}\nGPU-aware"
-            lines.append(f"  {quote(name)} [label={quote(label)}, peripheries=2, "
-                         'fillcolor="#d9f2d9"];')
-        elif node.on_gpu:
-            label = f"{name}\n{t.name}\nstandard: copies its own GPU data"
-            lines.append(f"  {quote(name)} [label={quote(label)}];")
-        else:
-            label = f"{name}\n{t.name}"
-            lines.append(f"  {quote(name)} [label={quote(label)}];")
+        if isinstance(node, GroupNode):
+            label = (f"fused group {name}: one kernel, one launch\n"
+                     + " -> ".join(m.name for m in node.members))
+            lines += [f"  subgraph {quote('cluster_' + name)} {{",
+                      f"    label={quote(label)};",
+                      '    style="rounded,dashed";',
+                      '    color="#2f7d32";']
+            lines += [f"    {_component_line(m.name, m, gpu_aware_mode)}" for m in node.members]
+            for e in node.internal:
+                lines.append(f"    {quote(e.source.component)} -> {quote(e.target.component)} "
+                             f"[style=dashed, label={quote('fused')}, "
+                             f"taillabel={quote(_port(system, e.source))}, "
+                             f"headlabel={quote(_port(system, e.target))}];")
+            lines.append("  }")
+            continue
+        lines.append(f"  {_component_line(name, node, gpu_aware_mode)}")
     for e in system.edges:
         label = quote(str(e.data) if e.data else "")
         attrs = [f"label={label}"]
-        if isinstance(system.nodes[e.source.component], ComponentNode):
-            attrs.append(f"taillabel={quote(_port(system, e.source))}")
-        if isinstance(system.nodes[e.target.component], ComponentNode):
-            attrs.append(f"headlabel={quote(_port(system, e.target))}")
-        lines.append(f"  {quote(e.source.component)} -> {quote(e.target.component)} "
+        source, target = _drawn(system, e.source, "source"), _drawn(system, e.target, "target")
+        if not isinstance(system.nodes[e.source.component], AdapterNode):
+            attrs.append(f"taillabel={quote(_port(system, source))}")
+        if not isinstance(system.nodes[e.target.component], AdapterNode):
+            attrs.append(f"headlabel={quote(_port(system, target))}")
+        lines.append(f"  {quote(source.component)} -> {quote(target.component)} "
                      f"[{', '.join(attrs)}];")
     lines.append("}")
     return "\n".join(lines) + "\n"

@@ -39,7 +39,7 @@ def test_bench_writes_table_csv_and_plot(tmp_path):
         assert r["variant"] in bench.VARIANTS
         q1, med, q3 = float(r["q1_ms"]), float(r["median_ms"]), float(r["q3_ms"])
         assert 0 <= q1 <= med <= q3
-        if r["variant"] in ("standard", "gpu-aware", "zero-copy", "hand-written"):
+        if r["variant"] in ("standard", "gpu-aware", "zero-copy", "fused", "hand-written"):
             assert int(r["samples"]) == 3  # 3 frames timed, in rounds
     png = (out / "bench.png").read_bytes()
     assert png.startswith(b"\x89PNG\r\n\x1a\n")
@@ -51,9 +51,9 @@ def test_bench_writes_table_csv_and_plot(tmp_path):
     assert "ms per frame, median [q1-q3], 3 frames per variant" in text
     assert "\n33x17 pixels\n" in text and "\n48x32 pixels\n" in text
     header = next(line for line in text.splitlines() if line.lstrip().startswith("N "))
-    assert header.split()[:6] == ["N", "standard", "gpu-aware", "zero-copy", "hand-written",
-                                  "bound"]
-    for ratio in ("std/aware", "aware/zero", "aware/hand", "aware/bound"):
+    assert header.split()[:7] == ["N", "standard", "gpu-aware", "zero-copy", "fused",
+                                  "hand-written", "bound"]
+    for ratio in ("std/aware", "aware/zero", "aware/fused", "aware/hand", "aware/bound"):
         assert ratio in header
     assert "48x32 N=2: standard / gpu-aware = " in text
     assert "(target >= 3.00x)" in text and "(target <= 1.10x)" in text
@@ -81,7 +81,7 @@ def test_chain_model_is_a_valid_system(tmp_path):
 
     model = tmp_path / "c.yaml"
     model.write_text(bench.chain_model(3, 40, 30))
-    result = compile_model(model, tmp_path / "out")
+    result = compile_model(model, tmp_path / "out", fusion="off")
     assert list(result.system.components) == ["source", "mirror1", "mirror2", "mirror3", "sink"]
     assert result.system.order == ["source", "adapter1_cpu2gpu", "mirror1", "mirror2",
                                    "mirror3", "adapter2_gpu2cpu", "sink"]

@@ -34,11 +34,13 @@ FRAMES = 30
 
 
 def _build(tmp: Path, model: Path, n: int, zero_copy: str = "off", staging: str = "auto",
-           execution: str | None = None, places: dict[str, str] | None = None):
+           execution: str | None = None, places: dict[str, str] | None = None,
+           fusion: str | None = None):
     where = "-".join(f"{k}_{v}" for k, v in sorted((places or {}).items()))
-    out = tmp / f"out-{model.stem}-{n}-{zero_copy}-{staging}-{execution}-{where}"
+    out = tmp / f"out-{model.stem}-{n}-{zero_copy}-{staging}-{execution}-{where}-{fusion}"
     result = compile_model(model, out, zero_copy=zero_copy, frames_in_flight=n,
-                           staging=staging, execution=execution, places=places)
+                           staging=staging, execution=execution, places=places,
+                           fusion=fusion)
     write(result, out)
     return result, out / f"{result.system.model.name}.py"
 
@@ -131,7 +133,7 @@ def test_branches_with_sequential_execution_and_three_frames_in_flight(tmp_path)
 
 
 def test_plan_shows_stages_n_buffer_sets_and_their_cost(tmp_path):
-    result, program = _build(tmp_path, VISION, 3, "off", "pinned")
+    result, program = _build(tmp_path, VISION, 3, "off", "pinned", fusion="off")
     plan = result.system.plan
     assert [st.parts for st in plan.stages] == [
         ("camera1", "camera2", "adapter1_cpu2gpu", "adapter2_cpu2gpu"),
@@ -153,11 +155,22 @@ def test_plan_shows_stages_n_buffer_sets_and_their_cost(tmp_path):
 
 
 def test_zero_copy_maps_need_sets_of_the_mapped_buffer(tmp_path):
-    result, _ = _build(tmp_path, VISION, 2, "on")
+    result, _ = _build(tmp_path, VISION, 2, "on", fusion="off")
     plan = result.system.plan
     assert dict(plan.buffer_sets).keys() == {"adapter1_cpu2gpu", "adapter2_cpu2gpu",
                                              "adapter3_gpu2cpu", "detector"}
     assert {b.what: b.sets for b in plan.buffers}["detector.mask"] == 2
+
+
+def test_a_fused_group_that_writes_a_mapped_buffer_keeps_sets_of_it(tmp_path):
+    """Fused, the mask is written by the merger_detector group: the group keeps N sets."""
+    result, _ = _build(tmp_path, VISION, 2, "on")
+    plan = result.system.plan
+    assert [st.parts for st in plan.stages][1] == ("merger_detector", "adapter3_gpu2cpu")
+    assert dict(plan.buffer_sets).keys() == {"adapter1_cpu2gpu", "adapter2_cpu2gpu",
+                                             "adapter3_gpu2cpu", "merger_detector"}
+    sets = {b.what: b.sets for b in plan.buffers}
+    assert "merger.merged" not in sets and sets["merger_detector.mask"] == 2
 
 
 def test_one_frame_in_flight_generates_the_same_program(tmp_path):

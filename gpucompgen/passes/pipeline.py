@@ -1,7 +1,7 @@
 """The pipeline: every pass in order, verified after each when asked, dumped when asked.
 
     check-connections → check-port-types → schedule → propagate-sizes → place → insert-adapters
-    → allocate-gpu → name-variables → assign-queues → stage-frames → lower
+    → fuse → allocate-gpu → name-variables → assign-queues → stage-frames → lower
 """
 
 from __future__ import annotations
@@ -11,13 +11,14 @@ from collections.abc import Callable
 
 from ..errors import GpucompgenError, Reporter, UsageError, did_you_mean
 from ..ir import MODES, System, build_system
-from ..model import EXECUTIONS, STAGING, ZERO_COPY, SystemModel
+from ..model import EXECUTIONS, FUSION, STAGING, ZERO_COPY, SystemModel
 from ..runtime.facts import DeviceFacts
 from .allocate_gpu import AllocateGpu
 from .assign_queues import AssignQueues
 from .base import Pass
 from .check_connections import CheckConnections
 from .check_port_types import CheckPortTypes
+from .fuse import Fuse
 from .insert_adapters import InsertAdapters
 from .lower import Lower
 from .name_variables import NameVariables
@@ -27,35 +28,43 @@ from .schedule import Schedule
 from .stage_frames import StageFrames
 
 PIPELINE: tuple[Pass, ...] = (CheckConnections(), CheckPortTypes(), Schedule(),
-                             PropagateSizes(), Place(), InsertAdapters(), AllocateGpu(),
+                             PropagateSizes(), Place(), InsertAdapters(), Fuse(), AllocateGpu(),
                              NameVariables(), AssignQueues(), StageFrames(), Lower())
 
 
 def new_system(model: SystemModel, device: DeviceFacts, mode: str = "gpu-aware",
                execution: str | None = None, zero_copy: str | None = None,
                places: dict[str, str] | None = None, frames_in_flight: int | None = None,
-               staging: str | None = None) -> System:
-    """The IR of a model with its platform decisions (mode, execution, zero-copy, frames in
-    flight, staging) taken.
+               staging: str | None = None, fusion: str | None = None) -> System:
+    """The IR of a model with its platform decisions (mode, execution, zero-copy, fusion,
+    frames in flight, staging) taken.
 
-    execution ("parallel" | "sequential"), zero_copy ("auto" | "on" | "off"),
-    frames_in_flight (1 or more) and staging ("auto" | "pinned" | "pageable") override the
-    model's platform settings (the command line's --execution, --zero-copy,
-    --frames-in-flight and --staging); places (--place COMPONENT=gpu|cpu) overrides flexible
-    components' placements and raises UsageError for an unknown component or one whose type
-    cannot run on that side.
+    execution ("parallel" | "sequential"), zero_copy ("auto" | "on" | "off"), fusion
+    ("auto" | "off"), frames_in_flight (1 or more) and staging ("auto" | "pinned" |
+    "pageable") override the model's platform settings (the command line's --execution,
+    --zero-copy, --fusion, --frames-in-flight and --staging); places (--place
+    COMPONENT=gpu|cpu) overrides flexible components' placements and raises UsageError for
+    an unknown component or one whose type cannot run on that side.
     """
     execution = execution or model.execution
     zero_copy = zero_copy or model.zero_copy
     staging = staging or model.staging
     frames_in_flight = frames_in_flight or model.frames_in_flight
     if (mode not in MODES or execution not in EXECUTIONS or zero_copy not in ZERO_COPY
-            or staging not in STAGING or frames_in_flight < 1):
+            or staging not in STAGING or frames_in_flight < 1
+            or (fusion or "auto") not in FUSION):
         raise ValueError(f"mode {mode!r}, execution {execution!r}, zero_copy {zero_copy!r}, "
-                         f"staging {staging!r}, frames_in_flight {frames_in_flight!r}")
+                         f"staging {staging!r}, frames_in_flight {frames_in_flight!r}, "
+                         f"fusion {fusion!r}")
     check_places(model, places or {})
     system = build_system(model, device, mode,
                           "sequential" if mode == "standard" else execution, places)
+    if mode == "standard":
+        system.fusion, system.fusion_reason = "off", "standard mode: one kernel per component"
+    else:
+        system.fusion = fusion or model.fusion
+        system.fusion_reason = ("--fusion" if fusion else "platform.fusion"
+                                if model.fusion != "auto" else "default")
     if mode == "standard":
         system.zero_copy_reason = "standard mode: components copy their own data"
     elif zero_copy == "auto":
@@ -131,10 +140,10 @@ def run_passes(model: SystemModel, device: DeviceFacts, mode: str = "gpu-aware",
                dump: Callable[[str], None] | None = None, execution: str | None = None,
                zero_copy: str | None = None, verify: bool | None = None,
                places: dict[str, str] | None = None, frames_in_flight: int | None = None,
-               staging: str | None = None) -> tuple[System, list]:
+               staging: str | None = None, fusion: str | None = None) -> tuple[System, list]:
     """Build the IR of a model and run every pass on it."""
     return run_pipeline(new_system(model, device, mode, execution, zero_copy, places,
-                                   frames_in_flight, staging), PIPELINE, dump, verify)
+                                   frames_in_flight, staging, fusion), PIPELINE, dump, verify)
 
 
 def passes_names() -> list[str]:

@@ -31,6 +31,7 @@ command waits for an event of another stage's frame.
 from __future__ import annotations
 
 from ..ir import AdapterNode, ComponentNode, System
+from ..model import Endpoint
 from .assign_queues import gpu_command
 from .base import Pass
 
@@ -116,8 +117,10 @@ def _buffer_sets(system: System, stage: dict[str, int]) -> dict[str, str]:
                            "is " + ("kept" if node.zero_copy else "copied"))
             elif node.zero_copy:
                 sets[p] = f"{c} reads frame f's mapped {node.source} while the next is mapped"
-                sets[node.source.component] = (f"{node.source} stays mapped for {c} while "
-                                               "the next frame is written")
+                # the node that writes it: its component, or the fused group it is in
+                writer = system.writer(Endpoint(p, "input")).component
+                sets[writer] = (f"{node.source} stays mapped for {c} while the next frame "
+                                "is written")
             else:
                 sets[p] = f"{c} reads frame f's {node.source} while the next is copied"
         elif isinstance(node, ComponentNode) and node.on_gpu:
