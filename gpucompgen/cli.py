@@ -214,8 +214,8 @@ def parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     args = parser().parse_args(argv)
-    if getattr(args, "frames", None) is not None and args.frames < 0:
-        parser().error("--frames must be 0 or more")
+    if args.command == "run" and args.frames is not None and args.frames < 0:
+        parser().error("--frames must be 0 or more")  # tune and bench need 1 or more
     try:
         model = getattr(args, "model", None)
         if model is not None and not model.is_file():
@@ -229,10 +229,13 @@ def main(argv: list[str] | None = None) -> int:
         print(f"gpucompgen {args.command}: error: {exc}", file=sys.stderr)
         return 2
     except GpucompgenError as exc:
-        for d in exc.diagnostics:
+        shown = _first(exc.diagnostics)
+        for d in shown:
             print(d.format(), file=sys.stderr)
-        print(_counts(len(exc.errors), len(exc.diagnostics) - len(exc.errors)),
-              file=sys.stderr)
+        counts = _counts(len(exc.errors), len(exc.diagnostics) - len(exc.errors))
+        if len(shown) < len(exc.diagnostics):
+            counts += f" ({len(exc.diagnostics) - len(shown):,} more not shown)"
+        print(counts, file=sys.stderr)
         return 1
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
@@ -245,10 +248,20 @@ def main(argv: list[str] | None = None) -> int:
         return 2
 
 
+MAX_SHOWN = 200  # diagnostics printed at most (a file stops at 100); the count line counts all
+
+
+def _first(diagnostics: list) -> list:
+    """The first MAX_SHOWN diagnostics in file order, errors before warnings."""
+    errors = [d for d in diagnostics if d.severity == "error"][:MAX_SHOWN]
+    warnings = [d for d in diagnostics if d.severity != "error"][:MAX_SHOWN - len(errors)]
+    return sorted(errors + warnings)
+
+
 def _counts(errors: int, warnings: int) -> str:
-    text = f"{errors} error{'s' if errors != 1 else ''} found"
+    text = f"{errors:,} error{'s' if errors != 1 else ''} found"
     if warnings:
-        text += f", {warnings} warning{'s' if warnings != 1 else ''}"
+        text += f", {warnings:,} warning{'s' if warnings != 1 else ''}"
     return text
 
 
@@ -336,9 +349,9 @@ KILL_AFTER_SECONDS = 10.0
 # What a program killed by a signal most likely met, for the message of 'gpucompgen run'.
 _DEATHS = {
     signal.SIGSEGV: "a kernel (or other native code) accessed memory out of bounds; see "
-                    "'Finding an out-of-bounds kernel' in the README",
+                    "'Finding an out-of-bounds kernel' in docs/runtime.md",
     signal.SIGBUS: "a kernel (or other native code) accessed memory out of bounds; see "
-                   "'Finding an out-of-bounds kernel' in the README",
+                   "'Finding an out-of-bounds kernel' in docs/runtime.md",
     signal.SIGILL: "native code (a kernel or the OpenCL driver) crashed",
     signal.SIGFPE: "native code (a kernel or the OpenCL driver) crashed",
     signal.SIGABRT: "native code (the OpenCL driver?) aborted",
