@@ -14,9 +14,8 @@ import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
 
-# Pages other branches are writing (issue 14's fusion, issue 16's throughput); linked from
-# the README and docs/index.md before they exist. Once a page exists it is checked like any
-# other, anchors included.
+# Pages linked from the README and docs/index.md before they are written (none now). Once
+# a page exists it is checked like any other, anchors included.
 NOT_YET_WRITTEN: set[Path] = set()  # pages linked before they are written
 
 FENCE = re.compile(r"^ {0,3}(`{3,}|~{3,})")
