@@ -46,6 +46,7 @@ class Monitor:
             progress = hasattr(self.stream, "isatty") and self.stream.isatty()
         self.progress = progress
         self.stats_path = Path(stats_path) if stats_path else None
+        self.stats_failed = False  # --stats-json could not be written: exit 1
         self.options = dict(options or {})
         self.frames = 0
         self.parts: dict[str, Any] = {}
@@ -192,6 +193,7 @@ class Monitor:
         try:
             path.write_text(json.dumps(self.stats(), indent=2) + "\n", encoding="utf-8")
         except OSError as exc:
+            self.stats_failed = True  # the run's exit code says so
             print(f"error: cannot write stats to {path}: {exc.strerror}", file=sys.stderr)
 
 
