@@ -5,7 +5,7 @@ by the file that declares it; with a name, the type in full: where it is declare
 description, ports, parameters, requirements and forms (the ways it can run).
 
 ``forms`` lists each way a type can run as (label, detail) rows, so a new form (a fusable
-snippet, a CPU implementation of a GPU-aware type) is one more row.
+snippet) is one more row.
 """
 
 from __future__ import annotations
@@ -88,6 +88,11 @@ def forms(ctype: ComponentType) -> list[tuple[str, str]]:
                                    f"tiles {', '.join(map(str, gpu.tiles))}; preferred tile "
                                    f"{tile}, block {bx}x{by}x{bz}"
                                    + ("; covers whole rows" if ctype.cover == "rows" else "")))
+    if ctype.cpu_file is not None:
+        rows.append(("CPU function", f"{ctype.cpu_function}() in {ctype.cpu_file.name}, called "
+                                     "with the input arrays and the parameters as keywords; "
+                                     "runs where the model places the component (placement: "
+                                     "cpu, --place)"))
     if ctype.python_file is not None:
         rows.append(("CPU (python)", f"class {ctype.python_class} in {ctype.python_file.name}"))
     return rows
@@ -99,6 +104,9 @@ def _source(ctype: ComponentType) -> str:
 
 
 def _kind(ctype: ComponentType) -> str:
+    if ctype.flexible:
+        return ("flexible (runs on the GPU or the CPU, as placed: 'placement:' in the model, "
+                "--place, or auto; its ports live where it runs)")
     if ctype.gpu_aware:
         return "gpu-aware (runs on the GPU; its GPU ports stay in device memory)"
     return "standard (runs on the CPU)"
@@ -106,7 +114,8 @@ def _kind(ctype: ComponentType) -> str:
 
 def _port(port: PortDecl) -> str:
     channels = f"{port.channels} channel{'s' if port.channels != 1 else ''}"
-    text = f"{port.memory.upper()} memory, {port.dtype}, {channels}"
+    memory = "memory where placed" if port.memory == "any" else f"{port.memory.upper()} memory"
+    text = f"{memory}, {port.dtype}, {channels}"
     if port.direction == "in":
         return text + ", any size"
     if port.height is None or port.width is None:

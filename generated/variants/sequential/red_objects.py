@@ -28,6 +28,12 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 #   dilate.dilated                     device  200x301x1 uint8   60,200
 #   adapter2_gpu2cpu (dilate.dilated)  host    200x301x1 uint8   60,200
 #
+#   placement of flexible components:
+#     hsv: GPU (by default)
+#     red: GPU (by default)
+#     erode: GPU (by default)
+#     dilate: GPU (by default)
+#
 #   device: portable OpenCL 1.2 device
 #   peak device memory: 541,800 bytes; peak host memory: 240,800 bytes
 #   (every buffer is allocated once, at start)

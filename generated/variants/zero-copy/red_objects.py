@@ -28,6 +28,12 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 #   adapter1_cpu2gpu (camera.image)    host view           200x301x3 uint8        0
 #   adapter2_gpu2cpu (dilate.dilated)  mapped device view  200x301x1 uint8        0
 #
+#   placement of flexible components:
+#     hsv: GPU (by default)
+#     red: GPU (by default)
+#     erode: GPU (by default)
+#     dilate: GPU (by default)
+#
 #   device: portable OpenCL 1.2 device
 #   peak device memory: 361,200 bytes; peak host memory: 180,600 bytes
 #   (every buffer is allocated once, at start)
