@@ -169,9 +169,8 @@ def run(frames=None, context=None, monitor=None, profile=False):
         'erode.eroded': 60_200,
         'dilate.dilated': 60_200,
     })
-    dilate_gray_program = runtime.build_program(
-        context, LIB_DIR / 'filter.cl', 'dilate (DilateGray)')
-    erode_gray_program = runtime.build_program(context, LIB_DIR / 'filter.cl', 'erode (ErodeGray)')
+    filter_program = runtime.build_program(
+        context, LIB_DIR / 'filter.cl', 'dilate (DilateGray), erode (ErodeGray)')
     in_range_program = runtime.build_program(context, LIB_DIR / 'in_range.cl', 'red (InRange)')
     rgb_to_hsv_program = runtime.build_program(context, LIB_DIR / 'color.cl', 'hsv (RgbToHsv)')
 
@@ -198,8 +197,8 @@ def run(frames=None, context=None, monitor=None, profile=False):
         red = parts['red'] = InRange(
             context, queue, in_range_program, lowerb_0=0, lowerb_1=140, lowerb_2=60, upperb_0=6,
             upperb_1=255, upperb_2=255)
-        erode = parts['erode'] = ErodeGray(context, queue, erode_gray_program)
-        dilate = parts['dilate'] = DilateGray(context, queue, dilate_gray_program)
+        erode = parts['erode'] = ErodeGray(context, queue, filter_program)
+        dilate = parts['dilate'] = DilateGray(context, queue, filter_program)
         # dilate.dilated -> writer.mask
         adapter2_gpu2cpu = parts['adapter2_gpu2cpu'] = runtime.GpuToCpuAdapter(
             context, queue, nbytes=60_200)

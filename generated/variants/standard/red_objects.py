@@ -174,9 +174,8 @@ def run(frames=None, context=None, monitor=None, profile=False):
         'dilate.image': 60_200,
         'dilate.dilated': 60_200,
     })
-    dilate_gray_program = runtime.build_program(
-        context, LIB_DIR / 'filter.cl', 'dilate (DilateGray)')
-    erode_gray_program = runtime.build_program(context, LIB_DIR / 'filter.cl', 'erode (ErodeGray)')
+    filter_program = runtime.build_program(
+        context, LIB_DIR / 'filter.cl', 'dilate (DilateGray), erode (ErodeGray)')
     in_range_program = runtime.build_program(context, LIB_DIR / 'in_range.cl', 'red (InRange)')
     rgb_to_hsv_program = runtime.build_program(context, LIB_DIR / 'color.cl', 'hsv (RgbToHsv)')
 
@@ -198,9 +197,8 @@ def run(frames=None, context=None, monitor=None, profile=False):
         red = parts['red'] = InRange(
             context, queue, in_range_program, lowerb_0=0, lowerb_1=140, lowerb_2=60, upperb_0=6,
             upperb_1=255, upperb_2=255, copies_own_data=True)
-        erode = parts['erode'] = ErodeGray(context, queue, erode_gray_program, copies_own_data=True)
-        dilate = parts['dilate'] = DilateGray(
-            context, queue, dilate_gray_program, copies_own_data=True)
+        erode = parts['erode'] = ErodeGray(context, queue, filter_program, copies_own_data=True)
+        dilate = parts['dilate'] = DilateGray(context, queue, filter_program, copies_own_data=True)
         writer = parts['writer'] = MaskWriter(min_area=150, folder='', print_objects=True)
         monitor.attach(parts)
         profiler = runtime.Profile(parts) if profile else None
