@@ -89,10 +89,10 @@ def forms(ctype: ComponentType) -> list[tuple[str, str]]:
                                    f"{tile}, block {bx}x{by}x{bz}"
                                    + ("; covers whole rows" if ctype.cover == "rows" else "")))
     if ctype.cpu_file is not None:
-        rows.append(("CPU function", f"{ctype.cpu_function}() in {ctype.cpu_file.name}, called "
-                                     "with the input arrays and the parameters as keywords; "
-                                     "runs where the model places the component (placement: "
-                                     "cpu, --place)"))
+        detail = (f"{ctype.cpu_function}() in {ctype.cpu_file.name}, called with the input "
+                  "arrays and the parameters as keywords; runs where the model places the "
+                  "component (placement: cpu, --place)")
+        rows.append(("CPU function", detail))
     if ctype.python_file is not None:
         rows.append(("CPU (python)", f"class {ctype.python_class} in {ctype.python_file.name}"))
     return rows
