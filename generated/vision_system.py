@@ -9,38 +9,39 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 """
 
 # System plan:
-#   step  name                       stage  queue  runs  GPU settings            threads
-#   1     camera1 (Camera)           1      -      CPU   -                       -
-#   2     camera2 (Camera)           1      -      CPU   -                       -
-#   3     adapter1_cpu2gpu           1      0      copy  -                       -
-#   4     adapter2_cpu2gpu           1      1      copy  -                       -
-#   5     merger (ImageMerger)       2      0      GPU   tile 16, block 16x16x1  16,384
-#   6     detector (ObjectDetector)  3      0      GPU   tile 32, block 16x16x1  16,384
-#   7     adapter3_gpu2cpu           3      0      copy  -                       -
-#   8     manager (VisionManager)    4      -      CPU   -                       -
+#   step  name                           stage  queue  runs  GPU settings            threads
+#   1     camera1 (Camera)               1      -      CPU   -                       -
+#   2     camera2 (Camera)               1      -      CPU   -                       -
+#   3     adapter1_cpu2gpu               1      0      copy  -                       -
+#   4     adapter2_cpu2gpu               1      1      copy  -                       -
+#   5     merger_detector (fused group)  3      0      GPU   tile 32, block 16x16x1  16,384
+#   6     adapter3_gpu2cpu               3      0      copy  -                       -
+#   7     manager (VisionManager)        4      -      CPU   -                       -
 #
-#   buffer                            memory  size                  bytes
-#   camera1.image                     host    480x640x3 uint8     921,600
-#   camera2.image                     host    480x640x3 uint8     921,600
-#   adapter1_cpu2gpu (camera1.image)  device  480x640x3 uint8     921,600
-#   adapter2_cpu2gpu (camera2.image)  device  480x640x3 uint8     921,600
-#   merger.merged                     device  480x1280x3 uint8  1,843,200
-#   detector.mask                     device  480x1280x1 uint8    614,400
-#   adapter3_gpu2cpu (detector.mask)  host    480x1280x1 uint8    614,400
+#   buffer                            memory  size                bytes
+#   camera1.image                     host    480x640x3 uint8   921,600
+#   camera2.image                     host    480x640x3 uint8   921,600
+#   adapter1_cpu2gpu (camera1.image)  device  480x640x3 uint8   921,600
+#   adapter2_cpu2gpu (camera2.image)  device  480x640x3 uint8   921,600
+#   merger_detector.mask              device  480x1280x1 uint8  614,400
+#   adapter3_gpu2cpu (detector.mask)  host    480x1280x1 uint8  614,400
 #
 #   placement of flexible components:
 #     merger: GPU (by default)
 #     detector: GPU (by default)
 #
 #   device: portable OpenCL 1.2 device
-#   peak device memory: 4,300,800 bytes; peak host memory: 2,457,600 bytes
+#   peak device memory: 2,457,600 bytes; peak host memory: 2,457,600 bytes
 #   (every buffer is allocated once, at start)
 #   bytes copied between CPU and GPU per frame: 2,457,600
 #   zero-copy adapters: off (auto: device has no unified host memory)
 #   execution: parallel, 2 queues
 #   thread budget: 16,384 (device total); GPU components that can run at the same time:
-#     merger: 16,384 threads
-#     detector: 16,384 threads
+#     merger_detector: 16,384 threads
+#   fusion: auto, 1 group:
+#     merger_detector: one kernel (group_merger_detector.cl) for
+#       merger (ImageMerger, index_map)
+#       -> detector (ObjectDetector, pointwise)
 
 from __future__ import annotations
 
@@ -58,42 +59,23 @@ DESCRIPTION = 'Vision system of the underwater robot (Campeanu et al., Figure 3)
 LIB_DIR = Path(__file__).resolve().with_name('vision_system_lib')
 
 
-class ImageMerger(runtime.KernelComponent):
-    """GPU-aware component ImageMerger: kernel image_merger() in image_merger.cl.
-
-    One work-group of block_x * block_y * block_z threads covers a tile x tile square
-    of 'merged'.
-    """
-    # Places two frames of the same height side by side (left | right).
-
-    function = 'image_merger'
-    inputs = (('left', np.uint8), ('right', np.uint8))
-    outputs = (('merged', np.uint8),)
-
-    def output_sizes(self, left, right):
-        """Input sizes in, output sizes out (the type's size expressions)."""
-        return [
-            Size(left.height, left.width + right.width, 3),
-        ]
-
-
-class ObjectDetector(runtime.KernelComponent):
-    """GPU-aware component ObjectDetector: kernel object_detector() in object_detector.cl.
+class FusedMergerDetector(runtime.KernelComponent):
+    """GPU-aware component FusedMergerDetector:
+    kernel merger_detector() in group_merger_detector.cl.
 
     One work-group of block_x * block_y * block_z threads covers a tile x tile square
     of 'mask'.
     """
-    # Marks red buoys: a pixel is white (255) when red is at least red_min and exceeds green and
-    # blue by at least margin, else black (0).
+    # Fuses merger (ImageMerger), detector (ObjectDetector) into one kernel.
 
-    function = 'object_detector'
-    inputs = (('frame', np.uint8),)
+    function = 'merger_detector'
+    inputs = (('merger_left', np.uint8), ('merger_right', np.uint8))
     outputs = (('mask', np.uint8),)
 
-    def output_sizes(self, frame):
+    def output_sizes(self, merger_left, merger_right):
         """Input sizes in, output sizes out (the type's size expressions)."""
         return [
-            Size(frame.height, frame.width, 1),
+            Size(480, 1280, 1),
         ]
 
 
@@ -116,13 +98,10 @@ def run(frames=None, context=None, monitor=None, profile=False):
     runtime.check_device_memory(context.devices[0], {
         'adapter1_cpu2gpu (camera1.image)': 921_600,
         'adapter2_cpu2gpu (camera2.image)': 921_600,
-        'merger.merged': 1_843_200,
-        'detector.mask': 614_400,
+        'merger_detector.mask': 614_400,
     })
-    image_merger_program = runtime.build_program(
-        context, LIB_DIR / 'image_merger.cl', 'merger (ImageMerger)')
-    object_detector_program = runtime.build_program(
-        context, LIB_DIR / 'object_detector.cl', 'detector (ObjectDetector)')
+    fused_merger_detector_program = runtime.build_program(
+        context, LIB_DIR / 'group_merger_detector.cl', 'merger_detector (FusedMergerDetector)')
 
     # every component and adapter, filled in as it is constructed; freed in reverse order
     parts = dict.fromkeys([
@@ -130,8 +109,7 @@ def run(frames=None, context=None, monitor=None, profile=False):
         'camera2',
         'adapter1_cpu2gpu',
         'adapter2_cpu2gpu',
-        'merger',
-        'detector',
+        'merger_detector',
         'adapter3_gpu2cpu',
         'manager',
     ])
@@ -141,15 +119,14 @@ def run(frames=None, context=None, monitor=None, profile=False):
             width=640, height=480, seed=1, buoys=2, frames=0, folder='', video='')
         camera2 = parts['camera2'] = Camera(
             width=640, height=480, seed=2, buoys=2, frames=0, folder='', video='')
-        # camera1.image -> merger.left
+        # camera1.image -> merger_detector.merger_left
         adapter1_cpu2gpu = parts['adapter1_cpu2gpu'] = runtime.CpuToGpuAdapter(
             context, queue0, nbytes=921_600, blocking=False)
-        # camera2.image -> merger.right
+        # camera2.image -> merger_detector.merger_right
         adapter2_cpu2gpu = parts['adapter2_cpu2gpu'] = runtime.CpuToGpuAdapter(
             context, queue1, nbytes=921_600, blocking=False)
-        merger = parts['merger'] = ImageMerger(context, queue0, image_merger_program)
-        detector = parts['detector'] = ObjectDetector(
-            context, queue0, object_detector_program, red_min=150, margin=80)
+        merger_detector = parts['merger_detector'] = FusedMergerDetector(
+            context, queue0, fused_merger_detector_program)
         # detector.mask -> manager.mask
         adapter3_gpu2cpu = parts['adapter3_gpu2cpu'] = runtime.GpuToCpuAdapter(
             context, queue0, nbytes=614_400)
@@ -164,35 +141,25 @@ def run(frames=None, context=None, monitor=None, profile=False):
         runtime.expect_size('camera2.image', camera2_image_size, Size(480, 640, 3))
         camera1_image_gpu_size = adapter1_cpu2gpu.initialize(camera1_image_size, np.uint8)
         camera2_image_gpu_size = adapter2_cpu2gpu.initialize(camera2_image_size, np.uint8)
-        merger_merged_size = merger.initialize(camera1_image_gpu_size, camera2_image_gpu_size)
-        runtime.expect_size('merger.merged', merger_merged_size, Size(480, 1280, 3))
-        detector_mask_size = detector.initialize(merger_merged_size)
-        runtime.expect_size('detector.mask', detector_mask_size, Size(480, 1280, 1))
-        detector_mask_cpu_size = adapter3_gpu2cpu.initialize(detector_mask_size, np.uint8)
+        merger_detector_mask_size = merger_detector.initialize(
+            camera1_image_gpu_size, camera2_image_gpu_size)
+        runtime.expect_size('merger_detector.mask', merger_detector_mask_size, Size(480, 1280, 1))
+        detector_mask_cpu_size = adapter3_gpu2cpu.initialize(merger_detector_mask_size, np.uint8)
         manager.initialize(detector_mask_cpu_size)
 
-        # merger: settings preferred, 16,384 resident threads; kernel arguments in the calling
+        # merger_detector: settings model, 16,384 resident threads; kernel arguments in the calling
         # convention's order (a port's name stands for its buffer)
-        merger.config_gpu(
-            tile=16, local_size=(16, 16, 1), global_size=(1280, 480, 1),
-            settings_source='preferred', arguments=[
-                'left', 'right', 'merged',  # buffers: inputs, then outputs
-                np.int32(480), np.int32(640),  # left: height, width
-                np.int32(480), np.int32(640),  # right: height, width
-                np.int32(480), np.int32(1280),  # merged: height, width
-                np.int32(16),  # tile
-            ])
-
-        # detector: settings model, 16,384 resident threads; kernel arguments in the calling
-        # convention's order (a port's name stands for its buffer)
-        detector.config_gpu(
+        merger_detector.config_gpu(
             tile=32, local_size=(16, 16, 1), global_size=(640, 240, 1),
             settings_source='model', arguments=[
-                'frame', 'mask',  # buffers: inputs, then outputs
-                np.int32(480), np.int32(1280),  # frame: height, width
-                np.int32(480), np.int32(1280),  # mask: height, width
-                np.int32(150),  # red_min
-                np.int32(80),  # margin
+                'merger_left', 'merger_right', 'mask',  # buffers: inputs, then outputs
+                np.int32(480), np.int32(640),  # merger.left: height, width
+                np.int32(480), np.int32(640),  # merger.right: height, width
+                np.int32(480), np.int32(1280),  # merger.merged: height, width
+                np.int32(480), np.int32(1280),  # detector.frame: height, width
+                np.int32(480), np.int32(1280),  # detector.mask: height, width
+                np.int32(150),  # detector_red_min
+                np.int32(80),  # detector_margin
                 np.int32(32),  # tile
             ])
 
@@ -206,10 +173,9 @@ def run(frames=None, context=None, monitor=None, profile=False):
             runtime.check_frame('camera2.image', camera2_image, (480, 640, 3), np.uint8)
             camera1_image_gpu = adapter1_cpu2gpu.transfer(camera1_image)
             camera2_image_gpu = adapter2_cpu2gpu.transfer(camera2_image)
-            merger_merged = merger.execute(
+            merger_detector_mask = merger_detector.execute(
                 camera1_image_gpu, camera2_image_gpu, wait_for=[adapter2_cpu2gpu.event])
-            detector_mask = detector.execute(merger_merged)
-            detector_mask_cpu = adapter3_gpu2cpu.transfer(detector_mask)
+            detector_mask_cpu = adapter3_gpu2cpu.transfer(merger_detector_mask)
             manager.execute(detector_mask_cpu)
             frame += 1
             monitor.frame_done(frame)

@@ -44,15 +44,18 @@ from .runtime import load_module
 
 DEFAULT_SIZES = ((1152, 864), (1152, 1782))  # width x height, as in the paper
 DEFAULT_LENGTHS = (5, 10, 15, 20, 25)
-VARIANTS = ("standard", "gpu-aware", "zero-copy", "hand-written", "bound", "opencv-cpu",
-            "opencv-ocl")
+VARIANTS = ("standard", "gpu-aware", "zero-copy", "fused", "hand-written", "bound",
+            "opencv-cpu", "opencv-ocl")
 TARGETS = (  # (numerator, denominator, limit, "<=" or ">=")
     ("gpu-aware", "hand-written", 1.10, "<="),
     ("gpu-aware", "bound", 1.30, "<="),
     ("standard", "gpu-aware", 3.0, ">="),
     ("opencv-cpu", "gpu-aware", 1.0, ">="),
     ("opencv-ocl", "gpu-aware", 1.0, ">="),
+    ("gpu-aware", "fused", 5.0, ">="),
 )
+# the fused chain against one unfused mirror (N=1): fusion makes length nearly free
+FUSED_VS_ONE = 1.30
 ROUNDS = 4
 LIBRARY = Path(__file__).resolve().parent / "library"
 
@@ -133,7 +136,9 @@ class Generated:
         out = folder / f"{variant}_{n}_{size[0]}x{size[1]}"
         mode = "standard" if variant == "standard" else "gpu-aware"
         zero_copy = "on" if variant == "zero-copy" else "off"
-        write(compile_model(model, out, mode, zero_copy=zero_copy), out)
+        # every variant but 'fused' runs one kernel per mirror, as in the paper
+        fusion = "auto" if variant == "fused" else "off"
+        write(compile_model(model, out, mode, zero_copy=zero_copy, fusion=fusion), out)
         name = f"gpucompgen_bench_{variant.replace('-', '_')}_{n}_{size[0]}x{size[1]}"
         self.module = load_module(out / f"mirror_chain_{n}.py", name)
         self.context, self.n = context, n
@@ -355,7 +360,7 @@ def run_bench(sizes, lengths, frames: int, out_dir: Path, opencv: bool = True,
         opencv = False
         notes.append("OpenCV is not installed (pip install 'gpucompgen[video]'): "
                      "no OpenCV references")
-    per_round = 6 if opencv else 5
+    per_round = 7 if opencv else 6
     total = len(sizes) * (len(lengths) * per_round * rounds + 1 + (1 if opencv else 0))
     bar = tqdm(total=total, desc="bench", unit="run", disable=not sys.stderr.isatty(),
                file=sys.stderr)
@@ -368,6 +373,7 @@ def run_bench(sizes, lengths, frames: int, out_dir: Path, opencv: bool = True,
                 runners = {"standard": Generated(Path(tmp), n, size, "standard", context),
                            "gpu-aware": Generated(Path(tmp), n, size, "gpu-aware", context),
                            "zero-copy": Generated(Path(tmp), n, size, "zero-copy", context),
+                           "fused": Generated(Path(tmp), n, size, "fused", context),
                            "hand-written": HandWritten(n, image, context),
                            "bound": Bound(n, ring)}
                 if opencv:
@@ -457,7 +463,8 @@ def table(figures: list[Figure], device: str, frames: int, notes: list[str]) -> 
     for size in sizes:
         lines.append("")
         lines.append(f"{size[0]}x{size[1]} pixels")
-        rows = [["N"] + variants + ["std/aware", "aware/zero", "aware/hand", "aware/bound"]]
+        rows = [["N"] + variants + ["std/aware", "aware/zero", "aware/fused", "aware/hand",
+                                    "aware/bound"]]
         for n in sorted({f.components for f in figures if f.size == size}):
             row = [str(n)]
             for v in variants:
@@ -465,7 +472,8 @@ def table(figures: list[Figure], device: str, frames: int, notes: list[str]) -> 
                 row.append(f"{f.median * 1e3:.2f} [{f.q1 * 1e3:.2f}-{f.q3 * 1e3:.2f}]"
                            if f else "-")
             for a, b in (("standard", "gpu-aware"), ("gpu-aware", "zero-copy"),
-                         ("gpu-aware", "hand-written"), ("gpu-aware", "bound")):
+                         ("gpu-aware", "fused"), ("gpu-aware", "hand-written"),
+                         ("gpu-aware", "bound")):
                 fa, fb = idx.get((size, n, a)), idx.get((size, n, b))
                 row.append(f"{fa.median / fb.median:.2f}x" if fa and fb else "-")
             rows.append(row)
@@ -483,13 +491,19 @@ def table(figures: list[Figure], device: str, frames: int, notes: list[str]) -> 
             met = ratio <= limit if op == "<=" else ratio >= limit
             lines.append(f"  {size[0]}x{size[1]} N={n}: {a} / {b} = {ratio:.2f}x "
                          f"(target {op} {limit:.2f}x): {'met' if met else 'NOT met'}")
+        fa, fb = idx.get((size, n, "fused")), idx.get((size, 1, "gpu-aware"))
+        if fa and fb and n > 1:
+            ratio = fa.median / fb.median
+            lines.append(f"  {size[0]}x{size[1]} N={n}: fused / gpu-aware N=1 = {ratio:.2f}x "
+                         f"(target <= {FUSED_VS_ONE:.2f}x): "
+                         f"{'met' if ratio <= FUSED_VS_ONE else 'NOT met'}")
     for note in notes:
         lines.append(f"note: {note}")
     return "\n".join(lines)
 
 
 STYLE = {"standard": ("tab:blue", "o", "-"), "gpu-aware": ("tab:red", "s", "-"),
-         "zero-copy": ("tab:brown", "x", "-"),
+         "zero-copy": ("tab:brown", "x", "-"), "fused": ("tab:cyan", "*", "-"),
          "hand-written": ("tab:green", "^", "--"), "bound": ("black", "", ":"),
          "opencv-cpu": ("tab:purple", "v", "-."), "opencv-ocl": ("tab:orange", "D", "-.")}
 

@@ -18,7 +18,7 @@ from pathlib import Path
 from . import __version__
 from .errors import GpucompgenError, OutputError, UsageError
 from .ir import MODES
-from .model import EXECUTIONS, ZERO_COPY
+from .model import EXECUTIONS, FUSION, ZERO_COPY
 from .runtime import add_program_options
 
 EPILOG = """\
@@ -53,6 +53,9 @@ def _common(p: argparse.ArgumentParser,
                    help="zero-copy adapters (map host-visible memory instead of copying): auto "
                         "follows the device's unified host memory (default: the model's "
                         "platform.zero_copy, else auto)")
+    p.add_argument("--fusion", choices=FUSION,
+                   help="auto: chains of fusable GPU components run as one kernel; off: one "
+                        "kernel per component (default: the model's platform.fusion, else auto)")
     p.add_argument("--place", action="append", type=_place, default=[], metavar="NAME=SIDE",
                    help="run flexible component NAME on SIDE: gpu, cpu or auto (chosen with "
                         "the others by the cost model); repeatable; overrides the model")
@@ -241,7 +244,8 @@ def _compile(args, out_dir: Path):
             print(text, file=sys.stderr)
     result = compile_model(args.model, out_dir, args.mode, args.device, dump,
                            execution=args.execution, zero_copy=args.zero_copy,
-                           verify=True if args.debug else None, places=places(args))
+                           verify=True if args.debug else None, places=places(args),
+                           fusion=getattr(args, "fusion", None))
     for w in result.warnings:
         print(w.format(), file=sys.stderr)
     return result

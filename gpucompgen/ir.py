@@ -100,6 +100,7 @@ class ComponentNode(Node):
     params: dict[str, Any] = field(default_factory=dict)
     placement: str = "cpu"  # "gpu" | "cpu"
     order: int = 0  # position in the model: ties in the run order follow it
+    fuse: bool = True  # the model's 'fuse: false' keeps it out of every group
     # a flexible component: what was asked ("gpu" | "cpu" | "auto") and by whom ("model",
     # "platform.placement", "command line", "default"); the place pass decides "auto"
     asked: str = ""
@@ -129,15 +130,35 @@ class AdapterNode(Node):
 
 @dataclass
 class GroupNode(Node):
-    """Member nodes that run as one (a fused chain: one kernel, one launch).
+    """Member components that run as one kernel: one launch, one config_gpu, one lane.
 
-    No pass makes groups yet; the IR, verify() and dump() carry them so that a fusion pass
-    only has to replace a chain of component nodes by one of these.
+    Made by the fuse pass (passes/fuse.py).  members are in run order and the last one,
+    the root, makes the group's only output (named as the root's output port).  The
+    group's inputs are named <member>_<port>, one per member input fed from outside
+    (`feeds` says which); `internal` holds the edges between members.  `type` is a
+    stand-in type (GPU preferences of the root, work-groups covering tile x tile squares
+    of the output) so that passes that read a GPU node's type treat the group as one.
     """
 
-    members: list[Node] = field(default_factory=list)
+    members: list[ComponentNode] = field(default_factory=list)
     placement: str = "gpu"
+    feeds: dict[str, Endpoint] = field(default_factory=dict)  # input port -> member port
+    internal: list[Edge] = field(default_factory=list)
+    type: ComponentType = None  # type: ignore[assignment]
+    params: dict[str, Any] = field(default_factory=dict)  # none: members keep theirs
+    fuse: bool = False
     kind: ClassVar[str] = "group"
+
+    @property
+    def on_gpu(self) -> bool:
+        return True
+
+    @property
+    def root(self) -> ComponentNode:
+        return self.members[-1]
+
+    def member(self, name: str) -> ComponentNode:
+        return next(m for m in self.members if m.name == name)
 
 
 @dataclass
@@ -164,6 +185,8 @@ class System:
     execution: str = "parallel"  # "parallel" | "sequential"
     zero_copy: bool = False
     zero_copy_reason: str = ""
+    fusion: str = "auto"  # "auto" | "off" (platform.fusion or --fusion)
+    fusion_reason: str = ""
     nodes: dict[str, Node] = field(default_factory=dict)
     edges: list[Edge] = field(default_factory=list)
     done: list[str] = field(default_factory=list)  # names of the passes applied so far
@@ -172,6 +195,8 @@ class System:
     # other)
     order: list[str] = field(default_factory=list)
     stages: dict[str, int] = field(default_factory=dict)
+    # fuse: why each GPU-to-GPU edge between components was left unfused ("a.p -> b.q")
+    unfused: dict[str, str] = field(default_factory=dict)
     # allocate-gpu: each GPU node's settings, the thread budget, the groups that can run
     # at the same time
     settings: dict[str, GpuSettings] = field(default_factory=dict)
@@ -193,6 +218,24 @@ class System:
     @property
     def components(self) -> dict[str, ComponentNode]:
         return {n: node for n, node in self.nodes.items() if isinstance(node, ComponentNode)}
+
+    def component(self, name: str) -> ComponentNode:
+        """A component by name, also when a fused group holds it."""
+        node = self.nodes.get(name)
+        if isinstance(node, ComponentNode):
+            return node
+        return next(m for g in self.groups for m in g.members if m.name == name)
+
+    @property
+    def groups(self) -> list[GroupNode]:
+        names = self.order or list(self.nodes)
+        return [self.nodes[n] for n in names if isinstance(self.nodes.get(n), GroupNode)]
+
+    def gpu_node(self, name: str) -> ComponentNode | GroupNode:
+        """A component placed on the GPU or a group: a node with a type and GPU settings."""
+        node = self.nodes[name]
+        assert isinstance(node, (ComponentNode, GroupNode)) and node.on_gpu, name
+        return node
 
     @property
     def adapters(self) -> list[AdapterNode]:
@@ -356,7 +399,7 @@ def port_memory(mode: str, decl_memory: str) -> str:
 
 def component_node(name: str, ctype: ComponentType, params: dict[str, Any], pos: Pos,
                    order: int, mode: str = "gpu-aware", asked: str = "",
-                   placed_by: str = "") -> ComponentNode:
+                   placed_by: str = "", fuse: bool = True) -> ComponentNode:
     """A node of one instance; a flexible one starts where it is asked to run (on the GPU
     when asked "auto", until the place pass decides)."""
     side = "gpu" if ctype.gpu_aware else "cpu"
@@ -371,7 +414,7 @@ def component_node(name: str, ctype: ComponentType, params: dict[str, Any], pos:
     return ComponentNode(name, pos, ports(ctype.inputs), ports(ctype.outputs), type=ctype,
                          params=dict(params), placement=side, order=order,
                          asked=asked if ctype.flexible else "",
-                         placed_by=placed_by if ctype.flexible else "")
+                         placed_by=placed_by if ctype.flexible else "", fuse=fuse)
 
 
 def asked_placement(model: SystemModel, name: str,
@@ -396,7 +439,7 @@ def build_system(model: SystemModel, device: DeviceFacts, mode: str = "gpu-aware
     for inst in sorted(model.components.values(), key=lambda i: i.order):
         asked, by = asked_placement(model, inst.name, places)
         system.add_node(component_node(inst.name, inst.type, inst.params, inst.pos, inst.order,
-                                       mode, asked, by))
+                                       mode, asked, by, inst.fuse))
     for conn in model.connections:
         system.edges.append(Edge(conn.source, conn.target, conn.pos))
     return system
@@ -405,7 +448,8 @@ def build_system(model: SystemModel, device: DeviceFacts, mode: str = "gpu-aware
 def dump(system: System) -> str:
     """The whole IR as text: every node with its ports, every edge, every decision."""
     lines = [(f"system {system.name} (mode {system.mode}, execution {system.execution}, "
-              f"zero-copy {'on' if system.zero_copy else 'off'}, device {system.device.name})")]
+              f"zero-copy {'on' if system.zero_copy else 'off'}, fusion {system.fusion}, "
+              f"device {system.device.name})")]
     if system.done:
         lines.append(f"  after: {', '.join(system.done)}")
     names = system.order or list(system.nodes)
@@ -413,6 +457,8 @@ def dump(system: System) -> str:
         lines += ["  " + line for line in _node_lines(system, system.nodes[n])]
     for e in system.edges:
         lines.append(f"  edge {e}" + (f" : {e.data}" if e.data else ""))
+    for edge, why in system.unfused.items():
+        lines.append(f"  not fused {edge}: {why}")
     if system.concurrent:
         lines.append(f"  thread budget {system.thread_budget:,}")
         for group in system.concurrent:
@@ -436,7 +482,7 @@ def _node_lines(system: System, node: Node) -> list[str]:
                 + (" [zero-copy]" if node.zero_copy else ""))
     elif isinstance(node, GroupNode):
         head = (f"group {node.name} on {node.placement.upper()}: "
-                + ", ".join(m.name for m in node.members))
+                + ", ".join(f"{m.name} ({m.type.name})" for m in node.members))
     else:
         head = f"{node.kind} {node.name}"
     if node.name in system.stages:
@@ -456,4 +502,9 @@ def _node_lines(system: System, node: Node) -> list[str]:
                      + "".join(f", waits {w}" for w in system.waits.get(node.name, [])))
     for a in system.unmap_after.get(node.name, []):
         lines.append(f"  then unmaps {a}")
+    if isinstance(node, GroupNode):
+        for port, end in node.feeds.items():
+            lines.append(f"  feeds {port} -> {end}")
+        for e in node.internal:
+            lines.append(f"  fused edge {e}")
     return lines

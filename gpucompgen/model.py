@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from . import fusable as fusable_forms
 from . import sizeexpr
 from .backend.opencl import signature
 from .errors import Diagnostic, GpucompgenError, Pos, Reporter, did_you_mean
@@ -121,6 +122,7 @@ class ComponentType:
     python_file: Path | None = None
     python_class: str = ""
     gpu: GpuDecl = field(default_factory=GpuDecl)
+    fusable: fusable_forms.FusableDecl | None = None  # None: opaque, never fused
     # the kernel's and the Python file's text, as checked (build writes this text, never
     # a file read again later)
     kernel_text: str = ""
@@ -157,6 +159,7 @@ class Instance:
     order: int
     placement: str = ""  # "gpu" | "cpu" | "auto" as the model says; "" when it says nothing
     placement_pos: Pos | None = None
+    fuse: bool = True  # 'fuse: false': never fused with its neighbours
 
 
 @dataclass(frozen=True)
@@ -197,6 +200,8 @@ class SystemModel:
     zero_copy: str = "auto"
     thread_budget_pos: Pos | None = None
     platform_pos: Pos = Pos("")
+    # platform.fusion: "auto" (chains of fusable GPU components become one kernel) | "off"
+    fusion: str = "auto"
     # platform.placement: where flexible components without their own 'placement:' run
     # ("gpu" by default, "cpu", or "auto"); platform.profile: a `gpucompgen tune` file
     placement: str = "gpu"
@@ -258,7 +263,7 @@ def _positive_int(doc: Document, rep: Reporter, path: tuple, value: Any, what: s
 # --------------------------------------------------------------------------- types
 
 TYPE_KEYS = ("kind", "description", "params", "inputs", "outputs", "requires", "kernel",
-             "python", "gpu", "cpu")
+             "python", "gpu", "cpu", "fusable")
 PORT_KEYS = ("memory", "dtype", "channels", "height", "width", "description")
 PARAM_KEYS = ("type", "default", "min", "max", "description")
 REQUIRE_KEYS = ("check", "message")
@@ -266,6 +271,7 @@ KERNEL_KEYS = ("file", "function", "grid", "cover")
 GPU_KEYS = ("tiles", "block_z", "prefer", "max_threads", "square")
 PYTHON_KEYS = ("file", "class")
 CPU_KEYS = ("file", "function")
+FUSABLE_KEYS = ("form", "value", "radius", "border")
 
 
 def load_types_file(path: Path, display: str, origin: str, rep: Reporter,
@@ -415,6 +421,8 @@ def _load_type(doc: Document, rep: Reporter, path: Path, origin: str, tname: str
     if kind == "flexible":
         _load_kernel(doc, rep, base, ctype, spec, signature_check=len(rep.diagnostics) == seen)
         _load_cpu(doc, rep, base, ctype, spec)
+        if "fusable" in spec:
+            _load_fusable(doc, rep, base, ctype, spec["fusable"])
         if "python" in spec:
             rep.error(doc.key_pos(*base, "python"),
                       "a flexible type's CPU side is a function, 'cpu: {file, function}', "
@@ -426,13 +434,15 @@ def _load_type(doc: Document, rep: Reporter, path: Path, origin: str, tname: str
                       f"'cpu' is only for flexible types; '{tname}' is gpu-aware",
                       "set 'kind: flexible' (and remove 'memory:' from its ports) or "
                       "remove 'cpu:'")
+        if "fusable" in spec:
+            _load_fusable(doc, rep, base, ctype, spec["fusable"])
         if "python" in spec:
             rep.error(doc.key_pos(*base, "python"),
                       "a GPU-aware type is implemented by its OpenCL kernel, not 'python'",
                       "remove 'python:' or make the type 'kind: standard'")
     else:
         _load_python(doc, rep, base, ctype, spec)
-        for key in ("kernel", "gpu", "cpu"):
+        for key in ("kernel", "gpu", "cpu", "fusable"):
             if key in spec:
                 rep.error(doc.key_pos(*base, key),
                           f"'{key}' is only for GPU-aware or flexible types; '{tname}' is "
@@ -707,6 +717,67 @@ def _load_kernel(doc, rep, base, ctype: ComponentType, spec,
                         max_threads, square)
 
 
+def _load_fusable(doc, rep, base, ctype: ComponentType, fspec) -> None:
+    """The type's fusable form (gpucompgen/fusable.py), checked as far as possible without
+    a device."""
+    path = base + ("fusable",)
+    fspec = _expect_map(doc, rep, path, fspec, "fusable")
+    _unknown_keys(doc, rep, path, fspec, FUSABLE_KEYS, "fusable")
+    form = fspec.get("form")
+    if not _named(form, fusable_forms.FORMS):
+        rep.error(doc.pos(*path, "form") if "form" in fspec else doc.key_pos(*path),
+                  f"fusable form of '{ctype.name}' must be one of "
+                  f"{', '.join(fusable_forms.FORMS)}, not {form!r}",
+                  "pointwise: inputs read at (y, x); index_map: each input at one computed "
+                  "position; stencil: a window of 'radius' with a 'border' rule")
+        return
+    if len(ctype.outputs) != 1:
+        rep.error(doc.key_pos(*path), f"only types with a single output can be fusable; "
+                  f"'{ctype.name}' has {len(ctype.outputs)}",
+                  "remove 'fusable:' (the type stays opaque: its kernel runs on its own)")
+        return
+    value = fspec.get("value")
+    if not isinstance(value, str) or not value.strip():
+        rep.error(doc.pos(*path, "value") if "value" in fspec else doc.key_pos(*path),
+                  f"fusable '{ctype.name}' needs 'value': an OpenCL C expression (or "
+                  "statements ending in 'return ...;') for output element (y, x, c)",
+                  "e.g. value: \"image(image_height - 1 - y, x, c)\"")
+        return
+    problems = fusable_forms.snippet_problems(value, form, list(ctype.inputs),
+                                              list(ctype.outputs), list(ctype.params))
+    for p in problems:
+        rep.error(doc.pos(*path, "value"), f"fusable snippet of '{ctype.name}': {p}",
+                  "a snippet uses y, x, c, its ports as <port>(y, x, c), <port>_height, "
+                  "<port>_width, its parameters and its own locals")
+    radius: int | str = 0
+    border = fspec.get("border", "clamp")
+    if form == "stencil":
+        radius = fspec.get("radius")
+        int_params = _int_params(ctype)
+        if not (isinstance(radius, int) and not isinstance(radius, bool) and radius >= 0) \
+                and not _named(radius, int_params):
+            rep.error(doc.pos(*path, "radius") if "radius" in fspec else doc.key_pos(*path),
+                      f"stencil '{ctype.name}' needs 'radius': a number of pixels (0 or "
+                      f"more) or an int parameter, not {radius!r}",
+                      did_you_mean(str(radius), int_params) if int_params else
+                      "e.g. radius: 1")
+            return
+        if border not in fusable_forms.BORDERS:
+            rep.error(doc.pos(*path, "border"), f"stencil border {border!r} of "
+                      f"'{ctype.name}' is not one of {list(fusable_forms.BORDERS)}",
+                      "clamp: reads outside the input take the nearest edge pixel")
+            return
+    else:
+        for key in ("radius", "border"):
+            if key in fspec:
+                rep.error(doc.key_pos(*path, key), f"'{key}' is only for the stencil form",
+                          f"remove '{key}' or use 'form: stencil'")
+    if problems:
+        return
+    ctype.fusable = fusable_forms.FusableDecl(form, value, fusable_forms.as_body(value),
+                                              radius, border)
+
+
 def _check_class(doc, rep, base, ctype: ComponentType, pspec: dict) -> None:
     """The Python file defines the class at module level: read with ast, never imported."""
     shown = str(Path(doc.file).parent / pspec["file"])
@@ -885,10 +956,11 @@ def library_types() -> dict[str, ComponentType]:
 
 SYSTEM_KEYS = ("system", "description", "types", "platform", "components", "connections")
 PLATFORM_KEYS = ("device", "gpu_settings", "thread_budget", "execution", "zero_copy",
-                 "placement", "profile")
+                 "placement", "profile", "fusion")
+FUSION = ("auto", "off")
 EXECUTIONS = ("parallel", "sequential")
 ZERO_COPY = ("auto", "on", "off")
-INSTANCE_KEYS = ("type", "params", "description", "placement")
+INSTANCE_KEYS = ("type", "params", "description", "placement", "fuse")
 CONNECTION_RE = re.compile(r"^\s*([^\s.]+)\.([^\s.]+)\s*->\s*([^\s.]+)\.([^\s.]+)\s*$")
 
 
@@ -1017,6 +1089,14 @@ def load_system(path: Path, display: str | None = None) -> SystemModel:
         rep.error(doc.pos("platform", "zero_copy"),
                   f"platform.zero_copy must be 'auto', 'on' or 'off', not {zero_copy!r}")
         zero_copy = "auto"
+    fusion = platform.get("fusion", "auto")
+    if isinstance(fusion, bool):  # YAML 1.1 reads off as a boolean
+        fusion = "auto" if fusion else "off"
+    if fusion not in FUSION:
+        rep.error(doc.pos("platform", "fusion"),
+                  f"platform.fusion must be 'auto' or 'off', not {fusion!r}",
+                  "auto: chains of fusable GPU components run as one kernel")
+        fusion = "auto"
     placement = platform.get("placement", "gpu")
     if not _named(placement, PLACEMENTS):
         rep.error(doc.pos("platform", "placement"),
@@ -1077,12 +1157,17 @@ def load_system(path: Path, display: str | None = None) -> SystemModel:
                       f"component after its role, e.g. '{snake(clash)}1'")
             continue
         params = _instance_params(doc, rep, cpath, ctype, cspec.get("params"))
+        fuse = cspec.get("fuse", True)
+        if not isinstance(fuse, bool):
+            rep.error(doc.pos(*cpath, "fuse"), f"fuse of '{cname}' must be true or false, "
+                      f"not {fuse!r}", "'fuse: false' keeps the component's own kernel")
+            fuse = True
         where, where_pos = cspec.get("placement", ""), None
         if "placement" in cspec:
             where_pos = doc.pos(*cpath, "placement")
             where = placement_problem(rep, where_pos, cname, ctype, where)
         components[cname] = Instance(cname, ctype, params, doc.key_pos(*cpath), order,
-                                     where, where_pos)
+                                     where, where_pos, fuse=fuse)
     for cname, (_, pos) in overrides.items():
         if cname not in components and cname in comps:
             continue
@@ -1110,7 +1195,7 @@ def load_system(path: Path, display: str | None = None) -> SystemModel:
                        device_pos=doc.pos("platform", "device"), gpu_overrides=overrides,
                        thread_budget=budget,
                        thread_budget_pos=doc.pos("platform", "thread_budget"), types=types, execution=execution,
-                       zero_copy=zero_copy, platform_pos=doc.pos("platform"),
+                       zero_copy=zero_copy, platform_pos=doc.pos("platform"), fusion=fusion,
                        placement=placement, placement_pos=doc.pos("platform", "placement"),
                        profile=profile, profile_pos=doc.pos("platform", "profile"),
                        device_positions={k: (doc.key_pos("platform", "device", k),

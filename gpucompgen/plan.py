@@ -151,6 +151,16 @@ class UserClass:
     kind: str = "class"  # "class" (a standard type) | "function" (a flexible type's CPU side)
 
 
+@dataclass(frozen=True)
+class GroupPlan:
+    """A fused group: its part, its members (name, type, fusable form) in run order, and
+    the generated kernel's file in the lib folder."""
+
+    part: str
+    members: tuple[tuple[str, str, str], ...]
+    file: str
+
+
 @dataclass
 class ProgramPlan:
     system: str
@@ -174,6 +184,9 @@ class ProgramPlan:
     thread_budget_source: str = ""
     concurrent: tuple[tuple[tuple[str, ...], int], ...] = ()  # (group, resident threads)
     lib_files: dict[str, str] = field(default_factory=dict)  # lib file -> what it is
+    fusion: str = "off"
+    groups: tuple[GroupPlan, ...] = ()
+    unfused: tuple[tuple[str, str], ...] = ()  # (GPU-to-GPU edge, why it was not fused)
     placement: tuple[str, ...] = ()  # where each flexible component runs, who decided, costs
 
     # --- the facts everything reads --------------------------------------------------------
@@ -271,6 +284,23 @@ def plan_lines(plan: ProgramPlan) -> list[str]:
                      "GPU components that can run at the same time:")
         for group, threads in plan.concurrent:
             lines.append(f"  {', '.join(group)}: {threads:,} threads")
+    lines += fusion_lines(plan)
+    return lines
+
+
+def fusion_lines(plan: ProgramPlan) -> list[str]:
+    """Each fused group and, for every GPU-to-GPU edge left unfused, why."""
+    if plan.fusion == "off" and not plan.unfused:
+        return []
+    lines = [f"fusion: {plan.fusion}, {len(plan.groups)} "
+             f"group{'s' if len(plan.groups) != 1 else ''}" + (":" if plan.groups else "")]
+    for g in plan.groups:
+        lines.append(f"  {g.part}: one kernel ({g.file}) for")
+        lines += [f"    {'-> ' if i else ''}{m} ({t}, {form})"
+                  for i, (m, t, form) in enumerate(g.members)]
+    for edge, why in plan.unfused:
+        lines.append(f"  not fused: {edge}:")
+        lines.append(f"    {why}")
     return lines
 
 
@@ -306,5 +336,6 @@ def summary_lines(plan: ProgramPlan) -> list[str]:
     if plan.placement:
         lines.append("placement of flexible components:")
         lines += [f"  {line}" for line in plan.placement]
+    lines += fusion_lines(plan)
     lines.append("device: " + plan.device_name.encode("unicode_escape").decode("ascii"))
     return lines

@@ -48,7 +48,7 @@ def tune(model_path: Path, frames: int = 20, display: str | None = None) -> tupl
     facts = device_mod.resolve("auto", model.device_pos, rep, None)
     rep.raise_if_errors()
     system, _ = run_passes(model, facts, places=dict.fromkeys(flexible, "gpu"),
-                           zero_copy="off")
+                           zero_copy="off", fusion="off")  # each component's own kernel
     plan = system.plan
     context = runtime.create_context()
     queue = cl.CommandQueue(context)

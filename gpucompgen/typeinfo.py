@@ -95,6 +95,12 @@ def forms(ctype: ComponentType) -> list[tuple[str, str]]:
         rows.append(("CPU function", detail))
     if ctype.python_file is not None:
         rows.append(("CPU (python)", f"class {ctype.python_class} in {ctype.python_file.name}"))
+    if ctype.fusable is not None:
+        f = ctype.fusable
+        shape = (f"; window radius {f.radius}, border {f.border}" if f.form == "stencil"
+                 else "")
+        rows.append(("fusable", f"{f.form.replace('_', ' ')}{shape}: "
+                                + " ".join(f.value.split())))
     return rows
 
 

@@ -131,7 +131,8 @@ def test_random_pipelines_stay_within_limits_and_budget(tmp_path_factory, pipe, 
                    {"system": "rand", "platform": platform, "components": comps,
                     "connections": conns})
     try:
-        result = compile_model(model, model.parent / "out")
+        # allocation of single components: fusion would make groups of them
+        result = compile_model(model, model.parent / "out", fusion="off")
     except GpucompgenError as exc:
         # only an impossible budget may fail: the named group can run together, and even
         # at their smallest settings (largest tile, one thread per work-group) its
@@ -148,7 +149,7 @@ def test_random_pipelines_stay_within_limits_and_budget(tmp_path_factory, pipe, 
                  **({} if isinstance(device, str) else device), "compute_units": 10 ** 6}
         model.write_text(yaml.safe_dump({"system": "rand", "platform": {"device": roomy},
                                          "components": comps, "connections": conns}))
-        system = compile_model(model, model.parent / "out").system  # for sizes
+        system = compile_model(model, model.parent / "out", fusion="off").system  # sizes
         reach = _reach(comps, conns)
         types = library_types()
         for m in messages:
@@ -171,7 +172,7 @@ def test_random_pipelines_stay_within_limits_and_budget(tmp_path_factory, pipe, 
 @pytest.mark.parametrize("profile", sorted(PROFILES))
 def test_parallel_branches_share_the_budget_on_every_profile(profile):
     result = compile_model(ROOT / "models" / "parallel_branches.yaml", ROOT / "generated",
-                           device=profile)
+                           device=profile, fusion="off")
     system = result.system
     assert ("blur1", "blur2") in system.concurrent
     total = _resident(system, "blur1") + _resident(system, "blur2")
@@ -184,7 +185,7 @@ def test_allocator_shrinks_concurrent_components_it_would_not_shrink_alone(tmp_p
     """A blur alone keeps its preference; two that can run together are made to fit."""
     base = yaml.safe_load((ROOT / "models" / "parallel_branches.yaml").read_text())
     alone = compile_model(ROOT / "models" / "parallel_branches.yaml", tmp_path,
-                          device="portable").system
+                          device="portable", fusion="off").system
     assert alone.settings["merger"].source == "preferred"
     for name in ("blur1", "blur2"):
         assert alone.settings[name].source == "shrunk to share the thread budget"
@@ -193,7 +194,7 @@ def test_allocator_shrinks_concurrent_components_it_would_not_shrink_alone(tmp_p
                                     if k != "blur2"},
                   connections=[c for c in base["connections"] if "blur2" not in c]
                   + ["camera2.image -> merger.right"])
-    s = compile_model(_write(tmp_path, "single", single), tmp_path / "o").system
+    s = compile_model(_write(tmp_path, "single", single), tmp_path / "o", fusion="off").system
     assert s.settings["blur1"].source == "preferred"
     assert (s.settings["blur1"].tile, s.settings["blur1"].block_x) == (16, 16)
 
@@ -201,7 +202,7 @@ def test_allocator_shrinks_concurrent_components_it_would_not_shrink_alone(tmp_p
 def test_real_device_allocation_fits_its_limits(tmp_path):
     require_opencl()
     result = compile_model(ROOT / "models" / "parallel_branches.yaml", tmp_path,
-                           device="auto")
+                           device="auto", fusion="off")
     base = yaml.safe_load((ROOT / "models" / "parallel_branches.yaml").read_text())
     _check_system(result.system, base["components"], base["connections"], None)
 
@@ -209,8 +210,9 @@ def test_real_device_allocation_fits_its_limits(tmp_path):
 def _cli(tmp_path, text, *args):
     model = tmp_path / "m.yaml"
     model.write_text(text)
-    return subprocess.run([sys.executable, "-m", "gpucompgen", "plan", str(model), *args],
-                          capture_output=True, text=True)
+    # allocation of single components: fusion would make groups of them
+    return subprocess.run([sys.executable, "-m", "gpucompgen", "plan", str(model),
+                           "--fusion", "off", *args], capture_output=True, text=True)
 
 
 BRANCHES = (ROOT / "models" / "parallel_branches.yaml").read_text()
@@ -264,7 +266,7 @@ def test_valid_override_is_honoured_and_the_other_branch_makes_room(tmp_path):
         "    blur1: {tile: 64, block_x: 8, block_y: 8}\n"))
     model = tmp_path / "m.yaml"
     model.write_text(text)
-    system = compile_model(model, tmp_path / "o").system
+    system = compile_model(model, tmp_path / "o", fusion="off").system
     s1, s2 = system.settings["blur1"], system.settings["blur2"]
     assert (s1.tile, s1.block_x, s1.block_y, s1.source) == (64, 8, 8, "model")
     assert s2.source == "shrunk to share the thread budget"
@@ -275,7 +277,7 @@ def test_a_budget_above_the_device_total_is_capped_with_a_warning(tmp_path):
     model = tmp_path / "big_budget.yaml"
     model.write_text(BRANCHES.replace("  device: portable\n",
                                       "  device: portable\n  thread_budget: 1000000\n"))
-    result = compile_model(model, tmp_path / "out")
+    result = compile_model(model, tmp_path / "out", fusion="off")
     total = PROFILES["portable"].total_threads
     assert result.system.thread_budget == total
     (warning,) = [w for w in result.warnings if "thread_budget" in w.message]
@@ -326,7 +328,7 @@ def test_block_shape_constraints_hold_when_fitting_and_sharing_the_budget(tmp_pa
     model = _write(tmp_path, "shaped_system", {"system": "shaped_system", "types": ["shaped.yaml"],
                                                 "platform": platform, "components": comps,
                                                 "connections": conns})
-    system = compile_model(model, tmp_path / "out").system
+    system = compile_model(model, tmp_path / "out", fusion="off").system
     for name in ("a", "b"):
         s = system.settings[name]
         assert s.block_x == s.block_y, (name, s)

@@ -81,7 +81,7 @@ def test_chain_model_is_a_valid_system(tmp_path):
 
     model = tmp_path / "c.yaml"
     model.write_text(bench.chain_model(3, 40, 30))
-    result = compile_model(model, tmp_path / "out")
+    result = compile_model(model, tmp_path / "out", fusion="off")
     assert list(result.system.components) == ["source", "mirror1", "mirror2", "mirror3", "sink"]
     assert result.system.order == ["source", "adapter1_cpu2gpu", "mirror1", "mirror2",
                                    "mirror3", "adapter2_gpu2cpu", "sink"]

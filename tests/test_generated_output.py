@@ -188,9 +188,11 @@ def test_print_between_passes_prints_the_whole_ir_after_each_pass():
     for name in passes_names():
         assert f"// after {name}\n" in proc.stderr
     last = proc.stderr.split("// after lower\n")[1]
-    for line in ("component merger: ImageMerger on GPU [stage 2]",
+    for line in ("group merger_detector on GPU: merger (ImageMerger), detector (ObjectDetector) "
+                 "[stage 3]",
                  "adapter adapter3_gpu2cpu: gpu2cpu of detector.mask [stage 3]",
-                 "edge adapter1_cpu2gpu.output -> merger.left : 480x640x3 uint8",
-                 "launch detector: object_detector global (640, 240, 1) local (16, 16, 1)",
+                 "edge adapter1_cpu2gpu.output -> merger_detector.merger_left : 480x640x3 uint8",
+                 "fused edge merger.merged -> detector.frame",
+                 "launch merger_detector: merger_detector global (640, 240, 1) local (16, 16, 1)",
                  "transfer adapter1_cpu2gpu: cpu2gpu 921,600 bytes"):
         assert line in last, last

@@ -61,8 +61,7 @@ def test_builds_are_byte_identical_across_hash_seeds_and_folders(tmp_path):
     assert a == b
     assert set(a) == {
         "vision_system-gpu-aware/vision_system.py",
-        "vision_system-gpu-aware/vision_system_lib/image_merger.cl",
-        "vision_system-gpu-aware/vision_system_lib/object_detector.cl",
+        "vision_system-gpu-aware/vision_system_lib/group_merger_detector.cl",  # fused
         "vision_system-standard/vision_system.py",
         "vision_system-standard/vision_system_lib/image_merger.cl",
         "vision_system-standard/vision_system_lib/object_detector.cl",

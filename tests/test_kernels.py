@@ -46,7 +46,7 @@ def vision_module(tmp_path_factory, cl_context):
     from gpucompgen.build import compile_model, write
 
     out = tmp_path_factory.mktemp("vision")
-    write(compile_model(ROOT / "models" / "vision_system.yaml", out), out)
+    write(compile_model(ROOT / "models" / "vision_system.yaml", out, fusion="off"), out)
     return load_generated(out / "vision_system.py", "vision_under_test")
 
 

@@ -29,7 +29,7 @@ def build_model(tmp_path: Path, text: str, name: str = "s") -> Path:
     model = tmp_path / f"{name}.yaml"
     model.write_text(textwrap.dedent(text), encoding="utf-8")
     out = tmp_path / "out"
-    result = compile_model(model, out)
+    result = compile_model(model, out, fusion="off")
     write(result, out)
     return out / f"{result.system.model.name}.py"
 

@@ -24,7 +24,7 @@ VARIANTS = list(itertools.product(["parallel", "sequential"], ["off", "on"]))
 
 def _module(tmp_path: Path, model: Path, execution: str, zero_copy: str, tag: str = ""):
     out = tmp_path / f"out-{execution}-{zero_copy}{tag}"
-    result = compile_model(model, out, execution=execution, zero_copy=zero_copy)
+    result = compile_model(model, out, execution=execution, zero_copy=zero_copy, fusion="off")
     write(result, out)
     name = f"{result.system.model.name}_{execution}_{zero_copy}{tag}"
     return result, load_generated(out / f"{result.system.model.name}.py", name)
@@ -212,18 +212,18 @@ def test_zero_copy_follows_the_device_facts():
     vision = ROOT / "models" / "vision_system.yaml"
     for profile, unified in [("portable", False), ("nvidia-kepler", False),
                              ("pocl-cpu", True), ("embedded-igpu", True)]:
-        system = compile_model(vision, ROOT / "generated", device=profile).system
+        system = compile_model(vision, ROOT / "generated", device=profile, fusion="off").system
         assert system.zero_copy is unified, profile
         assert all(a.zero_copy is unified for a in system.adapters), profile
     # forced either way
     assert compile_model(vision, ROOT / "generated", device="portable",
-                         zero_copy="on").system.zero_copy
+                         zero_copy="on", fusion="off").system.zero_copy
     assert not compile_model(vision, ROOT / "generated", device="pocl-cpu",
-                             zero_copy="off").system.zero_copy
+                             zero_copy="off", fusion="off").system.zero_copy
 
 
 def test_zero_copy_is_recorded_in_the_code_and_the_plan(tmp_path):
-    result = compile_model(BRANCHES, tmp_path, zero_copy="on")
+    result = compile_model(BRANCHES, tmp_path, zero_copy="on", fusion="off")
     text = result.files[0].text
     assert "adapter1_cpu2gpu = parts['adapter1_cpu2gpu'] = runtime.ZeroCopyCpuToGpuAdapter(" \
         in text
@@ -235,7 +235,7 @@ def test_zero_copy_is_recorded_in_the_code_and_the_plan(tmp_path):
     assert "host_visible=True" in text
     assert "#   bytes copied between CPU and GPU per frame: 0\n" in text
     assert "#   zero-copy adapters: on (forced by the model or the command line)" in text
-    copying = compile_model(BRANCHES, tmp_path).files[0].text
+    copying = compile_model(BRANCHES, tmp_path, fusion="off").files[0].text
     assert "ZeroCopy" not in copying
     # 2 uploads of 480x640x3 and one download of 480x1280x1
     assert f"#   bytes copied between CPU and GPU per frame: {2 * 921600 + 614400:,}\n" \
@@ -247,11 +247,12 @@ def test_platform_zero_copy_and_execution_in_the_model(tmp_path):
         "  device: portable\n", "  device: pocl-cpu\n  zero_copy: off\n  execution: sequential\n")
     model = tmp_path / "m.yaml"
     model.write_text(text)
-    system = compile_model(model, tmp_path / "o").system
+    system = compile_model(model, tmp_path / "o", fusion="off").system
     assert not system.zero_copy and system.execution == "sequential"
     assert set(system.lanes.values()) == {0}
     # the command line wins over the model
-    system = compile_model(model, tmp_path / "o", execution="parallel", zero_copy="on").system
+    system = compile_model(model, tmp_path / "o", execution="parallel", zero_copy="on",
+                           fusion="off").system
     assert system.zero_copy and system.execution == "parallel"
 
 
@@ -273,18 +274,18 @@ def test_bad_platform_values_are_positioned_errors(tmp_path):
 
 
 def test_parallel_program_uses_one_queue_per_branch(tmp_path):
-    system = compile_model(BRANCHES, tmp_path).system
+    system = compile_model(BRANCHES, tmp_path, fusion="off").system
     lanes = system.lanes
     assert lanes["adapter1_cpu2gpu"] == lanes["blur1"] == lanes["merger"] == lanes["detector"]
     assert lanes["adapter2_cpu2gpu"] == lanes["blur2"] != lanes["blur1"]
     assert system.waits["merger"] == ["blur2"]
     assert system.waits["blur1"] == system.waits["blur2"] == []
-    text = compile_model(BRANCHES, tmp_path).files[0].text
+    text = compile_model(BRANCHES, tmp_path, fusion="off").files[0].text
     assert ("queue0 = runtime.create_queue(context, profile)\n"
             "    queue1 = runtime.create_queue(context, profile)") in text
     assert "merger.execute(blur1_smooth, blur2_smooth, wait_for=[blur2.event])" in text
     assert "blocking=False" in text
-    seq = compile_model(BRANCHES, tmp_path, execution="sequential").files[0].text
+    seq = compile_model(BRANCHES, tmp_path, execution="sequential", fusion="off").files[0].text
     assert "wait_for" not in seq and "queue1" not in seq and "blocking=False" not in seq
 
 
@@ -295,7 +296,7 @@ def test_lane_ends_no_host_read_covers_are_waited_for_at_frame_end(tmp_path):
                         "  merger: {type: ImageMerger}\n  blur3: {type: BoxBlur}\n")
     model = tmp_path / "m.yaml"
     model.write_text(text)
-    result = compile_model(model, tmp_path / "o")
+    result = compile_model(model, tmp_path / "o", fusion="off")
     assert result.system.frame_end_waits == ["blur3"]
     assert "cl.wait_for_events([blur3.event])  # frame complete\n" in result.files[0].text
     require_opencl()
@@ -334,7 +335,7 @@ def test_memory_check_counts_what_the_plan_says_is_on_the_device(tmp_path, model
     from gpucompgen.build import compile_model
     from gpucompgen.plan import plan_lines
 
-    result = compile_model(model, tmp_path, mode, zero_copy=zero_copy)
+    result = compile_model(model, tmp_path, mode, zero_copy=zero_copy, fusion="off")
     plan = result.system.plan
     text = "\n".join(plan_lines(plan))
     peak = int(re.search(r"peak device memory: ([\d,]+) bytes", text).group(1).replace(",", ""))

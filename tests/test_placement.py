@@ -41,7 +41,7 @@ def _passes(path: Path, places=None, zero_copy="off"):
 
 def test_flexible_components_stay_on_the_gpu_unless_asked():
     system, _ = _passes(VISION)
-    assert {n: c.placement for n, c in system.components.items()} == {
+    assert {n: system.component(n).placement for n in system.model.components} == {
         "camera1": "cpu", "camera2": "cpu", "merger": "gpu", "detector": "gpu",
         "manager": "cpu"}
     assert [a.direction for a in system.adapters] == ["cpu2gpu", "cpu2gpu", "gpu2cpu"]
@@ -128,7 +128,7 @@ CAMERA, MERGED, MASK = 480 * 640 * 3, 480 * 1280 * 3, 480 * 1280
 
 
 def _sides(system):
-    return {n: system.components[n].placement for n in ("merger", "detector")}
+    return {n: system.component(n).placement for n in ("merger", "detector")}
 
 
 def test_auto_puts_components_on_the_cpu_when_the_profile_says_it_is_faster(tmp_path):
@@ -213,7 +213,7 @@ def test_auto_on_a_long_chain_uses_the_heuristic(tmp_path):
     system, _ = _passes(path)
     assert system.placement.search == "greedy + local improvement"
     # the static estimate favours the GPU for a frame this size, once it is there
-    assert {system.components[m].placement for m in mirrors} == {"gpu"}
+    assert {system.component(m).placement for m in mirrors} == {"gpu"}
 
 
 def test_profile_problems_are_reported_in_place(tmp_path):

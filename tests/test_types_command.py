@@ -138,3 +138,11 @@ def test_docs_show_the_current_listing_and_every_imgproc_type(capsys):
     for name, ctype in library_types().items():
         if ctype.decl_file.name == "imgproc.yaml":
             assert re.search(rf"\b{name}\b", rows), name
+
+
+def test_fusable_forms_are_listed_with_their_snippets(capsys):
+    _, out, _ = run(capsys, "VerticalMirror")
+    assert "  fusable       index map: image(image_height - 1 - y, x, c)" in out.splitlines()
+    _, out, _ = run(capsys, "BoxBlur")
+    text = " ".join(out.split())
+    assert "fusable stencil; window radius radius, border clamp: const int n =" in text

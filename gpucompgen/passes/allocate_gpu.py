@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 
-from ..ir import ComponentNode, GpuSettings, System
+from ..ir import ComponentNode, GpuSettings, GroupNode, System
 from ..model import Endpoint
 from ..runtime.facts import DeviceFacts
 from .base import Pass
@@ -28,22 +28,30 @@ class AllocateGpu(Pass):
         overrides = system.model.gpu_overrides
         for name in system.order:
             inst = system.nodes[name]
-            if not (isinstance(inst, ComponentNode) and inst.on_gpu):
+            if not (isinstance(inst, (ComponentNode, GroupNode)) and inst.on_gpu):
                 continue
             decl = inst.type.gpu
-            if name in overrides and system.mode == "gpu-aware":
-                values, pos = overrides[name]
+            # a group takes the settings the model gives its root, else another member's
+            given = ([name] if isinstance(inst, ComponentNode) else
+                     [m.name for m in reversed(inst.members)])
+            given = [n for n in given if n in overrides]
+            if given and system.mode == "gpu-aware":
+                values, pos = overrides[given[0]]
                 tile, bx, by, bz = (values.get(k, d) for k, d in zip(
                     ("tile", "block_x", "block_y", "block_z"), decl.prefer))
                 problems = limit_problems(tile, bx, by, bz, decl, dev)
                 for p in problems:
                     if "kernel" in p:
-                        hint = f"the kernel of '{inst.type.name}' accepts {decl.accepts()}"
+                        kernel = (f"the kernel of '{inst.type.name}'" if given[0] == name
+                                  else f"the kernel of fused group {name}")
+                        hint = f"{kernel} accepts {decl.accepts()}"
                     else:
                         hint = (f"device '{dev.name}' allows work-groups of at most "
                                 f"{dev.max_work_group_size} threads, "
                                 f"{list(dev.max_work_item_sizes)} per dimension")
-                    rep.error(pos, f"gpu_settings of '{name}': {p}", hint)
+                    owner = given[0] if given[0] == name else \
+                        f"{given[0]}, which runs in fused group {name}"
+                    rep.error(pos, f"gpu_settings of '{owner}': {p}", hint)
                 if problems:
                     continue
                 system.settings[name] = GpuSettings(tile, bx, by, bz, "model")
@@ -112,7 +120,7 @@ class AllocateGpu(Pass):
                             f"together need at least {total} resident threads")
                 else:
                     what = f"component {group[0]} needs at least {total} resident threads"
-                rep.error(system.components[group[0]].pos,
+                rep.error(system.nodes[group[0]].pos,
                           f"{what}, over the thread budget of {budget}"
                           + (f" (settings fixed by the model: {', '.join(fixed)})"
                              if fixed else ""),
@@ -127,7 +135,7 @@ class AllocateGpu(Pass):
 def _smaller(system: System, name: str) -> GpuSettings | None:
     """The next smaller settings of a component (fewer resident threads), or None."""
     s = system.settings[name]
-    decl = system.components[name].type.gpu
+    decl = system.gpu_node(name).type.gpu
     # compared uncapped, so that each step makes progress even above the device's total
     now = _resident(system, name, s, capped=False)
     source = "shrunk to share the thread budget"
@@ -188,7 +196,7 @@ def resident_threads(system: System, name: str) -> int:
 
 
 def _resident(system: System, name: str, s: GpuSettings, capped: bool = True) -> int:
-    ctype = system.components[name].type
+    ctype = system.gpu_node(name).type
     grid = system.data(Endpoint(name, ctype.grid))
     if grid is None:
         return s.threads_per_group

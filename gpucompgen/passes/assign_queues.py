@@ -10,15 +10,17 @@ the next one reuses any buffer.  sequential: one lane, every copy blocks.
 
 from __future__ import annotations
 
-from ..ir import AdapterNode, ComponentNode, System
+from ..ir import AdapterNode, ComponentNode, GroupNode, System
 from ..model import Endpoint
 from .base import Pass
 
 
 def gpu_command(system: System, name: str) -> bool:
-    """A node that enqueues OpenCL commands: an adapter, or a component placed on the GPU."""
+    """A node that enqueues OpenCL commands: an adapter, a component placed on the GPU, or
+    a group."""
     node = system.nodes[name]
-    return isinstance(node, AdapterNode) or (isinstance(node, ComponentNode) and node.on_gpu)
+    return isinstance(node, (AdapterNode, GroupNode)) or (isinstance(node, ComponentNode)
+                                                          and node.on_gpu)
 
 
 class AssignQueues(Pass):

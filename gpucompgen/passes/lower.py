@@ -14,12 +14,13 @@ import copy
 import math
 import re
 
-from ..backend.opencl.convention import PARAM_C_TYPES, kernel_parameters
-from ..ir import AdapterNode, ComponentNode, System
+from ..backend.opencl.convention import PARAM_C_TYPES, group_parameters, kernel_parameters
+from ..ir import AdapterNode, ComponentNode, GroupNode, System
 from ..model import DTYPES, ComponentType, Endpoint
 from ..plan import (
     Argument,
     Buffer,
+    GroupPlan,
     KernelClass,
     Launch,
     Part,
@@ -82,6 +83,8 @@ def lib_files(system: System) -> dict[str, str]:
             keys.append((str(t.python_file.resolve()), t.python_file.name))
         for key, wanted in keys:
             _name_lib_file(names, taken, key, wanted)
+    for g in system.groups:
+        _name_lib_file(names, taken, lib_key(g.type), f"group_{g.type.kernel_function}.cl")
     return names
 
 
@@ -102,6 +105,8 @@ def kernel_key(t: ComponentType) -> str:
 
 
 def lib_key(t: ComponentType) -> str:
+    if t.origin == "group":
+        return f"group:{t.kernel_function}"
     return kernel_key(t) if t.gpu_aware else str(t.python_file.resolve())
 
 
@@ -150,7 +155,15 @@ def size_expr(tree: ast.Expression, ctype: ComponentType) -> str:
     return ast.unparse(body)
 
 
-def kernel_class(t: ComponentType, file: str) -> KernelClass:
+def kernel_class(t: ComponentType, file: str, group: GroupNode | None = None) -> KernelClass:
+    if group is not None:  # a group's output size was propagated at build time
+        (out,) = group.outputs.values()
+        return KernelClass(
+            name=t.name, function=t.kernel_function, file=file, description=t.description,
+            inputs=tuple((p, np_name(port.dtype)) for p, port in group.inputs.items()),
+            outputs=((out.name, np_name(out.dtype)),),
+            output_sizes=((str(out.data.height), str(out.data.width), out.data.channels),),
+            grid=t.grid, rows=False)
     return KernelClass(
         name=t.name, function=t.kernel_function, file=file, description=t.description,
         inputs=tuple((p, np_name(d.dtype)) for p, d in t.inputs.items()),
@@ -165,16 +178,23 @@ def launch(system: System, node: ComponentNode, program: str) -> Launch:
     s = system.settings[node.name]
     t = node.type
     args = []
-    for p in kernel_parameters(t):
+    group = isinstance(node, GroupNode)
+    for p in group_parameters(node) if group else kernel_parameters(t):
         if p.kind == "buffer":
             args.append(Argument(p.name, "buffer", port=p.port))
         elif p.role == "size":
-            data = system.data(Endpoint(node.name, p.port))
+            if group:
+                member, port = p.port.split(".")
+                data = node.member(member).port(port).data
+            else:
+                data = system.data(Endpoint(node.name, p.port))
             args.append(Argument(p.name, "scalar", port=p.port, host_type="int32",
                                  value=getattr(data, p.dim)))
         elif p.role == "param":
-            host = PARAM_C_TYPES[t.params[p.param].type][1].removeprefix("np.")
-            value = node.params[p.param]
+            owner, pname = (node.member(p.param.split(".")[0]), p.param.split(".")[1]) \
+                if group else (node, p.param)
+            host = PARAM_C_TYPES[owner.type.params[pname].type][1].removeprefix("np.")
+            value = owner.params[pname]
             value = float(value) if host == "float32" else int(value)
             args.append(Argument(p.name, "scalar", host_type=host, value=value))
         else:  # the tile
@@ -192,7 +212,7 @@ def lower(system: System) -> ProgramPlan:
     model = system.model
     files = lib_files(system)
     types = used_types(system)
-    gpu_types = gpu_used_types(system)
+    gpu_types = gpu_used_types(system) + [g.type for g in system.groups]
     taken = set(system.nodes)
     functions: dict[str, str] = {}  # flexible type on the CPU -> its function's variable
     for t in cpu_used_types(system):
@@ -265,6 +285,7 @@ def lower(system: System) -> ProgramPlan:
             continue
         t = node.type
         params = tuple((k, node.params[k]) for k in t.params)
+        group = isinstance(node, GroupNode)
         options: list[tuple[str, object]] = []
         if node.on_gpu:
             device_ports = ({**node.inputs, **node.outputs} if standard else node.outputs)
@@ -291,7 +312,7 @@ def lower(system: System) -> ProgramPlan:
                               ports=tuple(tuple((p, np_name(d.dtype)) for p, d in ports.items())
                                           for ports in (t.inputs, t.outputs))))
         else:
-            parts.append(Part(name, "component", t.name, t.name,
+            parts.append(Part(name, "component", t.name, "fused group" if group else t.name,
                               "GPU" if node.on_gpu else "CPU", system.stages[name],
                               queue_of(name) if node.on_gpu else None,
                               programs.get(t.name) if node.on_gpu else None, params,
@@ -339,9 +360,10 @@ def lower(system: System) -> ProgramPlan:
         else:
             user_classes.append(UserClass(t.name, files[lib_key(t)], t.python_class))
     users = {t.name: ", ".join(n for n in system.order
-                               if isinstance(system.nodes[n], ComponentNode)
+                               if isinstance(system.nodes[n], (ComponentNode, GroupNode))
                                and system.nodes[n].type is t and system.nodes[n].on_gpu)
              for t in gpu_types}
+    groups = {g.type.name: g for g in system.groups}
     asked = model.thread_budget
     budget_source = ("platform.thread_budget" if asked and asked <= system.thread_budget else
                      "device total" if not asked else
@@ -354,7 +376,12 @@ def lower(system: System) -> ProgramPlan:
                                ", ".join(f"{users[t.name]} ({t.name})" for t in m))
                        for m in sharing.values()),
         imports=tuple(sorted(imports)), user_classes=tuple(user_classes),
-        kernel_classes=tuple(kernel_class(t, files[lib_key(t)]) for t in gpu_types),
+        kernel_classes=tuple(kernel_class(t, files[lib_key(t)], groups.get(t.name))
+                             for t in gpu_types),
+        groups=tuple(GroupPlan(g.name, tuple((m.name, m.type.name, m.type.fusable.form)
+                                             for m in g.members), files[lib_key(g.type)])
+                     for g in system.groups),
+        unfused=tuple(system.unfused.items()), fusion=system.fusion,
         parts=tuple(parts), buffers=tuple(buffers), launches=tuple(launches),
         transfers=tuple(transfers), steps=tuple(steps),
         frame_end_waits=tuple(system.frame_end_waits),

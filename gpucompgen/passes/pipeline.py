@@ -1,7 +1,7 @@
 """The pipeline: every pass in order, verified after each when asked, dumped when asked.
 
     check-connections → check-port-types → schedule → propagate-sizes → place → insert-adapters
-    → allocate-gpu → name-variables → assign-queues → lower
+    → fuse → allocate-gpu → name-variables → assign-queues → lower
 """
 
 from __future__ import annotations
@@ -11,13 +11,14 @@ from collections.abc import Callable
 
 from ..errors import GpucompgenError, Reporter, UsageError, did_you_mean
 from ..ir import MODES, System, build_system
-from ..model import EXECUTIONS, ZERO_COPY, SystemModel
+from ..model import EXECUTIONS, FUSION, ZERO_COPY, SystemModel
 from ..runtime.facts import DeviceFacts
 from .allocate_gpu import AllocateGpu
 from .assign_queues import AssignQueues
 from .base import Pass
 from .check_connections import CheckConnections
 from .check_port_types import CheckPortTypes
+from .fuse import Fuse
 from .insert_adapters import InsertAdapters
 from .lower import Lower
 from .name_variables import NameVariables
@@ -26,27 +27,38 @@ from .propagate_sizes import PropagateSizes
 from .schedule import Schedule
 
 PIPELINE: tuple[Pass, ...] = (CheckConnections(), CheckPortTypes(), Schedule(),
-                             PropagateSizes(), Place(), InsertAdapters(), AllocateGpu(),
+                             PropagateSizes(), Place(), InsertAdapters(), Fuse(), AllocateGpu(),
                              NameVariables(), AssignQueues(), Lower())
 
 
 def new_system(model: SystemModel, device: DeviceFacts, mode: str = "gpu-aware",
                execution: str | None = None, zero_copy: str | None = None,
-               places: dict[str, str] | None = None) -> System:
-    """The IR of a model with its platform decisions (mode, execution, zero-copy) taken.
+               places: dict[str, str] | None = None,
+               fusion: str | None = None) -> System:
+    """The IR of a model with its platform decisions (mode, execution, zero-copy, fusion)
+    taken.
 
-    execution ("parallel" | "sequential") and zero_copy ("auto" | "on" | "off") override
-    the model's platform settings (the command line's --execution and --zero-copy);
-    places (--place COMPONENT=gpu|cpu) overrides flexible components' placements and raises
-    UsageError for an unknown component or one whose type cannot run on that side.
+    execution ("parallel" | "sequential"), zero_copy ("auto" | "on" | "off") and fusion
+    ("auto" | "off") override the model's platform settings (the command line's
+    --execution, --zero-copy and --fusion); places (--place COMPONENT=gpu|cpu) overrides
+    flexible components' placements and raises UsageError for an unknown component or one
+    whose type cannot run on that side.
     """
     execution = execution or model.execution
     zero_copy = zero_copy or model.zero_copy
-    if mode not in MODES or execution not in EXECUTIONS or zero_copy not in ZERO_COPY:
-        raise ValueError(f"mode {mode!r}, execution {execution!r}, zero_copy {zero_copy!r}")
+    if mode not in MODES or execution not in EXECUTIONS or zero_copy not in ZERO_COPY \
+            or (fusion or "auto") not in FUSION:
+        raise ValueError(f"mode {mode!r}, execution {execution!r}, zero_copy {zero_copy!r}, "
+                         f"fusion {fusion!r}")
     check_places(model, places or {})
     system = build_system(model, device, mode,
                           "sequential" if mode == "standard" else execution, places)
+    if mode == "standard":
+        system.fusion, system.fusion_reason = "off", "standard mode: one kernel per component"
+    else:
+        system.fusion = fusion or model.fusion
+        system.fusion_reason = ("--fusion" if fusion else "platform.fusion"
+                                if model.fusion != "auto" else "default")
     if mode == "standard":
         system.zero_copy_reason = "standard mode: components copy their own data"
     elif zero_copy == "auto":
@@ -109,9 +121,10 @@ def run_pipeline(system: System, passes: tuple[Pass, ...] = PIPELINE,
 def run_passes(model: SystemModel, device: DeviceFacts, mode: str = "gpu-aware",
                dump: Callable[[str], None] | None = None, execution: str | None = None,
                zero_copy: str | None = None, verify: bool | None = None,
-               places: dict[str, str] | None = None) -> tuple[System, list]:
+               places: dict[str, str] | None = None,
+               fusion: str | None = None) -> tuple[System, list]:
     """Build the IR of a model and run every pass on it."""
-    return run_pipeline(new_system(model, device, mode, execution, zero_copy, places),
+    return run_pipeline(new_system(model, device, mode, execution, zero_copy, places, fusion),
                         PIPELINE, dump, verify)
 
 

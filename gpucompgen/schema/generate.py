@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from .. import device, model, sizeexpr
+from .. import fusable as fusable_forms
 from ..names import MAX_NAME, NAME_RE
 from . import MODEL, TYPES
 
@@ -102,11 +103,15 @@ def model_schema() -> dict[str, Any]:
                            "(default gpu); auto chooses for the least estimated time"),
         "profile": dict(TEXT, description="a profile file written by 'gpucompgen tune', "
                         "relative to this model"),
+        "fusion": _enum(model.FUSION, "auto: chains of fusable GPU components run as one "
+                        "kernel (default); off: one kernel per component"),
     })
     type_name = dict(NAME, description="component type")
     instance = _object(model.INSTANCE_KEYS, {
         "type": type_name, "params": _named_map(VALUE), "description": TEXT,
-        "placement": _enum(model.PLACEMENTS, "where a flexible component runs")}, ("type",))
+        "placement": _enum(model.PLACEMENTS, "where a flexible component runs"),
+        "fuse": {"type": "boolean", "description": "false: never fuse this component with "
+                 "its neighbours"}}, ("type",))
     connection = {"oneOf": [
         {"type": "string", "pattern": f"^\\s*{ENDPOINT}\\s*->\\s*{ENDPOINT}\\s*$",
          "description": "producer.output -> consumer.input"},
@@ -169,11 +174,24 @@ def types_schema() -> dict[str, Any]:
         "max_threads": dict(POSITIVE, description="most threads per work-group the kernel "
                             "accepts (e.g. its __local arrays)"),
         "square": {"type": "boolean", "description": "the kernel needs block_x == block_y"}})
+    fusable = _object(model.FUSABLE_KEYS, {
+        "form": _enum(fusable_forms.FORMS, "pointwise: reads inputs at (y, x); index_map: "
+                      "each input at one computed position; stencil: a window of 'radius' "
+                      "with a border rule"),
+        "value": dict(TEXT, description="an OpenCL C expression (or statements with "
+                      "'return') for output element (y, x, c); inputs read as "
+                      "<port>(y, x, c)"),
+        "radius": {"type": ["integer", "string"],
+                   "description": "stencil: the window's radius, a number or an int parameter"},
+        "border": _enum(fusable_forms.BORDERS, "stencil: reads outside the input are clamped "
+                        "to its edge")}, ("form", "value"),
+        description="the per-element work in a form the system may fuse with its neighbours "
+                    "into one kernel (the kernel stays for the unfused path)")
     kind_gpu, kind_standard = model.KINDS[1], model.KINDS[0]
     ctype = _object(model.TYPE_KEYS, {
         "kind": _enum(model.KINDS), "description": TEXT, "params": _named_map(param),
         "inputs": inputs, "outputs": outputs, "requires": requires, "kernel": kernel,
-        "python": python, "gpu": gpu, "cpu": cpu}, ("kind",), allOf=[
+        "python": python, "gpu": gpu, "cpu": cpu, "fusable": fusable}, ("kind",), allOf=[
         {"if": {"properties": {"kind": {"const": kind_gpu}}},
          "then": {"required": ["kernel"], "not": {"required": ["python"]}}},
         {"if": {"properties": {"kind": {"const": kind_standard}}},

@@ -51,6 +51,13 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 #     blur1, blur2: 15,360 threads
 #     merger: 16,384 threads
 #     detector: 16,384 threads
+#   fusion: off, 0 groups
+#     not fused: blur1.smooth -> merger.left:
+#       fusion is off (standard mode: one kernel per component)
+#     not fused: blur2.smooth -> merger.right:
+#       fusion is off (standard mode: one kernel per component)
+#     not fused: merger.merged -> detector.frame:
+#       fusion is off (standard mode: one kernel per component)
 
 from __future__ import annotations
 

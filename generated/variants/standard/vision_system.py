@@ -40,6 +40,9 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 #   thread budget: 16,384 (device total); GPU components that can run at the same time:
 #     merger: 16,384 threads
 #     detector: 16,384 threads
+#   fusion: off, 0 groups
+#     not fused: merger.merged -> detector.frame:
+#       fusion is off (standard mode: one kernel per component)
 
 from __future__ import annotations
 

@@ -9,24 +9,16 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 """
 
 # System plan:
-#   step  name                      stage  queue  runs      GPU settings          threads
-#   1     source (StillImage)       1      -      CPU       -                     -
-#   2     adapter1_cpu2gpu          1      -      in place  -                     -
-#   3     mirror1 (VerticalMirror)  2      -      GPU       tile 32, block 8x8x1  1,728
-#   4     mirror2 (VerticalMirror)  3      -      GPU       tile 32, block 8x8x1  1,728
-#   5     mirror3 (VerticalMirror)  4      -      GPU       tile 32, block 8x8x1  1,728
-#   6     mirror4 (VerticalMirror)  5      -      GPU       tile 32, block 8x8x1  1,728
-#   7     mirror5 (VerticalMirror)  6      -      GPU       tile 32, block 8x8x1  1,728
-#   8     adapter2_gpu2cpu          6      -      map       -                     -
-#   9     sink (FrameSink)          7      -      CPU       -                     -
+#   step  name                              stage  queue  runs      GPU settings            threads
+#   1     source (StillImage)               1      -      CPU       -                       -
+#   2     adapter1_cpu2gpu                  1      -      in place  -                       -
+#   3     mirror1_to_mirror5 (fused group)  6      -      GPU       tile 32, block 16x16x1  16,384
+#   4     adapter2_gpu2cpu                  6      -      map       -                       -
+#   5     sink (FrameSink)                  7      -      CPU       -                       -
 #
 #   buffer                               memory              size                  bytes
 #   source.image                         host                864x1152x3 uint8  2,985,984
-#   mirror1.mirrored                     device              864x1152x3 uint8  2,985,984
-#   mirror2.mirrored                     device              864x1152x3 uint8  2,985,984
-#   mirror3.mirrored                     device              864x1152x3 uint8  2,985,984
-#   mirror4.mirrored                     device              864x1152x3 uint8  2,985,984
-#   mirror5.mirrored                     device              864x1152x3 uint8  2,985,984
+#   mirror1_to_mirror5.mirrored          device              864x1152x3 uint8  2,985,984
 #   adapter1_cpu2gpu (source.image)      host view           864x1152x3 uint8          0
 #   adapter2_gpu2cpu (mirror5.mirrored)  mapped device view  864x1152x3 uint8          0
 #
@@ -38,17 +30,20 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 #     mirror5: GPU (by default)
 #
 #   device: portable OpenCL 1.2 device
-#   peak device memory: 14,929,920 bytes; peak host memory: 2,985,984 bytes
+#   peak device memory: 2,985,984 bytes; peak host memory: 2,985,984 bytes
 #   (every buffer is allocated once, at start)
 #   bytes copied between CPU and GPU per frame: 0
 #   zero-copy adapters: on (forced by the model or the command line)
 #   execution: parallel, 1 queue
 #   thread budget: 16,384 (device total); GPU components that can run at the same time:
-#     mirror1: 1,728 threads
-#     mirror2: 1,728 threads
-#     mirror3: 1,728 threads
-#     mirror4: 1,728 threads
-#     mirror5: 1,728 threads
+#     mirror1_to_mirror5: 16,384 threads
+#   fusion: auto, 1 group:
+#     mirror1_to_mirror5: one kernel (group_mirror1_to_mirror5.cl) for
+#       mirror1 (VerticalMirror, index_map)
+#       -> mirror2 (VerticalMirror, index_map)
+#       -> mirror3 (VerticalMirror, index_map)
+#       -> mirror4 (VerticalMirror, index_map)
+#       -> mirror5 (VerticalMirror, index_map)
 
 from __future__ import annotations
 
@@ -69,23 +64,24 @@ DESCRIPTION = (
 LIB_DIR = Path(__file__).resolve().with_name('mirror_chain_lib')
 
 
-class VerticalMirror(runtime.KernelComponent):
-    """GPU-aware component VerticalMirror: kernel vertical_mirror() in vertical_mirror.cl.
+class FusedMirror1ToMirror5(runtime.KernelComponent):
+    """GPU-aware component FusedMirror1ToMirror5:
+    kernel mirror1_to_mirror5() in group_mirror1_to_mirror5.cl.
 
-    One work-group of block_x * block_y * block_z threads covers tile whole rows of
-    'mirrored'.
+    One work-group of block_x * block_y * block_z threads covers a tile x tile square
+    of 'mirrored'.
     """
-    # Flips a frame upside down (row y becomes row height-1-y), bit-exact as np.flipud and
-    # cv2.flip(image, 0). Copies whole rows, 16 bytes at a time where rows allow.
+    # Fuses mirror1 (VerticalMirror), mirror2 (VerticalMirror), mirror3 (VerticalMirror), mirror4
+    # (VerticalMirror), mirror5 (VerticalMirror) into one kernel.
 
-    function = 'vertical_mirror'
-    inputs = (('image', np.uint8),)
+    function = 'mirror1_to_mirror5'
+    inputs = (('mirror1_image', np.uint8),)
     outputs = (('mirrored', np.uint8),)
 
-    def output_sizes(self, image):
+    def output_sizes(self, mirror1_image):
         """Input sizes in, output sizes out (the type's size expressions)."""
         return [
-            Size(image.height, image.width, 3),
+            Size(864, 1152, 3),
         ]
 
 
@@ -105,44 +101,28 @@ def run(frames=None, context=None, monitor=None, profile=False):
     queue = runtime.create_queue(context, profile)
     # every device buffer, with its bytes: checked against the device before allocating
     runtime.check_device_memory(context.devices[0], {
-        'mirror1.mirrored': 2_985_984,
-        'mirror2.mirrored': 2_985_984,
-        'mirror3.mirrored': 2_985_984,
-        'mirror4.mirrored': 2_985_984,
-        'mirror5.mirrored': 2_985_984,
+        'mirror1_to_mirror5.mirrored': 2_985_984,
     })
-    vertical_mirror_program = runtime.build_program(
-        context, LIB_DIR / 'vertical_mirror.cl',
-        'mirror1, mirror2, mirror3, mirror4, mirror5 (VerticalMirror)')
+    fused_mirror1_to_mirror5_program = runtime.build_program(
+        context, LIB_DIR / 'group_mirror1_to_mirror5.cl',
+        'mirror1_to_mirror5 (FusedMirror1ToMirror5)')
 
     # every component and adapter, filled in as it is constructed; freed in reverse order
     parts = dict.fromkeys([
         'source',
         'adapter1_cpu2gpu',
-        'mirror1',
-        'mirror2',
-        'mirror3',
-        'mirror4',
-        'mirror5',
+        'mirror1_to_mirror5',
         'adapter2_gpu2cpu',
         'sink',
     ])
     frame = None  # while constructing and initializing
     try:
         source = parts['source'] = StillImage(width=1152, height=864, seed=1, frames=0)
-        # source.image -> mirror1.image
+        # source.image -> mirror1_to_mirror5.mirror1_image
         adapter1_cpu2gpu = parts['adapter1_cpu2gpu'] = runtime.ZeroCopyCpuToGpuAdapter(
             context, queue, nbytes=2_985_984)
-        mirror1 = parts['mirror1'] = VerticalMirror(
-            context, queue, vertical_mirror_program, host_visible=True)
-        mirror2 = parts['mirror2'] = VerticalMirror(
-            context, queue, vertical_mirror_program, host_visible=True)
-        mirror3 = parts['mirror3'] = VerticalMirror(
-            context, queue, vertical_mirror_program, host_visible=True)
-        mirror4 = parts['mirror4'] = VerticalMirror(
-            context, queue, vertical_mirror_program, host_visible=True)
-        mirror5 = parts['mirror5'] = VerticalMirror(
-            context, queue, vertical_mirror_program, host_visible=True)
+        mirror1_to_mirror5 = parts['mirror1_to_mirror5'] = FusedMirror1ToMirror5(
+            context, queue, fused_mirror1_to_mirror5_program, host_visible=True)
         # mirror5.mirrored -> sink.image
         adapter2_gpu2cpu = parts['adapter2_gpu2cpu'] = runtime.ZeroCopyGpuToCpuAdapter(
             context, queue, nbytes=2_985_984)
@@ -153,71 +133,29 @@ def run(frames=None, context=None, monitor=None, profile=False):
         source_image_size = source.initialize()
         runtime.expect_size('source.image', source_image_size, Size(864, 1152, 3))
         source_image_gpu_size = adapter1_cpu2gpu.initialize(source_image_size, np.uint8)
-        mirror1_mirrored_size = mirror1.initialize(source_image_gpu_size)
-        runtime.expect_size('mirror1.mirrored', mirror1_mirrored_size, Size(864, 1152, 3))
-        mirror2_mirrored_size = mirror2.initialize(mirror1_mirrored_size)
-        runtime.expect_size('mirror2.mirrored', mirror2_mirrored_size, Size(864, 1152, 3))
-        mirror3_mirrored_size = mirror3.initialize(mirror2_mirrored_size)
-        runtime.expect_size('mirror3.mirrored', mirror3_mirrored_size, Size(864, 1152, 3))
-        mirror4_mirrored_size = mirror4.initialize(mirror3_mirrored_size)
-        runtime.expect_size('mirror4.mirrored', mirror4_mirrored_size, Size(864, 1152, 3))
-        mirror5_mirrored_size = mirror5.initialize(mirror4_mirrored_size)
-        runtime.expect_size('mirror5.mirrored', mirror5_mirrored_size, Size(864, 1152, 3))
-        mirror5_mirrored_cpu_size = adapter2_gpu2cpu.initialize(mirror5_mirrored_size, np.uint8)
+        mirror1_to_mirror5_mirrored_size = mirror1_to_mirror5.initialize(source_image_gpu_size)
+        runtime.expect_size(
+            'mirror1_to_mirror5.mirrored', mirror1_to_mirror5_mirrored_size, Size(864, 1152, 3))
+        mirror5_mirrored_cpu_size = adapter2_gpu2cpu.initialize(
+            mirror1_to_mirror5_mirrored_size, np.uint8)
         sink.initialize(mirror5_mirrored_cpu_size)
 
-        # mirror1: settings preferred, 1,728 resident threads; kernel arguments in the calling
-        # convention's order (a port's name stands for its buffer)
-        mirror1.config_gpu(
-            tile=32, local_size=(8, 8, 1), global_size=(8, 216, 1),
+        # mirror1_to_mirror5: settings preferred, 16,384 resident threads; kernel arguments in the
+        # calling convention's order (a port's name stands for its buffer)
+        mirror1_to_mirror5.config_gpu(
+            tile=32, local_size=(16, 16, 1), global_size=(576, 432, 1),
             settings_source='preferred', arguments=[
-                'image', 'mirrored',  # buffers: inputs, then outputs
-                np.int32(864), np.int32(1152),  # image: height, width
-                np.int32(864), np.int32(1152),  # mirrored: height, width
-                np.int32(32),  # tile
-            ])
-
-        # mirror2: settings preferred, 1,728 resident threads; kernel arguments in the calling
-        # convention's order (a port's name stands for its buffer)
-        mirror2.config_gpu(
-            tile=32, local_size=(8, 8, 1), global_size=(8, 216, 1),
-            settings_source='preferred', arguments=[
-                'image', 'mirrored',  # buffers: inputs, then outputs
-                np.int32(864), np.int32(1152),  # image: height, width
-                np.int32(864), np.int32(1152),  # mirrored: height, width
-                np.int32(32),  # tile
-            ])
-
-        # mirror3: settings preferred, 1,728 resident threads; kernel arguments in the calling
-        # convention's order (a port's name stands for its buffer)
-        mirror3.config_gpu(
-            tile=32, local_size=(8, 8, 1), global_size=(8, 216, 1),
-            settings_source='preferred', arguments=[
-                'image', 'mirrored',  # buffers: inputs, then outputs
-                np.int32(864), np.int32(1152),  # image: height, width
-                np.int32(864), np.int32(1152),  # mirrored: height, width
-                np.int32(32),  # tile
-            ])
-
-        # mirror4: settings preferred, 1,728 resident threads; kernel arguments in the calling
-        # convention's order (a port's name stands for its buffer)
-        mirror4.config_gpu(
-            tile=32, local_size=(8, 8, 1), global_size=(8, 216, 1),
-            settings_source='preferred', arguments=[
-                'image', 'mirrored',  # buffers: inputs, then outputs
-                np.int32(864), np.int32(1152),  # image: height, width
-                np.int32(864), np.int32(1152),  # mirrored: height, width
-                np.int32(32),  # tile
-            ])
-
-        # mirror5: settings preferred, 1,728 resident threads; kernel arguments in the calling
-        # convention's order (a port's name stands for its buffer)
-        mirror5.config_gpu(
-            tile=32, local_size=(8, 8, 1), global_size=(8, 216, 1),
-            settings_source='preferred', arguments=[
-                'image', 'mirrored',  # buffers: inputs, then outputs
-                np.int32(864), np.int32(1152),  # image: height, width
-                np.int32(864), np.int32(1152),  # mirrored: height, width
+                'mirror1_image', 'mirrored',  # buffers: inputs, then outputs
+                np.int32(864), np.int32(1152),  # mirror1.image: height, width
+                np.int32(864), np.int32(1152),  # mirror1.mirrored: height, width
+                np.int32(864), np.int32(1152),  # mirror2.image: height, width
+                np.int32(864), np.int32(1152),  # mirror2.mirrored: height, width
+                np.int32(864), np.int32(1152),  # mirror3.image: height, width
+                np.int32(864), np.int32(1152),  # mirror3.mirrored: height, width
+                np.int32(864), np.int32(1152),  # mirror4.image: height, width
+                np.int32(864), np.int32(1152),  # mirror4.mirrored: height, width
+                np.int32(864), np.int32(1152),  # mirror5.image: height, width
+                np.int32(864), np.int32(1152),  # mirror5.mirrored: height, width
                 np.int32(32),  # tile
             ])
 
@@ -228,12 +166,8 @@ def run(frames=None, context=None, monitor=None, profile=False):
                 break  # end of stream
             runtime.check_frame('source.image', source_image, (864, 1152, 3), np.uint8)
             source_image_gpu = adapter1_cpu2gpu.transfer(source_image)
-            mirror1_mirrored = mirror1.execute(source_image_gpu)
-            mirror2_mirrored = mirror2.execute(mirror1_mirrored)
-            mirror3_mirrored = mirror3.execute(mirror2_mirrored)
-            mirror4_mirrored = mirror4.execute(mirror3_mirrored)
-            mirror5_mirrored = mirror5.execute(mirror4_mirrored)
-            mirror5_mirrored_cpu = adapter2_gpu2cpu.transfer(mirror5_mirrored)
+            mirror1_to_mirror5_mirrored = mirror1_to_mirror5.execute(source_image_gpu)
+            mirror5_mirrored_cpu = adapter2_gpu2cpu.transfer(mirror1_to_mirror5_mirrored)
             sink.execute(mirror5_mirrored_cpu)
             adapter2_gpu2cpu.unmap()  # the device may write mirror5.mirrored again
             frame += 1

@@ -75,3 +75,33 @@ def signature_text(ctype, function: str | None = None) -> str:
     """The expected kernel signature, for messages and documentation."""
     args = ", ".join(p.declaration() for p in kernel_parameters(ctype))
     return f"__kernel void {function or ctype.kernel_function}({args})"
+
+
+def group_parameters(group) -> list[KernelParam]:
+    """The parameter list of a fused group's generated kernel (passes/fuse.py).
+
+    1. one ``__global`` pointer per group input (named <member>_<port>, the member input
+       it feeds), then the group's output (named <root>_<port>);
+    2. for every member in run order, for each of its ports (inputs, then outputs), its
+       height then its width, named <member>_<port>_height / _width;
+    3. every member's parameters in declaration order, named <member>_<parameter>;
+    4. ``int tile``.
+    """
+    params: list[KernelParam] = []
+    for name, port in group.inputs.items():
+        params.append(KernelParam(name, "buffer", C_TYPES[port.dtype], "input", port=name))
+    for name, port in group.outputs.items():
+        params.append(KernelParam(f"{group.root.name}_{name}", "buffer", C_TYPES[port.dtype],
+                                  "output", port=name))
+    for m in group.members:
+        for pname in list(m.inputs) + list(m.outputs):
+            for dim in ("height", "width"):
+                params.append(KernelParam(f"{m.name}_{pname}_{dim}", "scalar", "int", "size",
+                                          port=f"{m.name}.{pname}", dim=dim))
+    for m in group.members:
+        for pname, decl in m.type.params.items():
+            params.append(KernelParam(f"{m.name}_{pname}", "scalar",
+                                      PARAM_C_TYPES[decl.type][0], "param",
+                                      param=f"{m.name}.{pname}"))
+    params.append(KernelParam("tile", "scalar", "int", "tile"))
+    return params

@@ -1,0 +1,323 @@
+"""Fusion: chains of fusable GPU components run as one generated kernel, bit-identical.
+
+Fused and unfused programs of every model in models/ give the same bytes; a property test
+builds random chains and DAGs of the library's fusable types (odd sizes, parameters,
+shared producers, CPU readers in the middle) and compares fused, unfused and an
+independent numpy reference (gpucompgen/library/cpu_kernels.py), in parallel and
+sequential execution, zero-copy on and off.  The plan of the vision system loses the
+merged buffer and launches one kernel for merger + detector.
+"""
+
+from __future__ import annotations
+
+import itertools
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from conftest import ROOT, load_generated, require_opencl
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from gpucompgen import fusable
+from gpucompgen.build import compile_model, write
+from gpucompgen.errors import GpucompgenError
+from gpucompgen.library import cpu_kernels
+from gpucompgen.library.still_image import still_frame
+from gpucompgen.model import library_types
+from gpucompgen.passes.fuse import FUSE_COST_CAP
+
+MODELS = sorted((ROOT / "models").glob("*.yaml"))
+_built = itertools.count()
+
+
+def _module(model: Path, out: Path, **options):
+    result = compile_model(model, out, **options)
+    write(result, out)
+    return result, load_generated(out / f"{result.system.model.name}.py",
+                                  f"fusion_{out.name}_{next(_built)}")
+
+
+def _outputs(module, frames: int) -> list[np.ndarray]:
+    """Every array a CPU sink got (FrameSink, VisionManager, MaskWriter), in order; each a
+    copy."""
+    got: list[np.ndarray] = []
+    patched = []
+    for cls_name in ("FrameSink", "VisionManager", "MaskWriter"):
+        cls = getattr(module, cls_name, None)
+        if cls is None:
+            continue
+        original = cls.execute
+
+        def spy(self, *data, _original=original):
+            got.extend(np.array(d, copy=True) for d in data)
+            return _original(self, *data)
+
+        cls.execute = spy
+        patched.append((cls, original))
+    try:
+        assert module.run(frames=frames).frames == frames
+    finally:
+        for cls, original in patched:
+            cls.execute = original
+    return got
+
+
+# -- the plan ----------------------------------------------------------------------------
+
+def test_vision_system_merger_and_detector_are_one_launch_and_the_merged_buffer_is_gone():
+    model = ROOT / "models" / "vision_system.yaml"
+    fused = compile_model(model, ROOT / "generated").system.plan
+    unfused = compile_model(model, ROOT / "generated", fusion="off").system.plan
+    assert [la.part for la in fused.launches] == ["merger_detector"]
+    assert [la.part for la in unfused.launches] == ["merger", "detector"]
+    merged = [b for b in unfused.buffers if b.what == "merger.merged"]
+    assert [b.nbytes for b in merged] == [1_843_200]  # 480 x 1280 x 3
+    assert not any("merged" in b.what for b in fused.buffers)
+    assert unfused.device_bytes - fused.device_bytes == 1_843_200
+    # the group keeps the model's gpu_settings of the detector: one config_gpu
+    (la,) = fused.launches
+    assert (la.tile, la.local_size, la.settings_source) == (32, (16, 16, 1), "model")
+    assert [(g.part, [m for m, _, _ in g.members]) for g in fused.groups] == \
+        [("merger_detector", ["merger", "detector"])]
+
+
+def test_plan_and_check_name_groups_and_why_edges_stay_unfused(tmp_path):
+    model = tmp_path / "m.yaml"
+    model.write_text(
+        "system: why\ncomponents:\n"
+        "  src: {type: StillImage, params: {width: 20, height: 10}}\n"
+        "  m1: {type: VerticalMirror}\n  m2: {type: VerticalMirror}\n"
+        "  b1: {type: BoxBlur, params: {radius: 2}}\n  b2: {type: BoxBlur, params: {radius: 2}}\n"
+        "  m3: {type: VerticalMirror, fuse: false}\n"
+        "  s1: {type: FrameSink}\n  s2: {type: FrameSink}\n"
+        "connections:\n  - src.image -> m1.image\n  - m1.mirrored -> m2.image\n"
+        "  - m1.mirrored -> s1.image\n  - m2.mirrored -> b1.image\n"
+        "  - b1.smooth -> b2.image\n  - b2.smooth -> m3.image\n  - m3.mirrored -> s2.image\n")
+    plan = compile_model(model, tmp_path / "out").system.plan
+    why = dict(plan.unfused)
+    assert "also read by the CPU (s1.image, through adapter" in why["m1.mirrored -> m2.image"]
+    assert f"over the cap of {FUSE_COST_CAP}" in why["b1.smooth -> b2.image"]
+    assert "625 loads" in why["b1.smooth -> b2.image"]  # 25 evaluations x 25 taps
+    assert "'fuse: false' on m3" in why["b2.smooth -> m3.image"]
+    assert [[m for m, _, _ in g.members] for g in plan.groups] == [["m2", "b1"]]
+    for command in ("plan", "check"):
+        proc = subprocess.run([sys.executable, "-m", "gpucompgen", command, str(model)],
+                              capture_output=True, text=True, check=False)
+        assert proc.returncode == 0, proc.stderr
+        out = "\n".join(line.strip() for line in proc.stdout.splitlines())  # check indents
+        assert "m2_b1: one kernel (group_m2_b1.cl) for\nm2 (VerticalMirror, index_map)\n" \
+            "-> b1 (BoxBlur, stencil)" in out
+        assert "not fused: b2.smooth -> m3.image:\nthe model sets 'fuse: false' on m3" in out
+    off = subprocess.run([sys.executable, "-m", "gpucompgen", "plan", str(model),
+                          "--fusion", "off"], capture_output=True, text=True, check=False)
+    assert "fusion: off, 0 groups" in off.stdout and "(--fusion)" in off.stdout
+
+
+def test_platform_fusion_off_and_bad_values(tmp_path):
+    base = ("system: s\n{platform}components:\n"
+            "  src: {{type: StillImage, params: {{width: 8, height: 8}}}}\n"
+            "  m1: {{type: VerticalMirror{fuse}}}\n  m2: {{type: VerticalMirror}}\n"
+            "  sink: {{type: FrameSink}}\nconnections:\n  - src.image -> m1.image\n"
+            "  - m1.mirrored -> m2.image\n  - m2.mirrored -> sink.image\n")
+    model = tmp_path / "m.yaml"
+    model.write_text(base.format(platform="platform: {fusion: off}\n", fuse=""))
+    assert not compile_model(model, tmp_path / "o").system.groups
+    model.write_text(base.format(platform="platform: {fusion: sometimes}\n", fuse=""))
+    with pytest.raises(GpucompgenError) as info:
+        compile_model(model, tmp_path / "o")
+    assert "m.yaml:2:" in str(info.value) and "platform.fusion must be 'auto' or 'off'" \
+        in str(info.value)
+    model.write_text(base.format(platform="", fuse=", fuse: maybe"))
+    with pytest.raises(GpucompgenError) as info:
+        compile_model(model, tmp_path / "o")
+    assert "fuse of 'm1' must be true or false" in str(info.value)
+
+
+# -- snippets are checked without a device -------------------------------------------------
+
+@pytest.mark.parametrize("form,value,message", [
+    ("index_map", "image(y, x)", "takes 3 arguments (y, x, c), not 2"),
+    ("index_map", "imag(y, x, c)", "unknown name 'imag'"),
+    ("pointwise", "image(y + 1, x, c)", "reads inputs at (y, x) only"),
+    ("index_map", "image(y, x, c) + ((1)", "unbalanced '('"),
+    ("index_map", "barrier(CLK_LOCAL_MEM_FENCE)", "'barrier' is not allowed"),
+    ("index_map", "((__global uchar *)0)[0]", "'__global' is not allowed"),
+    ("index_map", "int a = image(y, x, c); a", "statements must end by returning"),
+    ("index_map", "#define A 1\nimage(y, x, c)", "preprocessor lines"),
+    ("index_map", "out(y, x, c)", "output 'out' is what the snippet returns"),
+    ("index_map", "image(y, x, c) + " * 400 + "0", "more than 4,000"),
+])
+def test_bad_snippets_are_positioned_errors(tmp_path, form, value, message):
+    types = tmp_path / "t.yaml"
+    (tmp_path / "k.cl").write_text("__kernel void k(__global const uchar *image, "
+                                   "__global uchar *out) {}\n")
+    types.write_text("component_types:\n  K:\n    kind: gpu-aware\n    inputs:\n"
+                     "      image: {memory: gpu, channels: 3}\n    outputs:\n"
+                     "      out: {memory: gpu, channels: 3}\n"
+                     "    kernel: {file: k.cl, function: k}\n"
+                     f"    fusable:\n      form: {form}\n      value: {value!r}\n")
+    model = tmp_path / "m.yaml"
+    model.write_text("system: s\ntypes: [t.yaml]\ncomponents:\n"
+                     "  src: {type: StillImage, params: {width: 8, height: 8}}\n"
+                     "  k: {type: K}\n  sink: {type: FrameSink}\n"
+                     "connections: [src.image -> k.image, k.out -> sink.image]\n")
+    with pytest.raises(GpucompgenError) as info:
+        compile_model(model, tmp_path / "o")
+    text = str(info.value)
+    assert re.search(r"t\.yaml:\d+:\d+: error: fusable snippet of 'K': ", text), text
+    assert message in text, text
+
+
+def test_only_single_output_types_are_fusable(tmp_path):
+    (tmp_path / "k.cl").write_text("__kernel void k() {}\n")
+    (tmp_path / "t.yaml").write_text(
+        "component_types:\n  K:\n    kind: gpu-aware\n    inputs:\n"
+        "      image: {memory: gpu, channels: 3}\n    outputs:\n"
+        "      a: {memory: gpu, channels: 3}\n      b: {memory: gpu, channels: 3}\n"
+        "    kernel: {file: k.cl, function: k}\n"
+        "    fusable: {form: pointwise, value: 'image(y, x, c)'}\n")
+    model = tmp_path / "m.yaml"
+    model.write_text("system: s\ntypes: [t.yaml]\ncomponents:\n  k: {type: K}\n")
+    with pytest.raises(GpucompgenError) as info:
+        compile_model(model, tmp_path / "o")
+    assert "only types with a single output can be fusable; 'K' has 2" in str(info.value)
+
+
+def test_library_snippets_pass_the_check_and_compile(cl_context):
+    """Every library snippet, as a one-member group kernel, compiles on the device."""
+    import pyopencl as cl
+
+    from gpucompgen.backend.opencl.fused import group_kernel
+    from gpucompgen.ir import ComponentNode, GroupNode, Port
+
+    fusable_types = {n: t for n, t in library_types().items() if t.fusable}
+    assert set(fusable_types) == {"VerticalMirror", "ImageMerger", "ObjectDetector", "BoxBlur"}
+    from gpucompgen.model import Endpoint
+
+    for name, t in fusable_types.items():
+        assert not fusable.snippet_problems(t.fusable.value, t.fusable.form, list(t.inputs),
+                                            list(t.outputs), list(t.params))
+        ports = {p: Port(p, "in", "gpu", d.dtype, d.channels) for p, d in t.inputs.items()}
+        outs = {p: Port(p, "out", "gpu", d.dtype, d.channels) for p, d in t.outputs.items()}
+        member = ComponentNode("member", None, ports, outs, type=t,
+                               params={k: d.default for k, d in t.params.items()})
+        group = GroupNode("only", None, {f"member_{p}": port for p, port in ports.items()},
+                          outs, members=[member],
+                          feeds={f"member_{p}": Endpoint("member", p) for p in ports})
+        cl.Program(cl_context, group_kernel(group, f"test of {name}")).build()
+
+
+# -- fused equals unfused ------------------------------------------------------------------
+
+@pytest.mark.parametrize("model", MODELS, ids=lambda p: p.stem)
+def test_every_model_fused_and_unfused_give_the_same_bytes(tmp_path, model):
+    require_opencl()
+    fused_result, fused = _module(model, tmp_path / "fused")
+    _, unfused = _module(model, tmp_path / "unfused", fusion="off")
+    # a model fuses something unless its GPU-to-GPU edges touch only opaque types
+    why = dict(fused_result.system.plan.unfused)
+    assert fused_result.system.groups or all("no fusable form" in w for w in why.values()), why
+    a, b = _outputs(fused, 3), _outputs(unfused, 3)
+    assert len(a) == len(b) > 0
+    for x, y in zip(a, b):
+        assert x.dtype == y.dtype and x.shape == y.shape
+        assert np.array_equal(x, y)
+
+
+@st.composite
+def fusable_systems(draw):
+    """A model of StillImage sources and VerticalMirror / BoxBlur / ImageMerger stages
+    (streams may be read by several stages and by FrameSinks), optionally ending in an
+    ObjectDetector and a VisionManager; with the numpy reference of every sink's input."""
+    height = draw(st.integers(1, 9))
+    comps = {}
+    conns = []
+    streams = []  # (endpoint, reference array)
+    for i in range(draw(st.integers(1, 2))):
+        w = draw(st.integers(1, 11))
+        comps[f"src{i}"] = {"type": "StillImage",
+                            "params": {"width": w, "height": height, "seed": i + 1}}
+        streams.append((f"src{i}.image", still_frame(w, height, i + 1)))
+    readers = {}
+    for i in range(draw(st.integers(1, 5))):
+        op = draw(st.sampled_from(["mirror", "blur", "merge"]))
+        pick = draw(st.integers(0, len(streams) - 1))
+        end, ref = streams[pick]
+        name = f"{op}{i}"
+        if op == "mirror":
+            comps[name] = {"type": "VerticalMirror"}
+            conns.append(f"{end} -> {name}.image")
+            out = (f"{name}.mirrored", cpu_kernels.vertical_mirror(ref))
+        elif op == "blur":
+            r = draw(st.integers(0, 2))
+            comps[name] = {"type": "BoxBlur", "params": {"radius": r}}
+            conns.append(f"{end} -> {name}.image")
+            out = (f"{name}.smooth", cpu_kernels.box_blur(ref, radius=r))
+        else:
+            end2, ref2 = streams[draw(st.integers(0, len(streams) - 1))]
+            comps[name] = {"type": "ImageMerger"}
+            conns += [f"{end} -> {name}.left", f"{end2} -> {name}.right"]
+            readers[end2] = True
+            out = (f"{name}.merged", cpu_kernels.image_merger(ref, ref2))
+        if draw(st.booleans()):
+            comps[name]["fuse"] = draw(st.booleans())
+        readers[end] = True
+        streams.append(out)
+    expected = []
+    last_end, last_ref = streams[-1]
+    if draw(st.booleans()):
+        red_min, margin = draw(st.integers(0, 255)), draw(st.integers(0, 120))
+        comps["det"] = {"type": "ObjectDetector", "params": {"red_min": red_min,
+                                                             "margin": margin}}
+        comps["vm"] = {"type": "VisionManager", "params": {"print_decisions": False}}
+        conns += [f"{last_end} -> det.frame", "det.mask -> vm.mask"]
+        readers[last_end] = True
+        mask = cpu_kernels.object_detector(last_ref, red_min=red_min, margin=margin)
+    else:
+        mask = None
+    # every stream nobody reads (and some that are read) goes to a FrameSink
+    for j, (end, ref) in enumerate(streams):
+        if end not in readers or (not end.startswith("src") and draw(st.booleans())):
+            comps[f"sink{j}"] = {"type": "FrameSink"}
+            conns.append(f"{end} -> sink{j}.image")
+            expected.append(ref)
+    if mask is not None:
+        expected.append(mask)
+    return comps, conns, expected
+
+
+_modules: dict[str, object] = {}
+
+
+@settings(max_examples=12, deadline=None, derandomize=True,
+          suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+@given(system=fusable_systems(), execution=st.sampled_from(["parallel", "sequential"]),
+       zero_copy=st.sampled_from(["off", "on"]))
+def test_random_fusable_systems_fused_equals_unfused_equals_numpy(tmp_path_factory, system,
+                                                                  execution, zero_copy):
+    import yaml
+
+    require_opencl()
+    comps, conns, expected = system
+    folder = tmp_path_factory.mktemp("fz")
+    model = folder / "m.yaml"
+    model.write_text(yaml.safe_dump({"system": "fz", "components": comps,
+                                     "connections": conns}, sort_keys=False))
+    got = {}
+    for fusion in ("auto", "off"):
+        _, module = _module(model, folder / fusion, fusion=fusion, execution=execution,
+                            zero_copy=zero_copy)
+        outs = _outputs(module, 2)
+        got[fusion] = outs
+    assert len(got["auto"]) == len(got["off"]) == 2 * len(expected)
+    sinks = len(expected)
+    for k, (a, b) in enumerate(zip(got["auto"], got["off"])):
+        assert np.array_equal(a, b), (k, comps, conns)
+    # the sinks are called in run order, which is not model order: compare as multisets
+    frame = sorted((x.tobytes(), x.shape) for x in got["auto"][:sinks])
+    want = sorted((x.tobytes(), x.shape) for x in expected)
+    assert frame == want, (comps, conns)
