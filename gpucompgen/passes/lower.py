@@ -226,7 +226,7 @@ def lower(system: System) -> ProgramPlan:
     # its own kernel object from the program
     sharing: dict[str, list[ComponentType]] = {}
     for t in gpu_types:
-        sharing.setdefault(kernel_key(t), []).append(t)
+        sharing.setdefault(lib_key(t), []).append(t)
     programs: dict[str, str] = {}  # type name -> its program's variable
     for members in sharing.values():
         stem = files[lib_key(members[0])].rsplit(".", 1)[0]
