@@ -74,7 +74,9 @@ def details(ctype: ComponentType) -> list[str]:
             lines += _row("", f"{ast.unparse(tree.body)}: {message}")
     lines += ["", "Forms:"]
     for label, detail in forms(ctype):
-        lines += _row(f"  {label}", detail)
+        first, *code = detail.split("\n")
+        lines += _row(f"  {label}", first)
+        lines += _code(code)
     return lines
 
 
@@ -99,8 +101,11 @@ def forms(ctype: ComponentType) -> list[tuple[str, str]]:
         f = ctype.fusable
         shape = (f"; window radius {f.radius}, border {f.border}" if f.form == "stencil"
                  else "")
-        rows.append(("fusable", f"{f.form.replace('_', ' ')}{shape}: "
-                                + " ".join(f.value.split())))
+        code = f.value.strip().splitlines()
+        head = f"{f.form.replace('_', ' ')}{shape}:"
+        # a one-line snippet beside its form; statements one per line below it
+        rows.append(("fusable", f"{head} {code[0]}" if len(code) == 1
+                     else "\n".join([head, *code])))
     return rows
 
 
@@ -142,6 +147,18 @@ def _param(decl: ParamDecl) -> str:
 
 def _number(value: float) -> str:
     return str(int(value)) if float(value).is_integer() else str(value)
+
+
+def _code(code: list[str]) -> list[str]:
+    """Lines of a snippet as written, indented under the text column; a line too long for
+    the listing continues on the next, further indented."""
+    lines = []
+    for line in code:
+        indent = " " * (LABEL + 2 + len(line) - len(line.lstrip()))
+        lines += textwrap.wrap(line.strip(), WIDTH, initial_indent=indent,
+                               subsequent_indent=indent + "    ",
+                               break_on_hyphens=False) or [""]
+    return lines
 
 
 def _row(label: str, text: str) -> list[str]:

@@ -65,7 +65,14 @@ def test_one_flexible_type_in_full_with_every_form(capsys):
         "GPU kernel threshold() in threshold.cl; tiles 8, 16, 32, 64; preferred tile 16, "
         "block 16x16x1 CPU function threshold() in cpu_kernels.py, called with the input "
         "arrays and the parameters as keywords; runs where the model places the component "
-        "(placement: cpu, --place)")
+        "(placement: cpu, --place) fusable pointwise: const int p = image(y, x, c); const "
+        "bool above = p > thresh; return thresh_type == 0 ? (above ? maxval : 0) : "
+        "thresh_type == 1 ? (above ? 0 : maxval) : thresh_type == 2 ? (above ? thresh : p) : "
+        "thresh_type == 3 ? (above ? p : 0) : (above ? 0 : p);")
+    # a snippet of several lines is printed as written, under its form
+    at = forms.index("  fusable       pointwise:")
+    assert forms[at + 1:at + 3] == ["                  const int p = image(y, x, c);",
+                                    "                  const bool above = p > thresh;"]
     assert forms[0].startswith("  GPU kernel    ") and any(
         f.startswith("  CPU function  threshold() in cpu_kernels.py") for f in forms)
 
