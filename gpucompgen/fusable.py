@@ -52,7 +52,7 @@ FORBIDDEN = {"__global", "global", "__local", "local", "__constant", "constant",
              "atomic_xchg"}
 BUILTINS = {"clamp", "min", "max", "abs", "abs_diff", "mad", "mad24", "mul24", "select",
             "sqrt", "rsqrt", "floor", "ceil", "round", "rint", "trunc", "fabs", "fmin", "fmax",
-            "fmod", "exp", "exp2", "log", "log2", "pow", "pown", "sin", "cos", "tan", "atan",
+            "fmod", "fma", "exp", "exp2", "log", "log2", "pow", "pown", "sin", "cos", "tan", "atan",
             "atan2", "hypot", "add_sat", "sub_sat", "mix", "step", "sign", "rotate",
             "hadd", "rhadd", "mad_sat", "isnan", "isinf"}
 

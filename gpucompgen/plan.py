@@ -9,6 +9,7 @@ check and ``--profile``'s byte counts read the same ones.
 
 from __future__ import annotations
 
+import textwrap
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -346,7 +347,9 @@ def fusion_lines(plan: ProgramPlan) -> list[str]:
                   for i, (m, t, form) in enumerate(g.members)]
     for edge, why in plan.unfused:
         lines.append(f"  not fused: {edge}:")
-        lines.append(f"    {why}")
+        # wrapped: the generated program's header quotes these lines (100 columns)
+        lines += textwrap.wrap(why, 88, initial_indent="    ", subsequent_indent="    ",
+                               break_on_hyphens=False)
     return lines
 
 

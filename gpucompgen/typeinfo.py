@@ -5,7 +5,7 @@ by the file that declares it; with a name, the type in full: where it is declare
 description, ports, parameters, requirements and forms (the ways it can run).
 
 ``forms`` lists each way a type can run as (label, detail) rows, so a new form (a fusable
-snippet, a CPU implementation of a GPU-aware type) is one more row.
+snippet) is one more row.
 """
 
 from __future__ import annotations
@@ -74,7 +74,9 @@ def details(ctype: ComponentType) -> list[str]:
             lines += _row("", f"{ast.unparse(tree.body)}: {message}")
     lines += ["", "Forms:"]
     for label, detail in forms(ctype):
-        lines += _row(f"  {label}", detail)
+        first, *code = detail.split("\n")
+        lines += _row(f"  {label}", first)
+        lines += _code(code)
     return lines
 
 
@@ -88,14 +90,22 @@ def forms(ctype: ComponentType) -> list[tuple[str, str]]:
                                    f"tiles {', '.join(map(str, gpu.tiles))}; preferred tile "
                                    f"{tile}, block {bx}x{by}x{bz}"
                                    + ("; covers whole rows" if ctype.cover == "rows" else "")))
+    if ctype.cpu_file is not None:
+        detail = (f"{ctype.cpu_function}() in {ctype.cpu_file.name}, called with the input "
+                  "arrays and the parameters as keywords; runs where the model places the "
+                  "component (placement: cpu, --place)")
+        rows.append(("CPU function", detail))
     if ctype.python_file is not None:
         rows.append(("CPU (python)", f"class {ctype.python_class} in {ctype.python_file.name}"))
     if ctype.fusable is not None:
         f = ctype.fusable
         shape = (f"; window radius {f.radius}, border {f.border}" if f.form == "stencil"
                  else "")
-        rows.append(("fusable", f"{f.form.replace('_', ' ')}{shape}: "
-                                + " ".join(f.value.split())))
+        code = f.value.strip().splitlines()
+        head = f"{f.form.replace('_', ' ')}{shape}:"
+        # a one-line snippet beside its form; statements one per line below it
+        rows.append(("fusable", f"{head} {code[0]}" if len(code) == 1
+                     else "\n".join([head, *code])))
     return rows
 
 
@@ -105,6 +115,9 @@ def _source(ctype: ComponentType) -> str:
 
 
 def _kind(ctype: ComponentType) -> str:
+    if ctype.flexible:
+        return ("flexible (runs on the GPU or the CPU, as placed: 'placement:' in the model, "
+                "--place, or auto; its ports live where it runs)")
     if ctype.gpu_aware:
         return "gpu-aware (runs on the GPU; its GPU ports stay in device memory)"
     return "standard (runs on the CPU)"
@@ -112,7 +125,8 @@ def _kind(ctype: ComponentType) -> str:
 
 def _port(port: PortDecl) -> str:
     channels = f"{port.channels} channel{'s' if port.channels != 1 else ''}"
-    text = f"{port.memory.upper()} memory, {port.dtype}, {channels}"
+    memory = "memory where placed" if port.memory == "any" else f"{port.memory.upper()} memory"
+    text = f"{memory}, {port.dtype}, {channels}"
     if port.direction == "in":
         return text + ", any size"
     if port.height is None or port.width is None:
@@ -133,6 +147,18 @@ def _param(decl: ParamDecl) -> str:
 
 def _number(value: float) -> str:
     return str(int(value)) if float(value).is_integer() else str(value)
+
+
+def _code(code: list[str]) -> list[str]:
+    """Lines of a snippet as written, indented under the text column; a line too long for
+    the listing continues on the next, further indented."""
+    lines = []
+    for line in code:
+        indent = " " * (LABEL + 2 + len(line) - len(line.lstrip()))
+        lines += textwrap.wrap(line.strip(), WIDTH, initial_indent=indent,
+                               subsequent_indent=indent + "    ",
+                               break_on_hyphens=False) or [""]
+    return lines
 
 
 def _row(label: str, text: str) -> list[str]:

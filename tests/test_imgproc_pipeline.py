@@ -1,9 +1,18 @@
-"""Library types in a generated program: a long chain of imgproc types over photographs.
+"""Every imgproc type in generated programs, placed on the GPU, on the CPU and mixed.
 
-The program is generated from a model written here (folder camera over models/photos/,
-every geometric, pointwise and stencil kind of type, float and int parameters, a fan-out
-and a two-input join, int16 Sobel output) and run on the pinned OpenCL device; its
-sinks' results must equal the same chain composed from OpenCV's functions.
+One model chains all 30 library types over the photographs of models/photos/ (a folder
+camera, 301x200): crops and nearest resizes make odd sizes on the way, both Resize
+interpolations, both GaussianBlur sizes, float and int parameters, fan-outs, two-input
+joins and int16 Sobel outputs. A collector (a standard type written here) keeps every
+component's output of every frame. The model is built three times — every flexible
+component on the GPU (their OpenCL kernels), every one on the CPU (their numpy functions,
+no device buffers at all), and alternating sides (adapters between neighbours) — and each
+program runs once over the three photographs, in a module-scoped fixture.
+
+Each component's output must equal the OpenCV function the type stands for
+(test_imgproc.SPECS), applied to OpenCV's result for the component's inputs: bit-exact
+for every type but bilinear Resize (within SPECS' max_diff, 1, and a leaf here so nothing
+downstream inherits its differences); and the three placements must give the same bytes.
 """
 
 from __future__ import annotations
@@ -11,94 +20,181 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from conftest import ROOT, load_generated, require_opencl
-
-from gpucompgen.library.mask_writer import find_objects
+from test_imgproc import SPECS, imgproc_types, largest_difference
 
 cv2 = pytest.importorskip("cv2")
 Image = pytest.importorskip("PIL.Image")
 
 PHOTOS = ROOT / "models" / "photos"
-SQUARE = np.ones((3, 3), np.uint8)
+FRAMES = 3  # the three photographs, in sorted order
 
-MODEL = f"""
-system: imgproc_chain
-platform: {{device: portable}}
-components:
-  camera: {{type: Camera, params: {{folder: "{PHOTOS.as_posix()}", width: 301, height: 200}}}}
-  crop: {{type: Crop, params: {{x: 10, y: 5, width: 281, height: 181}}}}
-  resize: {{type: Resize, params: {{width: 203, height: 151, interpolation: 0}}}}
-  blur: {{type: GaussianBlur, params: {{ksize: 5}}}}
-  flip: {{type: FlipHorizontal}}
-  turn: {{type: Rotate180}}
-  median: {{type: MedianBlur}}
-  trunc: {{type: Threshold, params: {{thresh: 180, maxval: 255, thresh_type: 2}}}}
-  scale: {{type: ConvertScale, params: {{alpha: 1.37, beta: -12.5}}}}
-  blend: {{type: AddWeighted, params: {{alpha: 0.6, beta: 0.45, gamma: 3.25}}}}
-  diff: {{type: AbsDiff}}
-  erode: {{type: Erode}}
-  dilate: {{type: Dilate}}
-  sink: {{type: FrameSink}}
-  gray: {{type: RgbToGray}}
-  edges: {{type: SobelGray, params: {{dx: 1, dy: 0}}}}
-  band: {{type: InRangeGray, params: {{lowerb: 40, upperb: 150}}}}
-  open1: {{type: ErodeGray}}
-  open2: {{type: DilateGray}}
-  writer: {{type: MaskWriter, params: {{min_area: 20, print_objects: false}}}}
-connections:
-  - camera.image -> crop.image
-  - crop.cropped -> resize.image
-  - resize.resized -> blur.image
-  - blur.blurred -> flip.image
-  - flip.flipped -> turn.image
-  - turn.rotated -> median.image
-  - median.median -> trunc.image
-  - trunc.thresholded -> scale.image
-  - scale.scaled -> blend.src1
-  - resize.resized -> blend.src2
-  - blend.blended -> diff.src1
-  - flip.flipped -> diff.src2
-  - diff.diff -> erode.image
-  - erode.eroded -> dilate.image
-  - dilate.dilated -> sink.image
-  - dilate.dilated -> gray.image
-  - gray.gray -> edges.image
-  - gray.gray -> band.image
-  - band.mask -> open1.image
-  - open1.eroded -> open2.image
-  - open2.dilated -> writer.mask
-  - dilate.dilated -> writer.image
+# name: (type, params, inputs as component names in port order; "camera" is the source)
+CHAIN: dict[str, tuple[str, dict, tuple[str, ...]]] = {
+    # -- three channels: 301x200 -> 281x181 -> 203x151 ---------------------------------
+    "crop": ("Crop", {"x": 10, "y": 5, "width": 281, "height": 181}, ("camera",)),
+    "near": ("Resize", {"width": 203, "height": 151, "interpolation": 0}, ("crop",)),
+    "linear": ("Resize", {"width": 150, "height": 97, "interpolation": 1}, ("crop",)),
+    "blur3": ("GaussianBlur", {"ksize": 3}, ("near",)),
+    "blur5": ("GaussianBlur", {"ksize": 5}, ("crop",)),
+    "flip": ("FlipHorizontal", {}, ("blur3",)),
+    "turn": ("Rotate180", {}, ("flip",)),
+    "median": ("MedianBlur", {}, ("turn",)),
+    "trunc": ("Threshold", {"thresh": 180, "maxval": 255, "thresh_type": 2}, ("median",)),
+    "scale": ("ConvertScale", {"alpha": 1.37, "beta": -12.5}, ("trunc",)),
+    "blend": ("AddWeighted", {"alpha": 0.6, "beta": 0.45, "gamma": 3.25}, ("scale", "near")),
+    "diff": ("AbsDiff", {}, ("blend", "flip")),
+    "erode": ("Erode", {}, ("diff",)),
+    "dilate": ("Dilate", {}, ("erode",)),
+    "sobel": ("Sobel", {"dx": 0, "dy": 1}, ("blur5",)),
+    "hsv": ("RgbToHsv", {}, ("camera",)),
+    "red": ("InRange", {"lowerb_0": 0, "lowerb_1": 100, "lowerb_2": 50,
+                        "upperb_0": 20, "upperb_1": 255, "upperb_2": 255}, ("hsv",)),
+    # -- one channel: 301x200 -> 251x177 -> 127x99; 333x211 upscaled -------------------
+    "gray": ("RgbToGray", {}, ("camera",)),
+    "gcrop": ("CropGray", {"x": 3, "y": 7, "width": 251, "height": 177}, ("gray",)),
+    "gnear": ("ResizeGray", {"width": 127, "height": 99, "interpolation": 0}, ("gcrop",)),
+    "glinear": ("ResizeGray", {"width": 333, "height": 211, "interpolation": 1}, ("gray",)),
+    "gblur": ("GaussianBlurGray", {"ksize": 5}, ("gnear",)),
+    "gflip": ("FlipHorizontalGray", {}, ("gblur",)),
+    "gturn": ("Rotate180Gray", {}, ("gflip",)),
+    "gmedian": ("MedianBlurGray", {}, ("gturn",)),
+    "gzero": ("ThresholdGray", {"thresh": 90, "maxval": 255, "thresh_type": 3}, ("gmedian",)),
+    "gscale": ("ConvertScaleGray", {"alpha": -0.8, "beta": 10.5}, ("gzero",)),
+    "gblend": ("AddWeightedGray", {"alpha": 1.3, "beta": -0.4, "gamma": 12.7},
+               ("gscale", "gnear")),
+    "gdiff": ("AbsDiffGray", {}, ("gblend", "gflip")),
+    "gerode": ("ErodeGray", {}, ("gdiff",)),
+    "gdilate": ("DilateGray", {}, ("gerode",)),
+    "gband": ("InRangeGray", {"lowerb": 40, "upperb": 150}, ("gdilate",)),
+    "gsobel": ("SobelGray", {"dx": 1, "dy": 0}, ("gray",)),
+    "ginv": ("ThresholdGray", {"thresh": 100, "maxval": 200, "thresh_type": 1}, ("gcrop",)),
+}
+
+# collectors: one standard type per element type and channel count, one class for all
+KEEP_TYPES = """
+component_types:
+""" + "".join(f"""
+  {name}:
+    kind: standard
+    description: Keeps a copy of every frame it gets.
+    inputs:
+      image: {{memory: cpu, dtype: {dtype}, channels: {channels}}}
+    python: {{file: keep.py, class: Keep}}
+""" for name, dtype, channels in (("Keep3", "uint8", 3), ("Keep1", "uint8", 1),
+                                  ("KeepS3", "int16", 3), ("KeepS1", "int16", 1)))
+KEEP_PY = """import numpy as np
+
+
+class Keep:
+    def __init__(self):
+        self.frames = []
+
+    def initialize(self, image):
+        self.size = image
+
+    def execute(self, image):
+        self.frames.append(np.array(image, copy=True))
+
+    def free_memory(self):
+        pass
 """
 
 
-def opencv_chain(photo: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The same chain with OpenCV: the 3-channel result and the gray mask."""
-    im = photo[5:5 + 181, 10:10 + 281]
-    resized = cv2.resize(im, (203, 151), interpolation=cv2.INTER_NEAREST)
-    flipped = cv2.flip(cv2.GaussianBlur(resized, (5, 5), 0), 1)
-    median = cv2.medianBlur(cv2.rotate(flipped, cv2.ROTATE_180), 3)
-    trunc = cv2.threshold(median, 180, 255, cv2.THRESH_TRUNC)[1]
-    scaled = cv2.convertScaleAbs(trunc, alpha=1.37, beta=-12.5)
-    blended = cv2.addWeighted(scaled, 0.6, resized, 0.45, 3.25)
-    result = cv2.dilate(cv2.erode(cv2.absdiff(blended, flipped), SQUARE), SQUARE)
-    band = cv2.inRange(cv2.cvtColor(result, cv2.COLOR_RGB2GRAY), 40, 150)
-    return result, cv2.dilate(cv2.erode(band, SQUARE), SQUARE)
+def keep_type(type_name: str) -> str:
+    (port,) = imgproc_types()[type_name].outputs.values()
+    return ("KeepS" if port.dtype == "int16" else "Keep") + str(port.channels)
 
 
-def test_chain_of_library_types_matches_opencv(tmp_path, cl_context):
+def model_text(placement: str) -> str:
+    lines = ["system: imgproc_all", "types: [keep.yaml]",
+             f"platform: {{device: portable, placement: {placement}}}", "components:",
+             f'  camera: {{type: Camera, params: {{folder: "{PHOTOS.as_posix()}", '
+             'width: 301, height: 200}}']
+    connections = []
+    for name, (type_name, params, inputs) in CHAIN.items():
+        written = ", ".join(f"{k}: {v}" for k, v in params.items())
+        lines.append(f"  {name}: {{type: {type_name}, params: {{{written}}}}}")
+        lines.append(f"  keep_{name}: {{type: {keep_type(type_name)}}}")
+        ctype = imgproc_types()[type_name]
+        for port, source in zip(ctype.inputs, inputs, strict=True):
+            out = "image" if source == "camera" else next(iter(imgproc_types()[
+                CHAIN[source][0]].outputs))
+            connections.append(f"  - {source}.{out} -> {name}.{port}")
+        connections.append(f"  - {name}.{next(iter(ctype.outputs))} -> keep_{name}.image")
+    return "\n".join(lines + ["connections:"] + connections) + "\n"
+
+
+# every other component on the CPU: each edge between two of them crosses sides
+MIXED = {name: ("cpu" if i % 2 else "gpu") for i, name in enumerate(CHAIN)}
+
+
+@pytest.fixture(scope="module")
+def outputs(tmp_path_factory, cl_context):
+    """{placement: {component: [output of each frame]}} and the plans' placements."""
     require_opencl()
     from gpucompgen.build import compile_model, write
 
-    model = tmp_path / "imgproc_chain.yaml"
-    model.write_text(MODEL)
-    out = tmp_path / "out"
-    write(compile_model(model, out, "gpu-aware", None), out)
-    program = load_generated(out / "imgproc_chain.py", "imgproc_chain_under_test")
-    result = program.run(frames=3, context=cl_context)
-    assert result.frames == 3
-    with Image.open(max(PHOTOS.glob("*.jpg"))) as im:  # the last frame
-        last = np.asarray(im.convert("RGB"))
-    expected, mask = opencv_chain(last)
-    np.testing.assert_array_equal(result.components["sink"].last, expected)
-    writer = result.components["writer"]
-    assert len(writer.history) == 3
-    assert writer.history[-1] == find_objects(mask, 20) != []
+    folder = tmp_path_factory.mktemp("imgproc_all")
+    (folder / "keep.yaml").write_text(KEEP_TYPES)
+    (folder / "keep.py").write_text(KEEP_PY)
+    found, placed = {}, {}
+    for placement, places in (("gpu", None), ("cpu", None), ("mixed", MIXED)):
+        model = folder / f"imgproc_{placement}.yaml"
+        model.write_text(model_text("gpu" if places else placement))
+        out = folder / f"out_{placement}"
+        built = compile_model(model, out, "gpu-aware", None, places=places)
+        write(built, out)
+        placed[placement] = {n: c.placement for n, c in built.system.components.items()
+                             if n in CHAIN}
+        program = load_generated(out / "imgproc_all.py", f"imgproc_all_{placement}")
+        result = program.run(frames=FRAMES, context=cl_context)
+        assert result.frames == FRAMES
+        found[placement] = {n: result.components[f"keep_{n}"].frames for n in CHAIN}
+    return found, placed
+
+
+@pytest.fixture(scope="module")
+def expected():
+    """OpenCV's result for every component and frame, from OpenCV's results before it."""
+    frames = []
+    for path in sorted(PHOTOS.glob("*.jpg")):
+        with Image.open(path) as im:
+            values = {"camera": np.asarray(im.convert("RGB"))}
+        for name, (type_name, params, inputs) in CHAIN.items():
+            values[name] = SPECS[type_name].opencv(*(values[s] for s in inputs), **params)
+        frames.append(values)
+    return frames
+
+
+def test_the_chain_has_every_imgproc_type():
+    assert {t for t, _, _ in CHAIN.values()} == set(imgproc_types())
+
+
+def test_each_build_places_as_asked(outputs):
+    _, placed = outputs
+    assert set(placed["gpu"].values()) == {"gpu"}
+    assert set(placed["cpu"].values()) == {"cpu"}
+    assert placed["mixed"] == MIXED
+
+
+@pytest.mark.parametrize("name", list(CHAIN))
+def test_component_equals_opencv_on_every_placement(outputs, expected, name):
+    found, _ = outputs
+    type_name, params, _ = CHAIN[name]
+    bound = SPECS[type_name].max_diff if params.get("interpolation") == 1 else 0
+    for placement, components in found.items():
+        frames = components[name]
+        assert len(frames) == FRAMES
+        for i, (ours, reference) in enumerate(zip(frames, expected, strict=True)):
+            difference = largest_difference(ours, reference[name])
+            assert difference <= bound, (placement, name, i, difference)
+
+
+@pytest.mark.parametrize("name", list(CHAIN))
+def test_cpu_and_mixed_placements_give_the_gpus_bytes(outputs, name):
+    found, _ = outputs
+    for i in range(FRAMES):
+        gpu = found["gpu"][name][i]
+        for placement in ("cpu", "mixed"):
+            np.testing.assert_array_equal(found[placement][name][i], gpu,
+                                          err_msg=f"{placement}: {name}, frame {i}")

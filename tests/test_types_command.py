@@ -30,7 +30,7 @@ def test_listing_names_every_library_type_once_with_its_kind(capsys):
     assert "<gpucompgen>/library/imgproc.yaml:" in out
     assert all(len(line) <= 100 for line in out.splitlines())
     # the one-line description is the first sentence
-    assert re.search(r"^  Resize +gpu-aware  Scales a frame to width x height\.$", out, re.MULTILINE)
+    assert re.search(r"^  Resize +flexible   Scales a frame to width x height\.$", out, re.MULTILINE)
 
 
 def test_listing_with_a_model_adds_its_own_types(capsys):
@@ -44,33 +44,47 @@ def test_listing_with_a_model_adds_its_own_types(capsys):
     assert out.index("<gpucompgen>/library/") < out.index("my_types.yaml:")
 
 
-def test_one_gpu_aware_type_in_full(capsys):
+def test_one_flexible_type_in_full_with_every_form(capsys):
     code, out, _ = run(capsys, "Threshold")
     assert code == 0
     lines = out.splitlines()
     assert lines[0].split() == ["Name", "Threshold"]
-    assert lines[1].startswith("Kind            gpu-aware")
+    assert lines[1].startswith("Kind            flexible (runs on the GPU or the CPU, as placed")
     assert re.search(r"^Declared in     <gpucompgen>/library/imgproc\.yaml:\d+ \(library\)$",
                      out, re.MULTILINE)
     assert "cv2.threshold(image, thresh, maxval, thresh_type)" in " ".join(out.split())
-    assert "  image         GPU memory, uint8, 3 channels, any size" in lines
-    assert ("  thresholded   GPU memory, uint8, 3 channels, height image.height, "
+    # a flexible type's ports live where it runs
+    assert "  image         memory where placed, uint8, 3 channels, any size" in lines
+    assert ("  thresholded   memory where placed, uint8, 3 channels, height image.height, "
             "width image.width") in lines
     assert "  thresh        int, default 127, range 0..255" in lines
     assert "  thresh_type   int, default 0, range 0..4" in lines
     assert "4 TOZERO_INV" in out
     forms = lines[lines.index("Forms:") + 1:]
-    assert forms == ["  GPU kernel    threshold() in threshold.cl; tiles 8, 16, 32, 64; "
-                     "preferred tile 16, block 16x16x1"]
+    assert " ".join(" ".join(forms).split()) == (
+        "GPU kernel threshold() in threshold.cl; tiles 8, 16, 32, 64; preferred tile 16, "
+        "block 16x16x1 CPU function threshold() in cpu_kernels.py, called with the input "
+        "arrays and the parameters as keywords; runs where the model places the component "
+        "(placement: cpu, --place) fusable pointwise: const int p = image(y, x, c); const "
+        "bool above = p > thresh; return thresh_type == 0 ? (above ? maxval : 0) : "
+        "thresh_type == 1 ? (above ? 0 : maxval) : thresh_type == 2 ? (above ? thresh : p) : "
+        "thresh_type == 3 ? (above ? p : 0) : (above ? 0 : p);")
+    # a snippet of several lines is printed as written, under its form
+    at = forms.index("  fusable       pointwise:")
+    assert forms[at + 1:at + 3] == ["                  const int p = image(y, x, c);",
+                                    "                  const bool above = p > thresh;"]
+    assert forms[0].startswith("  GPU kernel    ") and any(
+        f.startswith("  CPU function  threshold() in cpu_kernels.py") for f in forms)
 
 
 def test_requirements_float_parameters_and_int16_ports(capsys):
     _, out, _ = run(capsys, "SobelGray")
-    assert "  gradient      GPU memory, int16, 1 channel, height image.height" in out
+    assert "  gradient      memory where placed, int16, 1 channel, height image.height" in out
     assert "dx + dy == 1: give dx=1 dy=0 or dx=0 dy=1" in out
     _, out, _ = run(capsys, "AddWeighted")
     assert "  gamma         float, default 0.0" in out
-    assert "  src2          GPU memory, uint8, 3 channels, any size" in out
+    assert "  src2          memory where placed, uint8, 3 channels, any size" in out
+    assert "  CPU function  add_weighted() in cpu_kernels.py" in out
 
 
 def test_standard_type_and_model_type_in_full(capsys, monkeypatch):

@@ -12,6 +12,7 @@ from __future__ import annotations
 import ast
 import copy
 import math
+import re
 from dataclasses import replace
 
 from ..backend.opencl.convention import PARAM_C_TYPES, group_parameters, kernel_parameters
@@ -222,12 +223,21 @@ def lower(system: System) -> ProgramPlan:
             var += "_"
         functions[t.name] = var
         taken.add(var)
-    programs: dict[str, str] = {}
+    # one OpenCL program per kernel file, however many of the types used share it
+    # (color.cl, filter.cl, ...): the file is compiled once, and each component makes
+    # its own kernel object from the program
+    sharing: dict[str, list[ComponentType]] = {}
     for t in gpu_types:
-        var = f"{t.snake}_program"
-        while var in taken:
-            var += "_"
-        programs[t.name] = var
+        sharing.setdefault(lib_key(t), []).append(t)
+    programs: dict[str, str] = {}  # type name -> its program's variable
+    for members in sharing.values():
+        stem = files[lib_key(members[0])].rsplit(".", 1)[0]
+        base = members[0].snake if len(members) == 1 else re.sub(r"\W", "_", stem).lower()
+        var = f"{base}_program"
+        while var in taken or not var.isidentifier():
+            var = f"_{var}" if not var.isidentifier() else var + "_"
+        for t in members:
+            programs[t.name] = var
         taken.add(var)
     n_lanes = max(system.lanes.values(), default=0) + 1 if system.lanes else 0
     queues = ("queue",) if n_lanes == 1 else tuple(f"queue{i}" for i in range(n_lanes))
@@ -392,8 +402,9 @@ def lower(system: System) -> ProgramPlan:
         system=system.name, mode=system.mode, execution=system.execution,
         device_name=system.device.name, zero_copy=system.zero_copy,
         zero_copy_reason=system.zero_copy_reason, queues=queues if n_lanes or gpu_types else (),
-        programs=tuple(Program(programs[t.name], files[lib_key(t)], f"{users[t.name]} ({t.name})")
-                       for t in gpu_types),
+        programs=tuple(Program(programs[m[0].name], files[lib_key(m[0])],
+                               ", ".join(f"{users[t.name]} ({t.name})" for t in m))
+                       for m in sharing.values()),
         imports=tuple(sorted(imports)), user_classes=tuple(user_classes),
         kernel_classes=tuple(kernel_class(t, files[lib_key(t)], groups.get(t.name))
                              for t in gpu_types),

@@ -32,6 +32,12 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 #   dilate.dilated         device  200x301x1 uint8   60,200
 #   dilate.dilated (host)  host    200x301x1 uint8   60,200
 #
+#   placement of flexible components:
+#     hsv: GPU (by default)
+#     red: GPU (by default)
+#     erode: GPU (by default)
+#     dilate: GPU (by default)
+#
 #   device: portable OpenCL 1.2 device
 #   peak device memory: 842,800 bytes; peak host memory: 541,800 bytes
 #   (every buffer is allocated once, at start)
@@ -175,9 +181,8 @@ def run(frames=None, context=None, monitor=None, profile=False):
         'dilate.image': 60_200,
         'dilate.dilated': 60_200,
     })
-    dilate_gray_program = runtime.build_program(
-        context, LIB_DIR / 'filter.cl', 'dilate (DilateGray)')
-    erode_gray_program = runtime.build_program(context, LIB_DIR / 'filter.cl', 'erode (ErodeGray)')
+    filter_program = runtime.build_program(
+        context, LIB_DIR / 'filter.cl', 'dilate (DilateGray), erode (ErodeGray)')
     in_range_program = runtime.build_program(context, LIB_DIR / 'in_range.cl', 'red (InRange)')
     rgb_to_hsv_program = runtime.build_program(context, LIB_DIR / 'color.cl', 'hsv (RgbToHsv)')
 
@@ -199,9 +204,8 @@ def run(frames=None, context=None, monitor=None, profile=False):
         red = parts['red'] = InRange(
             context, queue, in_range_program, lowerb_0=0, lowerb_1=140, lowerb_2=60, upperb_0=6,
             upperb_1=255, upperb_2=255, copies_own_data=True)
-        erode = parts['erode'] = ErodeGray(context, queue, erode_gray_program, copies_own_data=True)
-        dilate = parts['dilate'] = DilateGray(
-            context, queue, dilate_gray_program, copies_own_data=True)
+        erode = parts['erode'] = ErodeGray(context, queue, filter_program, copies_own_data=True)
+        dilate = parts['dilate'] = DilateGray(context, queue, filter_program, copies_own_data=True)
         writer = parts['writer'] = MaskWriter(min_area=150, folder='', print_objects=True)
         monitor.attach(parts)
         profiler = runtime.Profile(parts) if profile else None

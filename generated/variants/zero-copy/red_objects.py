@@ -9,43 +9,44 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 """
 
 # System plan:
-#   step  name                 stage  queue  runs      GPU settings            threads
-#   1     camera (Camera)      1      -      CPU       -                       -
-#   2     adapter1_cpu2gpu     1      -      in place  -                       -
-#   3     hsv (RgbToHsv)       2      -      GPU       tile 16, block 16x16x1  16,384
-#   4     red (InRange)        3      -      GPU       tile 16, block 16x16x1  16,384
-#   5     erode (ErodeGray)    4      -      GPU       tile 16, block 16x16x1  16,384
-#   6     dilate (DilateGray)  5      -      GPU       tile 16, block 16x16x1  16,384
-#   7     adapter2_gpu2cpu     5      -      map       -                       -
-#   8     writer (MaskWriter)  6      -      CPU       -                       -
+#   step  name                         stage  queue  runs      GPU settings            threads
+#   1     camera (Camera)              1      -      CPU       -                       -
+#   2     adapter1_cpu2gpu             1      -      in place  -                       -
+#   3     hsv_red_erode (fused group)  4      -      GPU       tile 32, block 8x8x1    448
+#   4     dilate (DilateGray)          5      -      GPU       tile 16, block 16x16x1  16,384
+#   5     adapter2_gpu2cpu             5      -      map       -                       -
+#   6     writer (MaskWriter)          6      -      CPU       -                       -
 #
 #   buffer                             memory              size               bytes
 #   camera.image                       host                200x301x3 uint8  180,600
-#   hsv.hsv                            device              200x301x3 uint8  180,600
-#   red.mask                           device              200x301x1 uint8   60,200
-#   erode.eroded                       device              200x301x1 uint8   60,200
+#   hsv_red_erode.eroded               device              200x301x1 uint8   60,200
 #   dilate.dilated                     device              200x301x1 uint8   60,200
 #   adapter1_cpu2gpu (camera.image)    host view           200x301x3 uint8        0
 #   adapter2_gpu2cpu (dilate.dilated)  mapped device view  200x301x1 uint8        0
 #
+#   placement of flexible components:
+#     hsv: GPU (by default)
+#     red: GPU (by default)
+#     erode: GPU (by default)
+#     dilate: GPU (by default)
+#
 #   device: portable OpenCL 1.2 device
-#   peak device memory: 361,200 bytes; peak host memory: 180,600 bytes
+#   peak device memory: 120,400 bytes; peak host memory: 180,600 bytes
 #   (every buffer is allocated once, at start)
 #   bytes copied between CPU and GPU per frame: 0
 #   zero-copy adapters: on (forced by the model or the command line)
 #   execution: parallel, 1 queue
 #   thread budget: 16,384 (device total); GPU components that can run at the same time:
-#     hsv: 16,384 threads
-#     red: 16,384 threads
-#     erode: 16,384 threads
+#     hsv_red_erode: 448 threads
 #     dilate: 16,384 threads
-#   fusion: auto, 0 groups
-#     not fused: hsv.hsv -> red.image:
-#       opaque type: red (InRange) has no fusable form, its own kernel runs
-#     not fused: red.mask -> erode.image:
-#       opaque type: erode (ErodeGray) has no fusable form, its own kernel runs
+#   fusion: auto, 1 group:
+#     hsv_red_erode: one kernel (group_hsv_red_erode.cl) for
+#       hsv (RgbToHsv, pointwise)
+#       -> red (InRange, pointwise)
+#       -> erode (ErodeGray, stencil)
 #     not fused: erode.eroded -> dilate.image:
-#       opaque type: dilate (DilateGray) has no fusable form, its own kernel runs
+#       stencil cost cap: recomputing erode 9 times per output element of the group (reading
+#       9 input elements each time) costs 81 loads, over the cap of 64
 
 from __future__ import annotations
 
@@ -87,64 +88,22 @@ class DilateGray(runtime.KernelComponent):
         ]
 
 
-class ErodeGray(runtime.KernelComponent):
-    """GPU-aware component ErodeGray: kernel erode_gray() in filter.cl.
+class FusedHsvRedErode(runtime.KernelComponent):
+    """GPU-aware component FusedHsvRedErode: kernel hsv_red_erode() in group_hsv_red_erode.cl.
 
-    One work-group of block_x * block_y * block_z threads covers a tile x tile square
-    of 'eroded'.
+    One work-group of block_x * block_y * block_z threads covers tile whole rows of
+    'eroded'.
     """
-    # Each element becomes the minimum of its 3x3 neighbourhood (a 3x3 rectangle, one iteration;
-    # chain two for iterations=2), pixels outside the frame ignored. OpenCV: cv2.erode(image,
-    # np.ones((3, 3), np.uint8)), bit-exact.
+    # Fuses hsv (RgbToHsv), red (InRange), erode (ErodeGray) into one kernel.
 
-    function = 'erode_gray'
-    inputs = (('image', np.uint8),)
+    function = 'hsv_red_erode'
+    inputs = (('hsv_image', np.uint8),)
     outputs = (('eroded', np.uint8),)
 
-    def output_sizes(self, image):
+    def output_sizes(self, hsv_image):
         """Input sizes in, output sizes out (the type's size expressions)."""
         return [
-            Size(image.height, image.width, 1),
-        ]
-
-
-class InRange(runtime.KernelComponent):
-    """GPU-aware component InRange: kernel in_range() in in_range.cl.
-
-    One work-group of block_x * block_y * block_z threads covers a tile x tile square
-    of 'mask'.
-    """
-    # Mask of the pixels inside a box of colours: 255 where every channel c is within
-    # lowerb_c..upperb_c (inclusive), else 0. OpenCV: cv2.inRange(image, lowerb, upperb), bit-exact.
-
-    function = 'in_range'
-    inputs = (('image', np.uint8),)
-    outputs = (('mask', np.uint8),)
-
-    def output_sizes(self, image):
-        """Input sizes in, output sizes out (the type's size expressions)."""
-        return [
-            Size(image.height, image.width, 1),
-        ]
-
-
-class RgbToHsv(runtime.KernelComponent):
-    """GPU-aware component RgbToHsv: kernel rgb_to_hsv() in color.cl.
-
-    One work-group of block_x * block_y * block_z threads covers a tile x tile square
-    of 'hsv'.
-    """
-    # HSV from RGB, 8-bit: hue 0..179 (degrees / 2), saturation and value 0..255. OpenCV:
-    # cv2.cvtColor(image, cv2.COLOR_RGB2HSV), bit-exact.
-
-    function = 'rgb_to_hsv'
-    inputs = (('image', np.uint8),)
-    outputs = (('hsv', np.uint8),)
-
-    def output_sizes(self, image):
-        """Input sizes in, output sizes out (the type's size expressions)."""
-        return [
-            Size(image.height, image.width, 3),
+            Size(200, 301, 1),
         ]
 
 
@@ -164,24 +123,19 @@ def run(frames=None, context=None, monitor=None, profile=False):
     queue = runtime.create_queue(context, profile)
     # every device buffer, with its bytes: checked against the device before allocating
     runtime.check_device_memory(context.devices[0], {
-        'hsv.hsv': 180_600,
-        'red.mask': 60_200,
-        'erode.eroded': 60_200,
+        'hsv_red_erode.eroded': 60_200,
         'dilate.dilated': 60_200,
     })
     dilate_gray_program = runtime.build_program(
         context, LIB_DIR / 'filter.cl', 'dilate (DilateGray)')
-    erode_gray_program = runtime.build_program(context, LIB_DIR / 'filter.cl', 'erode (ErodeGray)')
-    in_range_program = runtime.build_program(context, LIB_DIR / 'in_range.cl', 'red (InRange)')
-    rgb_to_hsv_program = runtime.build_program(context, LIB_DIR / 'color.cl', 'hsv (RgbToHsv)')
+    fused_hsv_red_erode_program = runtime.build_program(
+        context, LIB_DIR / 'group_hsv_red_erode.cl', 'hsv_red_erode (FusedHsvRedErode)')
 
     # every component and adapter, filled in as it is constructed; freed in reverse order
     parts = dict.fromkeys([
         'camera',
         'adapter1_cpu2gpu',
-        'hsv',
-        'red',
-        'erode',
+        'hsv_red_erode',
         'dilate',
         'adapter2_gpu2cpu',
         'writer',
@@ -191,14 +145,11 @@ def run(frames=None, context=None, monitor=None, profile=False):
         camera = parts['camera'] = Camera(
             width=301, height=200, seed=1, buoys=2, frames=0,
             folder=runtime.model_path(__file__, '../../../models/photos'), video='')
-        # camera.image -> hsv.image
+        # camera.image -> hsv_red_erode.hsv_image
         adapter1_cpu2gpu = parts['adapter1_cpu2gpu'] = runtime.ZeroCopyCpuToGpuAdapter(
             context, queue, nbytes=180_600)
-        hsv = parts['hsv'] = RgbToHsv(context, queue, rgb_to_hsv_program, host_visible=True)
-        red = parts['red'] = InRange(
-            context, queue, in_range_program, lowerb_0=0, lowerb_1=140, lowerb_2=60, upperb_0=6,
-            upperb_1=255, upperb_2=255, host_visible=True)
-        erode = parts['erode'] = ErodeGray(context, queue, erode_gray_program, host_visible=True)
+        hsv_red_erode = parts['hsv_red_erode'] = FusedHsvRedErode(
+            context, queue, fused_hsv_red_erode_program, host_visible=True)
         dilate = parts['dilate'] = DilateGray(
             context, queue, dilate_gray_program, host_visible=True)
         # dilate.dilated -> writer.mask
@@ -211,54 +162,26 @@ def run(frames=None, context=None, monitor=None, profile=False):
         camera_image_size = camera.initialize()
         runtime.expect_size('camera.image', camera_image_size, Size(200, 301, 3))
         camera_image_gpu_size = adapter1_cpu2gpu.initialize(camera_image_size, np.uint8)
-        hsv_hsv_size = hsv.initialize(camera_image_gpu_size)
-        runtime.expect_size('hsv.hsv', hsv_hsv_size, Size(200, 301, 3))
-        red_mask_size = red.initialize(hsv_hsv_size)
-        runtime.expect_size('red.mask', red_mask_size, Size(200, 301, 1))
-        erode_eroded_size = erode.initialize(red_mask_size)
-        runtime.expect_size('erode.eroded', erode_eroded_size, Size(200, 301, 1))
-        dilate_dilated_size = dilate.initialize(erode_eroded_size)
+        hsv_red_erode_eroded_size = hsv_red_erode.initialize(camera_image_gpu_size)
+        runtime.expect_size('hsv_red_erode.eroded', hsv_red_erode_eroded_size, Size(200, 301, 1))
+        dilate_dilated_size = dilate.initialize(hsv_red_erode_eroded_size)
         runtime.expect_size('dilate.dilated', dilate_dilated_size, Size(200, 301, 1))
         dilate_dilated_cpu_size = adapter2_gpu2cpu.initialize(dilate_dilated_size, np.uint8)
         writer.initialize(camera_image_size, dilate_dilated_cpu_size)
 
-        # hsv: settings preferred, 16,384 resident threads; kernel arguments in the calling
+        # hsv_red_erode: settings preferred, 448 resident threads; kernel arguments in the calling
         # convention's order (a port's name stands for its buffer)
-        hsv.config_gpu(
-            tile=16, local_size=(16, 16, 1), global_size=(304, 208, 1),
+        hsv_red_erode.config_gpu(
+            tile=32, local_size=(8, 8, 1), global_size=(8, 56, 1),
             settings_source='preferred', arguments=[
-                'image', 'hsv',  # buffers: inputs, then outputs
-                np.int32(200), np.int32(301),  # image: height, width
-                np.int32(200), np.int32(301),  # hsv: height, width
-                np.int32(16),  # tile
-            ])
-
-        # red: settings preferred, 16,384 resident threads; kernel arguments in the calling
-        # convention's order (a port's name stands for its buffer)
-        red.config_gpu(
-            tile=16, local_size=(16, 16, 1), global_size=(304, 208, 1),
-            settings_source='preferred', arguments=[
-                'image', 'mask',  # buffers: inputs, then outputs
-                np.int32(200), np.int32(301),  # image: height, width
-                np.int32(200), np.int32(301),  # mask: height, width
-                np.int32(0),  # lowerb_0
-                np.int32(140),  # lowerb_1
-                np.int32(60),  # lowerb_2
-                np.int32(6),  # upperb_0
-                np.int32(255),  # upperb_1
-                np.int32(255),  # upperb_2
-                np.int32(16),  # tile
-            ])
-
-        # erode: settings preferred, 16,384 resident threads; kernel arguments in the calling
-        # convention's order (a port's name stands for its buffer)
-        erode.config_gpu(
-            tile=16, local_size=(16, 16, 1), global_size=(304, 208, 1),
-            settings_source='preferred', arguments=[
-                'image', 'eroded',  # buffers: inputs, then outputs
-                np.int32(200), np.int32(301),  # image: height, width
-                np.int32(200), np.int32(301),  # eroded: height, width
-                np.int32(16),  # tile
+                'hsv_image', 'eroded',  # buffers: inputs, then outputs
+                np.int32(0),  # red_lowerb_0
+                np.int32(140),  # red_lowerb_1
+                np.int32(60),  # red_lowerb_2
+                np.int32(6),  # red_upperb_0
+                np.int32(255),  # red_upperb_1
+                np.int32(255),  # red_upperb_2
+                np.int32(32),  # tile
             ])
 
         # dilate: settings preferred, 16,384 resident threads; kernel arguments in the calling
@@ -279,10 +202,8 @@ def run(frames=None, context=None, monitor=None, profile=False):
                 break  # end of stream
             runtime.check_frame('camera.image', camera_image, (200, 301, 3), np.uint8)
             camera_image_gpu = adapter1_cpu2gpu.transfer(camera_image)
-            hsv_hsv = hsv.execute(camera_image_gpu)
-            red_mask = red.execute(hsv_hsv)
-            erode_eroded = erode.execute(red_mask)
-            dilate_dilated = dilate.execute(erode_eroded)
+            hsv_red_erode_eroded = hsv_red_erode.execute(camera_image_gpu)
+            dilate_dilated = dilate.execute(hsv_red_erode_eroded)
             dilate_dilated_cpu = adapter2_gpu2cpu.transfer(dilate_dilated)
             writer.execute(camera_image, dilate_dilated_cpu)
             adapter2_gpu2cpu.unmap()  # the device may write dilate.dilated again

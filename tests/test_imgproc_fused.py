@@ -1,0 +1,302 @@
+"""The imgproc types' fusable forms: the same bytes as their kernels, fused and unfused.
+
+1. Each type's snippet alone: the generated group kernel of a one-member group (what the
+   fuse pass would emit, with the group input read through the accessor) runs on PoCL on
+   the photographs (chelsea 300x451, coffee 400x600, astronaut 512x512 and their gray
+   versions) with every parameter set test_imgproc compares, and on frames of tiny and
+   odd sizes (1x1, 1x7, 2x2, 3x1, 5x9), where every window reaches past two borders. It
+   must equal the type's numpy function, which test_imgproc shows equals its kernel and
+   OpenCV.
+2. In generated programs: one model of chains over models/photos/ in which every fusable
+   imgproc type sits inside a fused group (pointwise and index-map members recomputed by
+   a stencil root, two-input joins reading a shared producer), built with fusion on, with
+   fusion off and placed on the CPU: the three give the same bytes, and those equal the
+   same chains composed from OpenCV's functions.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from conftest import ROOT, load_generated, require_opencl
+from test_imgproc import SPECS, imgproc_types, inputs_for
+
+from gpucompgen.library import cpu_kernels
+
+cv2 = pytest.importorskip("cv2")
+skdata = pytest.importorskip("skimage.data")
+Image = pytest.importorskip("PIL.Image")
+
+FUSABLE = sorted(n for n, t in imgproc_types().items() if t.fusable is not None)
+# not fusable, and why (docs/library.md says the same)
+OPAQUE = {"Crop": "its parameters x and y are the names a snippet's coordinates have",
+          "CropGray": "its parameters x and y are the names a snippet's coordinates have",
+          "Resize": "nearest needs OpenCV's double arithmetic; bilinear reads 4 positions",
+          "ResizeGray": "nearest needs OpenCV's double arithmetic; bilinear reads 4 positions"}
+TINY = [(1, 1), (1, 7), (2, 2), (3, 1), (5, 9)]
+
+
+def test_every_imgproc_type_is_fusable_but_crop_and_resize():
+    assert set(FUSABLE) | set(OPAQUE) == set(imgproc_types())
+    assert not set(FUSABLE) & set(OPAQUE)
+
+
+def one_member_group(type_name: str, params: dict, shapes: dict[str, tuple]):
+    """The group kernel's source and its parameter list for one member named 'm', for
+    ports of the given (height, width) shapes: sizes are constants of a group kernel."""
+    from gpucompgen.backend.opencl.convention import group_parameters
+    from gpucompgen.backend.opencl.fused import group_kernel
+    from gpucompgen.ir import ComponentNode, Data, GroupNode, Port
+    from gpucompgen.model import Endpoint
+    from gpucompgen.runtime.sizes import Size
+
+    t = imgproc_types()[type_name]
+
+    def port(p, direction, d):
+        h, w = shapes[p]
+        return Port(p, direction, "gpu", d.dtype, d.channels,
+                    Data(Size(h, w, d.channels), d.dtype))
+
+    ins = {p: port(p, "in", d) for p, d in t.inputs.items()}
+    outs = {p: port(p, "out", d) for p, d in t.outputs.items()}
+    member = ComponentNode("m", None, ins, outs, type=t, params=params, placement="gpu")
+    group = GroupNode("only", None, {f"m_{p}": port for p, port in ins.items()}, outs,
+                      members=[member], feeds={f"m_{p}": Endpoint("m", p) for p in ins})
+    return group_kernel(group, f"test of {type_name}"), group_parameters(group)
+
+
+class Snippets:
+    """Build each type's one-member group kernel once per frame shape; run it."""
+
+    def __init__(self, context, queue):
+        self.context, self.queue, self.built = context, queue, {}
+
+    def run(self, type_name: str, arrays: list[np.ndarray], params: dict):
+        import pyopencl as cl
+
+        t = imgproc_types()[type_name]
+        expected = cpu_kernels.CPU_IMPLEMENTATIONS[type_name](*arrays, **params)
+        shapes = {p: a.shape[:2] for p, a in zip(t.inputs, arrays, strict=True)}
+        (oname,) = t.outputs
+        shapes[oname] = expected.shape[:2]
+        # sizes are constants of the kernel, parameter values its arguments
+        key = (type_name, tuple(sorted(shapes.items())))
+        if key not in self.built:
+            source, kparams = one_member_group(type_name, params, shapes)
+            self.built[key] = cl.Program(self.context, source).build(), kparams
+        program, kparams = self.built[key]
+        kernel = cl.Kernel(program, "only")
+        mf = cl.mem_flags
+        buffers = {f"m_{p}": cl.Buffer(self.context, mf.READ_ONLY | mf.COPY_HOST_PTR,
+                                       hostbuf=np.ascontiguousarray(a))
+                   for p, a in zip(t.inputs, arrays, strict=True)}
+        result = np.zeros(expected.shape, expected.dtype)
+        out = cl.Buffer(self.context, mf.WRITE_ONLY, max(result.nbytes, 1))
+        args, tile = [], 16
+        for p in kparams:
+            if p.kind == "buffer":
+                args.append(out if p.role == "output" else buffers[p.port])
+            elif p.role == "param":
+                value = params[p.param.split(".", 1)[1]]
+                args.append(np.float32(value) if p.c_type == "float" else np.int32(value))
+            elif p.role == "tile":
+                args.append(np.int32(tile))
+            else:
+                raise AssertionError(f"unexpected group kernel parameter {p}")
+        kernel.set_args(*args)
+        h = result.shape[0]
+        # rows: work-group g computes rows [g * tile, g * tile + tile)
+        cl.enqueue_nd_range_kernel(self.queue, kernel, (16, -(-h // tile) * 16, 1), (16, 16, 1))
+        cl.enqueue_copy(self.queue, result, out)
+        self.queue.finish()
+        for b in [*buffers.values(), out]:
+            b.release()
+        return result, expected
+
+
+@pytest.fixture(scope="module")
+def snippets(cl_context, cl_queue):
+    require_opencl()
+    return Snippets(cl_context, cl_queue)
+
+
+@pytest.fixture(scope="module")
+def photos():
+    out = []
+    for load in (skdata.chelsea, skdata.coffee, skdata.astronaut):
+        rgb = np.ascontiguousarray(load())
+        out.append({3: rgb, 1: cv2.cvtColor(rgb, cv2.COLOR_RGB2GRAY)})
+    return out
+
+
+def channels_of(type_name: str) -> int:
+    return next(iter(imgproc_types()[type_name].inputs.values())).channels
+
+
+@pytest.mark.parametrize("type_name", FUSABLE)
+def test_snippet_gives_the_kernels_bytes_on_photos_and_tiny_frames(snippets, photos,
+                                                                   type_name):
+    rng = np.random.default_rng(17)
+    n = channels_of(type_name)
+    frames = [p[n] for p in photos]
+    frames += [rng.integers(0, 256, (h, w, 3) if n == 3 else (h, w), np.uint8)
+               for h, w in TINY]
+    for params in SPECS[type_name].cases:
+        for frame in frames:
+            got, expected = snippets.run(type_name, inputs_for(type_name, frame), params)
+            assert got.dtype == expected.dtype
+            np.testing.assert_array_equal(got, expected, err_msg=f"{type_name} {params} "
+                                                                 f"{frame.shape}")
+
+
+# -- fused groups in generated programs ------------------------------------------------
+PHOTOS = ROOT / "models" / "photos"
+FRAMES = 3
+
+# name: (type, params, inputs: component names; "camera" is the source). Each chain ends
+# in a stencil that absorbs what feeds it and is read by the CPU (so its output is
+# materialized); the next chain starts from it. A spine rather than ten branches from the
+# camera: allocate-gpu enumerates the GPU components that can run at the same time, which
+# grows with the product of parallel branch lengths (minutes at ten branches).
+CHAIN: dict[str, tuple[str, dict, tuple[str, ...]]] = {
+    # flip -> rotate -> trunc -> scale, recomputed by the 5x5 Gaussian's 25 taps
+    "flip": ("FlipHorizontal", {}, ("camera",)),
+    "turn": ("Rotate180", {}, ("flip",)),
+    "trunc": ("Threshold", {"thresh": 180, "maxval": 255, "thresh_type": 2}, ("turn",)),
+    "scale": ("ConvertScale", {"alpha": 1.37, "beta": -12.5}, ("trunc",)),
+    "blur": ("GaussianBlur", {"ksize": 5}, ("scale",)),
+    # HSV under a median
+    "hsv": ("RgbToHsv", {}, ("blur",)),
+    "median": ("MedianBlur", {}, ("hsv",)),
+    # a blend and a difference sharing a producer, under an erode
+    "mirror": ("FlipHorizontal", {}, ("median",)),
+    "blend": ("AddWeighted", {"alpha": 0.6, "beta": 0.45, "gamma": 3.25}, ("mirror", "camera")),
+    "diff": ("AbsDiff", {}, ("blend", "mirror")),
+    "erode": ("Erode", {}, ("diff",)),
+    "binary": ("Threshold", {"thresh": 100, "maxval": 200, "thresh_type": 0}, ("erode",)),
+    "dilate": ("Dilate", {}, ("binary",)),
+    # three branches from dilate: an int16 gradient, a red mask, the one-channel spine
+    "gain": ("ConvertScale", {"alpha": -0.8, "beta": 10.5}, ("blur",)),
+    "sobel": ("Sobel", {"dx": 1, "dy": 0}, ("gain",)),
+    "red": ("InRange", {"lowerb_0": 120, "lowerb_1": 0, "lowerb_2": 0,
+                        "upperb_0": 255, "upperb_1": 110, "upperb_2": 110}, ("camera",)),
+    "reddil": ("DilateGray", {}, ("red",)),
+    "gray": ("RgbToGray", {}, ("median",)),
+    "gflip": ("FlipHorizontalGray", {}, ("gray",)),
+    "gturn": ("Rotate180Gray", {}, ("gflip",)),
+    "gzero": ("ThresholdGray", {"thresh": 90, "maxval": 255, "thresh_type": 3}, ("gturn",)),
+    "gscale": ("ConvertScaleGray", {"alpha": 1.3, "beta": -7.25}, ("gzero",)),
+    "gblur": ("GaussianBlurGray", {"ksize": 3}, ("gscale",)),
+    "gsrc": ("ConvertScaleGray", {"alpha": 0.9, "beta": 3.0}, ("gblur",)),
+    "gmirror": ("FlipHorizontalGray", {}, ("gsrc",)),
+    "gblend": ("AddWeightedGray", {"alpha": 1.3, "beta": -0.4, "gamma": 12.7},
+               ("gmirror", "gsrc")),
+    "gdiff": ("AbsDiffGray", {}, ("gblend", "gsrc")),
+    "gmedian": ("MedianBlurGray", {}, ("gdiff",)),
+    "gband": ("InRangeGray", {"lowerb": 40, "upperb": 150}, ("gmedian",)),
+    "gerode": ("ErodeGray", {}, ("gband",)),
+    "ginv": ("ThresholdGray", {"thresh": 127, "maxval": 255, "thresh_type": 1}, ("gerode",)),
+    "gsobel": ("SobelGray", {"dx": 0, "dy": 1}, ("ginv",)),
+}
+ENDS = ["blur", "median", "erode", "dilate", "sobel", "reddil", "gblur", "gmedian", "gerode",
+        "gsobel"]
+KEEP_TYPES = "component_types:\n" + "".join(f"""
+  {name}:
+    kind: standard
+    description: Keeps a copy of every frame it gets.
+    inputs:
+      image: {{memory: cpu, dtype: {dtype}, channels: {channels}}}
+    python: {{file: keep.py, class: Keep}}
+""" for name, dtype, channels in (("Keep3", "uint8", 3), ("Keep1", "uint8", 1),
+                                  ("KeepS3", "int16", 3), ("KeepS1", "int16", 1)))
+KEEP_PY = """import numpy as np
+
+
+class Keep:
+    def __init__(self):
+        self.frames = []
+
+    def initialize(self, image):
+        self.size = image
+
+    def execute(self, image):
+        self.frames.append(np.array(image, copy=True))
+
+    def free_memory(self):
+        pass
+"""
+
+
+def output_port(type_name: str) -> str:
+    return next(iter(imgproc_types()[type_name].outputs))
+
+
+def model_text(placement: str) -> str:
+    lines = ["system: imgproc_fused", "types: [keep.yaml]",
+             f"platform: {{device: portable, placement: {placement}}}", "components:",
+             f'  camera: {{type: Camera, params: {{folder: "{PHOTOS.as_posix()}", '
+             'width: 301, height: 200}}']
+    connections = []
+    for name, (type_name, params, inputs) in CHAIN.items():
+        written = ", ".join(f"{k}: {v}" for k, v in params.items())
+        lines.append(f"  {name}: {{type: {type_name}, params: {{{written}}}}}")
+        for port, source in zip(imgproc_types()[type_name].inputs, inputs, strict=True):
+            out = "image" if source == "camera" else output_port(CHAIN[source][0])
+            connections.append(f"  - {source}.{out} -> {name}.{port}")
+    for name in ENDS:
+        (port,) = imgproc_types()[CHAIN[name][0]].outputs.values()
+        keep = ("KeepS" if port.dtype == "int16" else "Keep") + str(port.channels)
+        lines.append(f"  keep_{name}: {{type: {keep}}}")
+        connections.append(f"  - {name}.{output_port(CHAIN[name][0])} -> keep_{name}.image")
+    return "\n".join(lines + ["connections:"] + connections) + "\n"
+
+
+@pytest.fixture(scope="module")
+def programs(tmp_path_factory, cl_context):
+    """{variant: (build result, {end: [output of each frame]})} for fused, unfused, cpu."""
+    require_opencl()
+    from gpucompgen.build import compile_model, write
+
+    folder = tmp_path_factory.mktemp("imgproc_fused")
+    (folder / "keep.yaml").write_text(KEEP_TYPES)
+    (folder / "keep.py").write_text(KEEP_PY)
+    found = {}
+    for variant, placement, fusion in (("fused", "gpu", "auto"), ("unfused", "gpu", "off"),
+                                       ("cpu", "cpu", "auto")):
+        model = folder / f"imgproc_{variant}.yaml"
+        model.write_text(model_text(placement))
+        out = folder / f"out_{variant}"
+        built = compile_model(model, out, fusion=fusion)
+        write(built, out)
+        program = load_generated(out / "imgproc_fused.py", f"imgproc_fused_{variant}")
+        result = program.run(frames=FRAMES, context=cl_context)
+        assert result.frames == FRAMES
+        found[variant] = (built, {n: result.components[f"keep_{n}"].frames for n in ENDS})
+    return found
+
+
+def test_every_fusable_type_runs_inside_a_group(programs):
+    built, _ = programs["fused"]
+    groups = built.system.groups
+    grouped = {m.name: m.type.name for g in groups for m in g.members}
+    assert set(grouped) == set(CHAIN), sorted(set(CHAIN) - set(grouped))
+    assert set(grouped.values()) == set(FUSABLE)
+    assert len(groups) == len(ENDS)  # one kernel, one launch per chain
+    assert not programs["unfused"][0].system.groups
+    assert not programs["cpu"][0].system.groups
+
+
+@pytest.mark.parametrize("end", ENDS)
+def test_fused_unfused_cpu_and_opencv_give_the_same_bytes(programs, end):
+    reference = []
+    for path in sorted(PHOTOS.glob("*.jpg")):
+        with Image.open(path) as im:
+            values = {"camera": np.asarray(im.convert("RGB"))}
+        for name, (type_name, params, inputs) in CHAIN.items():
+            values[name] = SPECS[type_name].opencv(*(values[s] for s in inputs), **params)
+        reference.append(values[end])
+    for variant, (_, outputs) in programs.items():
+        assert len(outputs[end]) == FRAMES
+        for i, (got, expected) in enumerate(zip(outputs[end], reference, strict=True)):
+            assert got.dtype == expected.dtype
+            np.testing.assert_array_equal(got, expected, err_msg=f"{variant}: {end}, frame {i}")
