@@ -57,13 +57,13 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 #     mirror5: 1,728 threads
 #   fusion: off, 0 groups
 #     not fused: mirror1.mirrored -> mirror2.image:
-#       fusion is off (standard mode: one kernel per component)
+#       fusion off (standard mode: one kernel per component)
 #     not fused: mirror2.mirrored -> mirror3.image:
-#       fusion is off (standard mode: one kernel per component)
+#       fusion off (standard mode: one kernel per component)
 #     not fused: mirror3.mirrored -> mirror4.image:
-#       fusion is off (standard mode: one kernel per component)
+#       fusion off (standard mode: one kernel per component)
 #     not fused: mirror4.mirrored -> mirror5.image:
-#       fusion is off (standard mode: one kernel per component)
+#       fusion off (standard mode: one kernel per component)
 
 from __future__ import annotations
 

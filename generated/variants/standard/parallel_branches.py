@@ -53,11 +53,11 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 #     detector: 16,384 threads
 #   fusion: off, 0 groups
 #     not fused: blur1.smooth -> merger.left:
-#       fusion is off (standard mode: one kernel per component)
+#       fusion off (standard mode: one kernel per component)
 #     not fused: blur2.smooth -> merger.right:
-#       fusion is off (standard mode: one kernel per component)
+#       fusion off (standard mode: one kernel per component)
 #     not fused: merger.merged -> detector.frame:
-#       fusion is off (standard mode: one kernel per component)
+#       fusion off (standard mode: one kernel per component)
 
 from __future__ import annotations
 

@@ -45,11 +45,11 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 #     dilate: 16,384 threads
 #   fusion: off, 0 groups
 #     not fused: hsv.hsv -> red.image:
-#       fusion is off (standard mode: one kernel per component)
+#       fusion off (standard mode: one kernel per component)
 #     not fused: red.mask -> erode.image:
-#       fusion is off (standard mode: one kernel per component)
+#       fusion off (standard mode: one kernel per component)
 #     not fused: erode.eroded -> dilate.image:
-#       fusion is off (standard mode: one kernel per component)
+#       fusion off (standard mode: one kernel per component)
 
 from __future__ import annotations
 

@@ -42,7 +42,7 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 #     detector: 16,384 threads
 #   fusion: off, 0 groups
 #     not fused: merger.merged -> detector.frame:
-#       fusion is off (standard mode: one kernel per component)
+#       fusion off (standard mode: one kernel per component)
 
 from __future__ import annotations
 

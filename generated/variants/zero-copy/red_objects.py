@@ -41,11 +41,11 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 #     dilate: 16,384 threads
 #   fusion: auto, 0 groups
 #     not fused: hsv.hsv -> red.image:
-#       red (InRange) has no fusable form: its own kernel runs
+#       opaque type: red (InRange) has no fusable form, its own kernel runs
 #     not fused: red.mask -> erode.image:
-#       erode (ErodeGray) has no fusable form: its own kernel runs
+#       opaque type: erode (ErodeGray) has no fusable form, its own kernel runs
 #     not fused: erode.eroded -> dilate.image:
-#       dilate (DilateGray) has no fusable form: its own kernel runs
+#       opaque type: dilate (DilateGray) has no fusable form, its own kernel runs
 
 from __future__ import annotations
 
