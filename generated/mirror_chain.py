@@ -16,11 +16,12 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 #   4     adapter2_gpu2cpu                  6      -      copy  -                     -
 #   5     sink (FrameSink)                  7      -      CPU   -                     -
 #
-#   buffer                               memory  size                  bytes
-#   source.image                         host    864x1152x3 uint8  2,985,984
-#   adapter1_cpu2gpu (source.image)      device  864x1152x3 uint8  2,985,984
-#   mirror1_to_mirror5.mirrored          device  864x1152x3 uint8  2,985,984
-#   adapter2_gpu2cpu (mirror5.mirrored)  host    864x1152x3 uint8  2,985,984
+#   buffer                               memory       size                  bytes
+#   source.image                         host         864x1152x3 uint8  2,985,984
+#   adapter1_cpu2gpu (source.image)      device       864x1152x3 uint8  2,985,984
+#   adapter1_cpu2gpu staging             pinned host  864x1152x3 uint8  2,985,984
+#   mirror1_to_mirror5.mirrored          device       864x1152x3 uint8  2,985,984
+#   adapter2_gpu2cpu (mirror5.mirrored)  pinned host  864x1152x3 uint8  2,985,984
 #
 #   placement of flexible components:
 #     mirror1: GPU (by default)
@@ -30,10 +31,11 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 #     mirror5: GPU (by default)
 #
 #   device: portable OpenCL 1.2 device
-#   peak device memory: 5,971,968 bytes; peak host memory: 5,971,968 bytes
+#   peak device memory: 5,971,968 bytes; peak host memory: 8,957,952 bytes
 #   (every buffer is allocated once, at start)
 #   bytes copied between CPU and GPU per frame: 5,971,968
 #   zero-copy adapters: off (auto: device has no unified host memory)
+#   staging of copying adapters: pinned (auto: device has no unified host memory)
 #   execution: parallel, 1 queue
 #   thread budget: 16,384 (device total); GPU components that can run at the same time:
 #     mirror1_to_mirror5: 1,728 threads
@@ -121,12 +123,12 @@ def run(frames=None, context=None, monitor=None, profile=False):
         source = parts['source'] = StillImage(width=1152, height=864, seed=1, frames=0)
         # source.image -> mirror1_to_mirror5.mirror1_image
         adapter1_cpu2gpu = parts['adapter1_cpu2gpu'] = runtime.CpuToGpuAdapter(
-            context, queue, nbytes=2_985_984, blocking=False)
+            context, queue, nbytes=2_985_984, blocking=False, staging='pinned')
         mirror1_to_mirror5 = parts['mirror1_to_mirror5'] = FusedMirror1ToMirror5(
             context, queue, fused_mirror1_to_mirror5_program)
         # mirror5.mirrored -> sink.image
         adapter2_gpu2cpu = parts['adapter2_gpu2cpu'] = runtime.GpuToCpuAdapter(
-            context, queue, nbytes=2_985_984)
+            context, queue, nbytes=2_985_984, staging='pinned')
         sink = parts['sink'] = FrameSink()
         monitor.attach(parts)
         profiler = runtime.Profile(parts) if profile else None

@@ -18,13 +18,15 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 #   6     adapter3_gpu2cpu                 4      0      copy  -                     -
 #   7     manager (VisionManager)          5      -      CPU   -                     -
 #
-#   buffer                            memory  size                bytes
-#   camera1.image                     host    480x640x3 uint8   921,600
-#   camera2.image                     host    480x640x3 uint8   921,600
-#   adapter1_cpu2gpu (camera1.image)  device  480x640x3 uint8   921,600
-#   adapter2_cpu2gpu (camera2.image)  device  480x640x3 uint8   921,600
-#   blur1_to_detector.mask            device  480x1280x1 uint8  614,400
-#   adapter3_gpu2cpu (detector.mask)  host    480x1280x1 uint8  614,400
+#   buffer                            memory       size                bytes
+#   camera1.image                     host         480x640x3 uint8   921,600
+#   camera2.image                     host         480x640x3 uint8   921,600
+#   adapter1_cpu2gpu (camera1.image)  device       480x640x3 uint8   921,600
+#   adapter1_cpu2gpu staging          pinned host  480x640x3 uint8   921,600
+#   adapter2_cpu2gpu (camera2.image)  device       480x640x3 uint8   921,600
+#   adapter2_cpu2gpu staging          pinned host  480x640x3 uint8   921,600
+#   blur1_to_detector.mask            device       480x1280x1 uint8  614,400
+#   adapter3_gpu2cpu (detector.mask)  pinned host  480x1280x1 uint8  614,400
 #
 #   placement of flexible components:
 #     blur1: GPU (by default)
@@ -33,10 +35,11 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 #     detector: GPU (by default)
 #
 #   device: portable OpenCL 1.2 device
-#   peak device memory: 2,457,600 bytes; peak host memory: 2,457,600 bytes
+#   peak device memory: 2,457,600 bytes; peak host memory: 4,300,800 bytes
 #   (every buffer is allocated once, at start)
 #   bytes copied between CPU and GPU per frame: 2,457,600
 #   zero-copy adapters: off (auto: device has no unified host memory)
+#   staging of copying adapters: pinned (auto: device has no unified host memory)
 #   execution: parallel, 2 queues
 #   thread budget: 16,384 (device total); GPU components that can run at the same time:
 #     blur1_to_detector: 960 threads
@@ -126,15 +129,15 @@ def run(frames=None, context=None, monitor=None, profile=False):
             width=640, height=480, seed=2, buoys=2, frames=0, folder='', video='')
         # camera1.image -> blur1_to_detector.blur1_image
         adapter1_cpu2gpu = parts['adapter1_cpu2gpu'] = runtime.CpuToGpuAdapter(
-            context, queue0, nbytes=921_600, blocking=False)
+            context, queue0, nbytes=921_600, blocking=False, staging='pinned')
         # camera2.image -> blur1_to_detector.blur2_image
         adapter2_cpu2gpu = parts['adapter2_cpu2gpu'] = runtime.CpuToGpuAdapter(
-            context, queue1, nbytes=921_600, blocking=False)
+            context, queue1, nbytes=921_600, blocking=False, staging='pinned')
         blur1_to_detector = parts['blur1_to_detector'] = FusedBlur1ToDetector(
             context, queue0, fused_blur1_to_detector_program)
         # detector.mask -> manager.mask
         adapter3_gpu2cpu = parts['adapter3_gpu2cpu'] = runtime.GpuToCpuAdapter(
-            context, queue0, nbytes=614_400)
+            context, queue0, nbytes=614_400, staging='pinned')
         manager = parts['manager'] = VisionManager(
             min_area=30, stop_radius=60, print_decisions=True, decisions_file='')
         monitor.attach(parts)

@@ -19,20 +19,22 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 #   7     adapter2_gpu2cpu     5      -      copy  -                       -
 #   8     writer (MaskWriter)  6      -      CPU   -                       -
 #
-#   buffer                             memory  size               bytes
-#   camera.image                       host    200x301x3 uint8  180,600
-#   adapter1_cpu2gpu (camera.image)    device  200x301x3 uint8  180,600
-#   hsv.hsv                            device  200x301x3 uint8  180,600
-#   red.mask                           device  200x301x1 uint8   60,200
-#   erode.eroded                       device  200x301x1 uint8   60,200
-#   dilate.dilated                     device  200x301x1 uint8   60,200
-#   adapter2_gpu2cpu (dilate.dilated)  host    200x301x1 uint8   60,200
+#   buffer                             memory       size               bytes
+#   camera.image                       host         200x301x3 uint8  180,600
+#   adapter1_cpu2gpu (camera.image)    device       200x301x3 uint8  180,600
+#   adapter1_cpu2gpu staging           pinned host  200x301x3 uint8  180,600
+#   hsv.hsv                            device       200x301x3 uint8  180,600
+#   red.mask                           device       200x301x1 uint8   60,200
+#   erode.eroded                       device       200x301x1 uint8   60,200
+#   dilate.dilated                     device       200x301x1 uint8   60,200
+#   adapter2_gpu2cpu (dilate.dilated)  pinned host  200x301x1 uint8   60,200
 #
 #   device: portable OpenCL 1.2 device
-#   peak device memory: 541,800 bytes; peak host memory: 240,800 bytes
+#   peak device memory: 541,800 bytes; peak host memory: 421,400 bytes
 #   (every buffer is allocated once, at start)
 #   bytes copied between CPU and GPU per frame: 240,800
 #   zero-copy adapters: off (auto: device has no unified host memory)
+#   staging of copying adapters: pinned (auto: device has no unified host memory)
 #   execution: parallel, 1 queue
 #   thread budget: 16,384 (device total); GPU components that can run at the same time:
 #     hsv: 16,384 threads
@@ -194,7 +196,7 @@ def run(frames=None, context=None, monitor=None, profile=False):
             folder=runtime.model_path(__file__, '../models/photos'), video='')
         # camera.image -> hsv.image
         adapter1_cpu2gpu = parts['adapter1_cpu2gpu'] = runtime.CpuToGpuAdapter(
-            context, queue, nbytes=180_600, blocking=False)
+            context, queue, nbytes=180_600, blocking=False, staging='pinned')
         hsv = parts['hsv'] = RgbToHsv(context, queue, rgb_to_hsv_program)
         red = parts['red'] = InRange(
             context, queue, in_range_program, lowerb_0=0, lowerb_1=140, lowerb_2=60, upperb_0=6,
@@ -203,7 +205,7 @@ def run(frames=None, context=None, monitor=None, profile=False):
         dilate = parts['dilate'] = DilateGray(context, queue, dilate_gray_program)
         # dilate.dilated -> writer.mask
         adapter2_gpu2cpu = parts['adapter2_gpu2cpu'] = runtime.GpuToCpuAdapter(
-            context, queue, nbytes=60_200)
+            context, queue, nbytes=60_200, staging='pinned')
         writer = parts['writer'] = MaskWriter(min_area=150, folder='', print_objects=True)
         monitor.attach(parts)
         profiler = runtime.Profile(parts) if profile else None

@@ -40,6 +40,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .model import MAX_COMPONENTS
 from .runtime import load_module
 
 DEFAULT_SIZES = ((1152, 864), (1152, 1782))  # width x height, as in the paper
@@ -57,6 +58,8 @@ TARGETS = (  # (numerator, denominator, limit, "<=" or ">=")
 # the fused chain against one unfused mirror (N=1): fusion makes length nearly free
 FUSED_VS_ONE = 1.30
 ROUNDS = 4
+MAX_SIDE = 16384  # StillImage's largest width and height (library/mirror.yaml; tested)
+MAX_LENGTH = MAX_COMPONENTS - 2  # the mirrors, a source and a sink
 LIBRARY = Path(__file__).resolve().parent / "library"
 
 
@@ -94,6 +97,9 @@ def parse_sizes(text: str) -> list[tuple[int, int]]:
                              "e.g. 1152x864") from None
         if w < 1 or h < 1:
             raise BenchError(f"size {part.strip()!r} must be positive")
+        if w > MAX_SIDE or h > MAX_SIDE:
+            raise BenchError(f"size {part.strip()!r}: width and height must be at most "
+                             f"{MAX_SIDE:,} (StillImage's range)")
         sizes.append((w, h))
     return sizes
 
@@ -105,6 +111,9 @@ def parse_lengths(text: str) -> list[int]:
         raise BenchError(f"cannot read lengths {text!r}: write e.g. 5,10,15") from None
     if not lengths or lengths[0] < 1:
         raise BenchError("chain lengths must be 1 or more")
+    if lengths[-1] > MAX_LENGTH:
+        raise BenchError(f"chain lengths must be at most {MAX_LENGTH:,} (a system has at most "
+                         f"{MAX_COMPONENTS:,} components: the mirrors, a source and a sink)")
     return lengths
 
 

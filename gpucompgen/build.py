@@ -38,13 +38,15 @@ def compile_model(model_path: Path, out_dir: Path, mode: str = "gpu-aware",
                   device: str | None = None, dump: Callable[[str], None] | None = None,
                   display: str | None = None, execution: str | None = None,
                   zero_copy: str | None = None, verify: bool | None = None,
-                  places: dict[str, str] | None = None,
-                  fusion: str | None = None) -> BuildResult:
+                  places: dict[str, str] | None = None, frames_in_flight: int | None = None,
+                  staging: str | None = None, fusion: str | None = None) -> BuildResult:
     """Everything but writing: raises GpucompgenError with all problems found.
 
     execution ("parallel" | "sequential") and zero_copy ("auto" | "on" | "off") override
     the model's platform.execution and platform.zero_copy, fusion ("auto" | "off") its
-    platform.fusion; None keeps the model's.
+    platform.fusion, frames_in_flight (1 or more) and staging ("auto" | "pinned" |
+    "pageable") its platform.frames_in_flight and platform.staging; None keeps the model's.
+    places (--place COMPONENT=gpu|cpu|auto) overrides flexible components' placements.
     verify: check the IR's invariants after every pass (--debug; the test suite sets
     GPUCOMPGEN_VERIFY=1 so that None verifies there too).
     """
@@ -57,7 +59,7 @@ def compile_model(model_path: Path, out_dir: Path, mode: str = "gpu-aware",
                                model.device_positions if device is None else None)
     rep.raise_if_errors()
     system, warnings = run_passes(model, facts, mode, dump, execution, zero_copy, verify,
-                                  places, fusion)
+                                  places, frames_in_flight, staging, fusion)
     model_dir = Path(os.path.relpath(model_path.resolve().parent, out_dir.resolve())).as_posix()
     files = render(system, source_path(model_path, out_dir), model_dir)
     _must_compile(files[0])

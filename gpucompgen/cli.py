@@ -18,7 +18,7 @@ from pathlib import Path
 from . import __version__
 from .errors import GpucompgenError, OutputError, UsageError
 from .ir import MODES
-from .model import EXECUTIONS, FUSION, ZERO_COPY
+from .model import EXECUTIONS, FUSION, MAX_FRAMES_IN_FLIGHT, STAGING, ZERO_COPY
 from .runtime import add_program_options
 
 EPILOG = """\
@@ -53,12 +53,32 @@ def _common(p: argparse.ArgumentParser,
                    help="zero-copy adapters (map host-visible memory instead of copying): auto "
                         "follows the device's unified host memory (default: the model's "
                         "platform.zero_copy, else auto)")
+    p.add_argument("--frames-in-flight", type=_frames_in_flight, dest="frames_in_flight",
+                   metavar="N",
+                   help="frames the program works on at the same time: 1 runs one frame at a "
+                        "time; 2 or more overlap sources, device work and sinks of "
+                        "consecutive frames, one thread a stage (default: the model's "
+                        "platform.frames_in_flight, else 1)")
+    p.add_argument("--staging", choices=STAGING,
+                   help="how copying adapters stage host memory: pinned host buffers or "
+                        "pageable arrays; auto is pinned when the device has no unified host "
+                        "memory (default: the model's platform.staging, else auto)")
     p.add_argument("--fusion", choices=FUSION,
                    help="auto: chains of fusable GPU components run as one kernel; off: one "
                         "kernel per component (default: the model's platform.fusion, else auto)")
     p.add_argument("--place", action="append", type=_place, default=[], metavar="NAME=SIDE",
                    help="run flexible component NAME on SIDE: gpu, cpu or auto (chosen with "
                         "the others by the cost model); repeatable; overrides the model")
+
+
+def _frames_in_flight(text: str) -> int:
+    try:
+        n = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, not {text!r}") from None
+    if not 1 <= n <= MAX_FRAMES_IN_FLIGHT:
+        raise argparse.ArgumentTypeError(f"must be 1 to {MAX_FRAMES_IN_FLIGHT}, not {n}")
+    return n
 
 
 def _place(text: str) -> tuple[str, str]:
@@ -197,8 +217,8 @@ def parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     args = parser().parse_args(argv)
-    if getattr(args, "frames", None) is not None and args.frames < 0:
-        parser().error("--frames must be 0 or more")
+    if args.command == "run" and args.frames is not None and args.frames < 0:
+        parser().error("--frames must be 0 or more")  # tune and bench need 1 or more
     try:
         model = getattr(args, "model", None)
         if model is not None and not model.is_file():
@@ -212,10 +232,13 @@ def main(argv: list[str] | None = None) -> int:
         print(f"gpucompgen {args.command}: error: {exc}", file=sys.stderr)
         return 2
     except GpucompgenError as exc:
-        for d in exc.diagnostics:
+        shown = _first(exc.diagnostics)
+        for d in shown:
             print(d.format(), file=sys.stderr)
-        print(_counts(len(exc.errors), len(exc.diagnostics) - len(exc.errors)),
-              file=sys.stderr)
+        counts = _counts(len(exc.errors), len(exc.diagnostics) - len(exc.errors))
+        if len(shown) < len(exc.diagnostics):
+            counts += f" ({len(exc.diagnostics) - len(shown):,} more not shown)"
+        print(counts, file=sys.stderr)
         return 1
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
@@ -228,10 +251,20 @@ def main(argv: list[str] | None = None) -> int:
         return 2
 
 
+MAX_SHOWN = 200  # diagnostics printed at most (a file stops at 100); the count line counts all
+
+
+def _first(diagnostics: list) -> list:
+    """The first MAX_SHOWN diagnostics in file order, errors before warnings."""
+    errors = [d for d in diagnostics if d.severity == "error"][:MAX_SHOWN]
+    warnings = [d for d in diagnostics if d.severity != "error"][:MAX_SHOWN - len(errors)]
+    return sorted(errors + warnings)
+
+
 def _counts(errors: int, warnings: int) -> str:
-    text = f"{errors} error{'s' if errors != 1 else ''} found"
+    text = f"{errors:,} error{'s' if errors != 1 else ''} found"
     if warnings:
-        text += f", {warnings} warning{'s' if warnings != 1 else ''}"
+        text += f", {warnings:,} warning{'s' if warnings != 1 else ''}"
     return text
 
 
@@ -244,6 +277,7 @@ def _compile(args, out_dir: Path):
             print(text, file=sys.stderr)
     result = compile_model(args.model, out_dir, args.mode, args.device, dump,
                            execution=args.execution, zero_copy=args.zero_copy,
+                           frames_in_flight=args.frames_in_flight, staging=args.staging,
                            verify=True if args.debug else None, places=places(args),
                            fusion=getattr(args, "fusion", None))
     for w in result.warnings:
@@ -319,9 +353,9 @@ KILL_AFTER_SECONDS = 10.0
 # What a program killed by a signal most likely met, for the message of 'gpucompgen run'.
 _DEATHS = {
     signal.SIGSEGV: "a kernel (or other native code) accessed memory out of bounds; see "
-                    "'Finding an out-of-bounds kernel' in the README",
+                    "'Finding an out-of-bounds kernel' in docs/runtime.md",
     signal.SIGBUS: "a kernel (or other native code) accessed memory out of bounds; see "
-                   "'Finding an out-of-bounds kernel' in the README",
+                   "'Finding an out-of-bounds kernel' in docs/runtime.md",
     signal.SIGILL: "native code (a kernel or the OpenCL driver) crashed",
     signal.SIGFPE: "native code (a kernel or the OpenCL driver) crashed",
     signal.SIGABRT: "native code (the OpenCL driver?) aborted",

@@ -185,6 +185,9 @@ class System:
     execution: str = "parallel"  # "parallel" | "sequential"
     zero_copy: bool = False
     zero_copy_reason: str = ""
+    frames_in_flight: int = 1  # frames worked on at the same time (stage-frames)
+    staging: str = "pageable"  # copying adapters' host side: "pinned" | "pageable"
+    staging_reason: str = ""
     fusion: str = "auto"  # "auto" | "off" (platform.fusion or --fusion)
     fusion_reason: str = ""
     nodes: dict[str, Node] = field(default_factory=dict)
@@ -210,6 +213,14 @@ class System:
     waits: dict[str, list[str]] = field(default_factory=dict)
     frame_end_waits: list[str] = field(default_factory=list)
     unmap_after: dict[str, list[str]] = field(default_factory=dict)
+    # stage-frames (frames in flight >= 2): the nodes of each stage, each run by one
+    # thread in frame order, why the stages are cut where they are, the commands a stage
+    # waits for before it hands a frame on, and the parts that keep one set of their
+    # outputs per frame in flight (part -> why)
+    flight_stages: list[list[str]] = field(default_factory=list)
+    flight_notes: list[str] = field(default_factory=list)
+    flight_end_waits: list[list[str]] = field(default_factory=list)
+    buffer_sets: dict[str, str] = field(default_factory=dict)
     plan: Any = None  # lower: the ProgramPlan
     # place: how the flexible components were placed (passes/place.py's Placement)
     placement: Any = None
@@ -465,6 +476,11 @@ def dump(system: System) -> str:
             lines.append(f"  can run together: {', '.join(group)}")
     if system.frame_end_waits:
         lines.append(f"  frame end waits: {', '.join(system.frame_end_waits)}")
+    for i, names in enumerate(system.flight_stages, 1):
+        lines.append(f"  stage {i} of {system.frames_in_flight} frames in flight: "
+                     f"{', '.join(names)}")
+    for part, why in system.buffer_sets.items():
+        lines.append(f"  {system.frames_in_flight} buffer sets: {part} ({why})")
     if system.plan is not None:
         lines += ["  " + line for line in system.plan.dump_lines()]
     return "\n".join(lines)

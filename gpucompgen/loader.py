@@ -19,7 +19,7 @@ import yaml
 
 from .errors import Diagnostic, GpucompgenError, Pos
 
-MAX_FILE_BYTES = 1 << 20  # a model or component-type file
+MAX_FILE_BYTES = 1 << 18  # a model or component-type file (the largest library file is 25 KB)
 MAX_SOURCE_BYTES = 1 << 20  # a kernel (.cl) or Python file of a component type
 MAX_DEPTH = 32
 MAX_PROBLEMS = 100  # problems of the safe subset reported before reading stops

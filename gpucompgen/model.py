@@ -49,6 +49,17 @@ SETTING_KEYS = ("tile", "block_x", "block_y", "block_z")
 # How a kernel's work-groups cover its grid port: a tile x tile square of pixels each (the
 # paper's contract), or `tile` whole rows each (kernels that copy rows, e.g. VerticalMirror).
 COVERS = ("squares", "rows")
+
+# Bounds on a system's size: the passes look ports up by scanning, so checking and
+# building take time that grows with components x connections. Camera pipelines have tens
+# of components; at these bounds check and build take a few seconds (see the README).
+MAX_COMPONENTS = 500
+MAX_CONNECTIONS = 2000
+MAX_PORTS = 64  # inputs, and outputs, of one component type
+MAX_PARAMS = 256  # parameters of one component type
+MAX_TYPE_FILES = 32  # entries of a model's 'types:' list
+MAX_TYPE_BYTES = 1 << 20  # all the type files of one model together
+
 LIBRARY_DIR = Path(__file__).resolve().parent / "library"
 
 
@@ -198,6 +209,10 @@ class SystemModel:
     execution: str = "parallel"
     # platform.zero_copy: "auto" (follow the device's unified memory) | "on" | "off"
     zero_copy: str = "auto"
+    # platform.frames_in_flight: frames the program works on at the same time (1: one at a
+    # time, the paper's loop); platform.staging: how copying adapters stage host memory
+    frames_in_flight: int = 1
+    staging: str = "auto"
     thread_budget_pos: Pos | None = None
     platform_pos: Pos = Pos("")
     # platform.fusion: "auto" (chains of fusable GPU components become one kernel) | "off"
@@ -324,6 +339,11 @@ def _load_type(doc: Document, rep: Reporter, path: Path, origin: str, tname: str
         pos=doc.key_pos(*base))
     # parameters
     params = _expect_map(doc, rep, base + ("params",), spec.get("params"), "params")
+    if len(params) > MAX_PARAMS:
+        rep.error(doc.key_pos(*base, "params"),
+                  f"component type '{tname}' has {len(params):,} parameters; at most "
+                  f"{MAX_PARAMS:,} are allowed", "pass fewer, larger values")
+        return None
     for pname, written in params.items():
         ppath = base + ("params", pname)
         problem = name_problem(pname, "parameter name")
@@ -377,6 +397,11 @@ def _load_type(doc: Document, rep: Reporter, path: Path, origin: str, tname: str
     failed_inputs = 0
     for direction, key in (("in", "inputs"), ("out", "outputs")):
         ports = _expect_map(doc, rep, base + (key,), spec.get(key), key)
+        if len(ports) > MAX_PORTS:
+            rep.error(doc.key_pos(*base, key),
+                      f"component type '{tname}' has {len(ports):,} {key}; at most "
+                      f"{MAX_PORTS:,} are allowed", "split the component")
+            return None
         for pname, pspec in ports.items():
             port = _load_port(doc, rep, base + (key, pname), ctype, direction, pname, pspec)
             if port is None:
@@ -956,10 +981,12 @@ def library_types() -> dict[str, ComponentType]:
 
 SYSTEM_KEYS = ("system", "description", "types", "platform", "components", "connections")
 PLATFORM_KEYS = ("device", "gpu_settings", "thread_budget", "execution", "zero_copy",
-                 "placement", "profile", "fusion")
+                 "placement", "profile", "frames_in_flight", "staging", "fusion")
 FUSION = ("auto", "off")
 EXECUTIONS = ("parallel", "sequential")
 ZERO_COPY = ("auto", "on", "off")
+STAGING = ("auto", "pinned", "pageable")
+MAX_FRAMES_IN_FLIGHT = 16
 INSTANCE_KEYS = ("type", "params", "description", "placement", "fuse")
 CONNECTION_RE = re.compile(r"^\s*([^\s.]+)\.([^\s.]+)\s*->\s*([^\s.]+)\.([^\s.]+)\s*$")
 
@@ -968,7 +995,8 @@ TYPE_FILE_SUFFIXES = (".yaml", ".yml")
 
 
 def _load_user_types(doc: Document, rep: Reporter, path: Path, display: str, i: int,
-                     rel: Any) -> dict[str, ComponentType] | None:
+                     rel: Any, read: dict[Path, tuple[int, int]]
+                     ) -> dict[str, ComponentType] | None:
     """The types of entry i of the model's 'types:' list, or None after reporting why not.
 
     A type file is any .yaml/.yml file, relative to the model (``../shared/types.yaml``)
@@ -987,6 +1015,14 @@ def _load_user_types(doc: Document, rep: Reporter, path: Path, display: str, i: 
     shown = str(Path(display).parent / rel)
     what = f"component-type file {rel!r}"
     try:
+        first = read.get(tpath.resolve())
+    except (OSError, RuntimeError):  # a link loop: read_text says what is wrong
+        first = None
+    if first is not None:
+        rep.error(pos, f"{what} is listed twice (also entry {first[0] + 1} of 'types:')",
+                  "list each type file once")
+        return {}
+    try:
         text = read_text(tpath, MAX_FILE_BYTES, what)
     except FileProblem as exc:
         if exc.line and starts_with_key(exc.prefix, "component_types"):
@@ -999,6 +1035,13 @@ def _load_user_types(doc: Document, rep: Reporter, path: Path, display: str, i: 
             rep.error(pos, exc.message, "paths are relative to the model file"
                       if exc.message.endswith("not found") else exc.hint)
         return None
+    size = len(text.encode("utf-8", "surrogatepass"))
+    total = size + sum(n for _, n in read.values())
+    if total > MAX_TYPE_BYTES:
+        rep.error(pos, f"the model's type files come to {total:,} bytes with {rel!r}; at most "
+                  f"{MAX_TYPE_BYTES:,} are allowed", "keep only the types the model uses")
+        return None
+    read[tpath.resolve()] = (i, size)
     if not starts_with_key(text, "component_types"):
         rep.error(pos, f"{what} is not a component-type file",
                   "a component-type file starts with 'component_types:' (its content is "
@@ -1043,13 +1086,19 @@ def load_system(path: Path, display: str | None = None) -> SystemModel:
     if not isinstance(type_files, list):
         rep.error(doc.pos("types"), "types must be a list of component-type files")
         type_files = []
+    elif len(type_files) > MAX_TYPE_FILES:
+        rep.error(doc.key_pos("types"), f"the model lists {len(type_files):,} type files; "
+                  f"at most {MAX_TYPE_FILES} are allowed", "put related types in one file")
+        rep.raise_if_errors()
     types_failed = False  # a type file could not be read: its types are not "unknown"
+    folded_types = {fold(t): t for t in types}
+    read: dict[Path, tuple[int, int]] = {}  # type file read -> (index in the list, bytes)
     for i, rel in enumerate(type_files):
-        user = _load_user_types(doc, rep, path, display, i, rel)
+        user = _load_user_types(doc, rep, path, display, i, rel, read)
         types_failed |= user is None
         user = user or {}
         for tname, ctype in user.items():
-            clash = next((t for t in types if fold(t) == fold(tname)), None)
+            clash = folded_types.get(fold(tname))
             if clash is not None:
                 where = "by the library" if types[clash].origin == "library" else "elsewhere"
                 rep.error(ctype.pos, f"component type '{tname}' is already defined {where}"
@@ -1057,6 +1106,7 @@ def load_system(path: Path, display: str | None = None) -> SystemModel:
                           "give your type another name (case and underscores do not count)")
                 continue
             types[tname] = ctype
+            folded_types[fold(tname)] = tname
     # platform
     platform = _expect_map(doc, rep, ("platform",), root.get("platform"), "platform")
     _unknown_keys(doc, rep, ("platform",), platform, PLATFORM_KEYS, "platform")
@@ -1112,12 +1162,35 @@ def load_system(path: Path, display: str | None = None) -> SystemModel:
                       "e.g. 'profile: tune/my_system.yaml', written by 'gpucompgen tune'")
         else:  # read (and found missing) only where a placement is 'auto'
             profile = path.parent / rel
+    frames_in_flight = 1
+    if "frames_in_flight" in platform:
+        frames_in_flight = _positive_int(doc, rep, ("platform", "frames_in_flight"),
+                                         platform["frames_in_flight"], "frames_in_flight") or 1
+        if frames_in_flight > MAX_FRAMES_IN_FLIGHT:
+            rep.error(doc.pos("platform", "frames_in_flight"),
+                      f"platform.frames_in_flight is {frames_in_flight}; at most "
+                      f"{MAX_FRAMES_IN_FLIGHT} frames can be in flight",
+                      "2 or 3 overlap sources, device work and sinks; each frame in flight "
+                      "costs one more set of the buffers it crosses stages with")
+            frames_in_flight = 1
+    staging = platform.get("staging", "auto")
+    if not _named(staging, STAGING):
+        rep.error(doc.pos("platform", "staging"),
+                  f"platform.staging must be 'auto', 'pinned' or 'pageable', not {staging!r}",
+                  "auto stages copies through pinned host buffers when the device has no "
+                  "unified host memory")
+        staging = "auto"
     # components
     components: dict[str, Instance] = {}
     comps = _expect_map(doc, rep, ("components",), root.get("components"), "components")
     if not comps:
         rep.error(doc.pos("components") if "components" in root else doc.pos(),
                   "the system has no components", "add 'components:' with named instances")
+    elif len(comps) > MAX_COMPONENTS:
+        rep.error(doc.key_pos("components"),
+                  f"the system has {len(comps):,} components; at most {MAX_COMPONENTS:,} "
+                  "are allowed", "split it into several systems")
+        rep.raise_if_errors()
     folded: dict[str, str] = {}
     # a component is a variable of run(): it must not hide a class the program defines or
     # imports (a GPU-aware type's own class, or a standard type's Python class)
@@ -1184,6 +1257,11 @@ def load_system(path: Path, display: str | None = None) -> SystemModel:
         rep.error(doc.pos("connections"), "connections must be a list of "
                   "'producer.port -> consumer.port'")
         conns = []
+    elif len(conns) > MAX_CONNECTIONS:
+        rep.error(doc.key_pos("connections"),
+                  f"the system has {len(conns):,} connections; at most {MAX_CONNECTIONS:,} "
+                  "are allowed", "split it into several systems")
+        rep.raise_if_errors()
     for i, text in enumerate(conns):
         conn = _parse_connection(doc, rep, ("connections", i), text, comps, components)
         if conn is not None:
@@ -1195,7 +1273,8 @@ def load_system(path: Path, display: str | None = None) -> SystemModel:
                        device_pos=doc.pos("platform", "device"), gpu_overrides=overrides,
                        thread_budget=budget,
                        thread_budget_pos=doc.pos("platform", "thread_budget"), types=types, execution=execution,
-                       zero_copy=zero_copy, platform_pos=doc.pos("platform"), fusion=fusion,
+                       zero_copy=zero_copy, frames_in_flight=frames_in_flight,
+                       staging=staging, platform_pos=doc.pos("platform"), fusion=fusion,
                        placement=placement, placement_pos=doc.pos("platform", "placement"),
                        profile=profile, profile_pos=doc.pos("platform", "profile"),
                        device_positions={k: (doc.key_pos("platform", "device", k),

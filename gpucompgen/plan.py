@@ -22,12 +22,18 @@ class Buffer:
     owner: str  # the part that allocates it
     port: str
     what: str  # as shown in messages: 'merger.merged', 'adapter1_cpu2gpu (camera1.image)'
-    memory: str  # "device" | "host"
+    memory: str  # "device" | "host" | "pinned host"
     data: Data
+    sets: int = 1  # one per frame in flight where another stage reads it (stage-frames)
 
     @property
     def nbytes(self) -> int:
-        return self.data.nbytes
+        """Its bytes, all sets together."""
+        return self.data.nbytes * self.sets
+
+    @property
+    def on_host(self) -> bool:
+        return self.memory != "device"
 
 
 @dataclass(frozen=True)
@@ -122,6 +128,22 @@ class Step:
 
 
 @dataclass(frozen=True)
+class FlightStage:
+    """With frames in flight: a stage of the stream, run by its own thread, frame after
+    frame; it takes the values earlier stages made that it or later stages need, and
+    returns those later stages need (the first stage returns None at the end of the
+    stream)."""
+
+    name: str  # its function in generated code: "stage1"
+    parts: tuple[str, ...]
+    steps: tuple[Step, ...]
+    inputs: tuple[str, ...]  # variables from the stage before
+    outputs: tuple[str, ...]  # variables for the stage after
+    end_waits: tuple[str, ...] = ()  # parts whose last event it waits for at frame end
+    runs: str = ""  # "sources" | "CPU" | "device" | "CPU and device"
+
+
+@dataclass(frozen=True)
 class Program:
     var: str
     file: str
@@ -192,6 +214,14 @@ class ProgramPlan:
     groups: tuple[GroupPlan, ...] = ()
     unfused: tuple[tuple[str, str], ...] = ()  # (GPU-to-GPU edge, why it was not fused)
     placement: tuple[str, ...] = ()  # where each flexible component runs, who decided, costs
+    # frames in flight (stage-frames): N, the stages, why stages were merged, the parts
+    # that keep N sets of their outputs and why; staging of copying adapters
+    frames_in_flight: int = 1
+    stages: tuple[FlightStage, ...] = ()
+    flight_notes: tuple[str, ...] = ()
+    buffer_sets: tuple[tuple[str, str], ...] = ()  # (part, why)
+    staging: str = "pageable"  # "pinned" | "pageable"
+    staging_reason: str = ""
 
     # --- the facts everything reads --------------------------------------------------------
     def device_buffers(self) -> list[Buffer]:
@@ -203,7 +233,12 @@ class ProgramPlan:
 
     @property
     def host_bytes(self) -> int:
-        return sum(b.nbytes for b in self.buffers if b.memory == "host")
+        return sum(b.nbytes for b in self.buffers if b.on_host)
+
+    def extra_set_bytes(self, memory: str) -> int:
+        """What the frames in flight cost: the bytes of the sets beyond the first."""
+        return sum(b.data.nbytes * (b.sets - 1) for b in self.buffers
+                   if (b.memory == "device") == (memory == "device"))
 
     @property
     def copied_bytes(self) -> int:
@@ -225,13 +260,17 @@ class ProgramPlan:
     def dump_lines(self) -> list[str]:
         lines = [f"plan: queues {', '.join(self.queues) or '-'}"]
         for b in self.buffers:
-            lines.append(f"  buffer {b.what}: {b.memory} {b.data} ({b.nbytes:,} bytes)")
+            lines.append(f"  buffer {b.what}: {b.memory} {b.data} ({b.nbytes:,} bytes)"
+                         + (f" x{b.sets} sets" if b.sets > 1 else ""))
         for la in self.launches:
             lines.append(f"  launch {la.part}: {la.function} global {la.global_size} local "
                          f"{la.local_size} args ({', '.join(_arg(a) for a in la.arguments)})")
         for t in self.transfers:
             lines.append(f"  transfer {t.part}: {t.direction} {t.nbytes:,} bytes"
                          + (" zero-copy" if t.zero_copy else ""))
+        for st in self.stages:
+            lines.append(f"  {st.name}: {', '.join(st.parts)} (in: {', '.join(st.inputs) or '-'};"
+                         f" out: {', '.join(st.outputs) or '-'})")
         return lines
 
 
@@ -260,13 +299,16 @@ def plan_lines(plan: ProgramPlan) -> list[str]:
                      f"{la.threads:,}" if la else "-"))
     lines = _table(rows)
     lines.append("")
-    rows = [("buffer", "memory", "size", "bytes")]
+    flight = plan.frames_in_flight > 1
+    rows = [("buffer", "memory", "size", "bytes") + (("sets",) if flight else ())]
     for b in plan.buffers:
-        rows.append((b.what, b.memory, str(b.data), f"{b.nbytes:,}"))
+        rows.append((b.what, b.memory, str(b.data), f"{b.nbytes:,}")
+                    + ((str(b.sets),) if flight else ()))
     for t in plan.transfers:
         if t.zero_copy:
             view = "mapped device" if t.direction == "gpu2cpu" else "host"
-            rows.append((f"{t.part} ({t.source})", f"{view} view", str(t.data), "0"))
+            rows.append((f"{t.part} ({t.source})", f"{view} view", str(t.data), "0")
+                        + (("-",) if flight else ()))
     lines += _table(rows, right=(3,))
     lines.append("")
     if plan.placement:
@@ -280,6 +322,8 @@ def plan_lines(plan: ProgramPlan) -> list[str]:
     lines.append(f"bytes copied between CPU and GPU per frame: {plan.copied_bytes:,}")
     lines.append(f"zero-copy adapters: {'on' if plan.zero_copy else 'off'} "
                  f"({plan.zero_copy_reason})")
+    if any(p.kind == "adapter" for p in plan.parts) and not plan.zero_copy:
+        lines.append(f"staging of copying adapters: {plan.staging} ({plan.staging_reason})")
     n = len(plan.queues)
     lines.append(f"execution: {plan.execution}" + (
         f", {n} queue{'s' if n != 1 else ''}" if plan.execution == "parallel" and n else ""))
@@ -289,6 +333,8 @@ def plan_lines(plan: ProgramPlan) -> list[str]:
         for group, threads in plan.concurrent:
             lines.append(f"  {', '.join(group)}: {threads:,} threads")
     lines += fusion_lines(plan)
+    if flight:
+        lines += flight_lines(plan)
     return lines
 
 
@@ -305,6 +351,26 @@ def fusion_lines(plan: ProgramPlan) -> list[str]:
     for edge, why in plan.unfused:
         lines.append(f"  not fused: {edge}:")
         lines.append(f"    {why}")
+    return lines
+
+
+def flight_lines(plan: ProgramPlan) -> list[str]:
+    """The frames in flight: the stages, one thread each, and what N costs."""
+    n = plan.frames_in_flight
+    lines = [f"frames in flight: {n} (at most {n} in the pipeline); each stage runs in its own",
+             "thread, frame after frame, and hands frames on through a queue:"]
+    for st in plan.stages:
+        lines.append(f"  {st.name} ({st.runs}): {', '.join(st.parts)}")
+    for note in plan.flight_notes:
+        lines.append(f"  merged: {note}")
+    if plan.buffer_sets:
+        lines.append(f"{n} buffer sets (one a frame in flight, used in turn) where a stage "
+                     "writes what another reads:")
+        for part, why in plan.buffer_sets:
+            lines.append(f"  {part}: {why}")
+    lines.append(f"memory {n} frames in flight cost beyond one frame: "
+                 f"{plan.extra_set_bytes('device'):,} device bytes, "
+                 f"{plan.extra_set_bytes('host'):,} host bytes")
     return lines
 
 

@@ -93,7 +93,11 @@ def test_chain_model_is_a_valid_system(tmp_path):
 @pytest.mark.parametrize("args,message", [
     (["--sizes", "1152by864"], "cannot read size '1152by864': write WIDTHxHEIGHT"),
     (["--lengths", "0,5"], "chain lengths must be 1 or more"),
+    (["--lengths", "5,499"], "chain lengths must be at most 498 (a system has at most 500 "),
+    (["--sizes", "16x16,1x99999999"], "size '1x99999999': width and height must be at most "
+                                      "16,384 (StillImage's range)"),
     (["--frames", "0"], "--frames must be 1 or more"),
+    (["--frames", "-1"], "--frames must be 1 or more"),  # once "0 or more", from run's rule
     (["-o", "/dev/null/results"], "cannot create output folder /dev/null/results: Not a directory"),
 ])
 def test_bad_options_are_errors_without_traceback(tmp_path, args, message):
@@ -111,3 +115,10 @@ def test_missing_extras_say_what_to_install(monkeypatch):
                         lambda name, *a: None if name == "tqdm" else real(name, *a))
     with pytest.raises(bench.BenchError, match=r"needs tqdm: pip install 'gpucompgen\[bench\]'"):
         bench.run_bench([(16, 16)], [1], 1, bench.Path("unused"))
+
+
+def test_bench_bounds_agree_with_the_library():
+    """bench refuses sizes and lengths up front, by the bounds the models it writes obey."""
+    from gpucompgen.model import library_types
+    still = library_types()["StillImage"]
+    assert bench.MAX_SIDE == still.params["width"].maximum == still.params["height"].maximum

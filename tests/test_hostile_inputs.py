@@ -266,6 +266,110 @@ def test_a_file_of_only_aliases_stops_after_a_hundred_problems(tmp_path):
     assert proc.stderr.count("error:") == 101
 
 
+# ---------------------------------------------------------------- system size
+
+def _fan(n: int) -> str:
+    """A source feeding n mirrors, each into its own sink: 2n + 1 components."""
+    lines = ["system: fan", "components:", "  source: {type: StillImage, params: {width: 16, height: 16}}"]
+    lines += [f"  m{i}: VerticalMirror\n  s{i}: FrameSink" for i in range(n)]
+    lines += ["connections:"]
+    lines += [f"  - source.image -> m{i}.image\n  - m{i}.mirrored -> s{i}.image" for i in range(n)]
+    return "\n".join(lines) + "\n"
+
+
+def test_the_largest_system_allowed_builds(tmp_path):
+    (tmp_path / "m.yaml").write_text(_fan(249))  # 499 components, 498 connections
+    proc = gpucompgen("build", "m.yaml", "-o", "out", cwd=tmp_path, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    assert (tmp_path / "out" / "fan.py").read_text().count(" = VerticalMirror(") == 249
+
+
+def test_too_many_components_is_one_error_at_the_key(tmp_path):
+    # scanning ports made checking a 12,000-component chain (a 1 MiB file) take minutes
+    (tmp_path / "m.yaml").write_text(_fan(250))
+    proc = gpucompgen("check", "m.yaml", cwd=tmp_path)
+    assert proc.returncode == 1
+    assert proc.stderr.startswith("m.yaml:2:1: error: the system has 501 components; "
+                                  "at most 500 are allowed\n  hint: split it into several")
+    assert proc.stderr.count("error:") == 1
+
+
+def test_too_many_connections_is_one_error_at_the_key(tmp_path):
+    text = _fan(2) + "".join(f"  - source.image -> m{i % 2}.image\n" for i in range(1997))
+    (tmp_path / "m.yaml").write_text(text)
+    proc = gpucompgen("check", "m.yaml", cwd=tmp_path)
+    assert proc.returncode == 1
+    assert "m.yaml:8:1: error: the system has 2,001 connections; at most 2,000 are allowed" \
+        in proc.stderr
+    assert proc.stderr.count("error:") == 1
+
+
+def test_a_flood_of_errors_shows_the_first_two_hundred_and_counts_all(tmp_path):
+    comps = "".join(f"  c{i}: Nope{i}\n" for i in range(450))
+    (tmp_path / "m.yaml").write_text("system: s\ncomponents:\n" + comps)
+    proc = gpucompgen("check", "m.yaml", cwd=tmp_path)
+    assert proc.returncode == 1
+    assert proc.stderr.count("error: unknown component type") == 200
+    assert "m.yaml:3:7: error: unknown component type 'Nope0' for 'c0'" in proc.stderr
+    assert proc.stderr.endswith("450 errors found (250 more not shown)\n")
+
+
+@pytest.mark.parametrize("key,count,message", [
+    ("params", 257, "component type 'Big' has 257 parameters; at most 256 are allowed"),
+    ("inputs", 65, "component type 'Big' has 65 inputs; at most 64 are allowed"),
+    ("outputs", 65, "component type 'Big' has 65 outputs; at most 64 are allowed"),
+])
+def test_a_type_with_too_many_ports_or_parameters(tmp_path, key, count, message):
+    entry = {"params": "      p{i}: {{type: int, default: 1}}",
+             "inputs": "      i{i}: {{memory: cpu, dtype: uint8}}",
+             "outputs": "      o{i}: {{memory: cpu, dtype: uint8, height: 2, width: 2}}"}[key]
+    lines = ["component_types:", "  Big:", "    kind: standard", f"    {key}:"]
+    lines += [entry.format(i=i) for i in range(count)]
+    lines += ["    python: {file: big.py, class: Big}"]
+    (tmp_path / "t.yaml").write_text("\n".join(lines) + "\n")
+    (tmp_path / "big.py").write_text("class Big:\n    pass\n")
+    (tmp_path / "m.yaml").write_text("system: s\ntypes: [t.yaml]\ncomponents:\n  a: Big\n")
+    proc = gpucompgen("check", "m.yaml", cwd=tmp_path)
+    assert proc.returncode == 1
+    assert f"t.yaml:4:5: error: {message}" in proc.stderr, proc.stderr
+
+
+def test_a_type_file_listed_twice_is_read_once(project):
+    model = project / "m.yaml"
+    text = model.read_text()
+    assert "types: [types/t.yaml]" in text
+    model.write_text(text.replace("types: [types/t.yaml]",
+                                  "types: [types/t.yaml, ./types/t.yaml]"))
+    proc = check(project)
+    assert proc.returncode == 1
+    assert "error: component-type file './types/t.yaml' is listed twice (also entry 1 of " \
+        "'types:')" in proc.stderr
+    assert proc.stderr.count("error:") == 1, "no 'already defined' for each of its types"
+
+
+def test_too_many_type_files(tmp_path):
+    files = ", ".join(f"t{i}.yaml" for i in range(33))
+    (tmp_path / "m.yaml").write_text(f"system: s\ntypes: [{files}]\ncomponents: {{a: Camera}}\n")
+    proc = gpucompgen("check", "m.yaml", cwd=tmp_path)
+    assert proc.returncode == 1
+    assert "m.yaml:2:1: error: the model lists 33 type files; at most 32 are allowed" \
+        in proc.stderr
+
+
+def test_the_type_files_of_a_model_are_bounded_together(tmp_path):
+    block = "".join(f"  T{{i}}x{j}: {{{{kind: standard, python: {{{{file: p.py, class: P}}}}}}}}\n"
+                    for j in range(20))
+    for i in range(6):  # 6 files of about 200 KB: each under its cap, not together
+        body = "".join(block.format(i=f"{i}_{k}") for k in range(160))
+        (tmp_path / f"t{i}.yaml").write_text("component_types:\n" + body)
+    files = ", ".join(f"t{i}.yaml" for i in range(6))
+    (tmp_path / "m.yaml").write_text(f"system: s\ntypes: [{files}]\ncomponents: {{a: Camera}}\n")
+    proc = gpucompgen("check", "m.yaml", cwd=tmp_path)
+    assert proc.returncode == 1
+    assert "error: the model's type files come to " in proc.stderr
+    assert "bytes with 't5.yaml'; at most 1,048,576 are allowed" in proc.stderr
+
+
 # ---------------------------------------------------------------- user code
 
 def test_user_code_is_never_run_by_check_or_build(project):

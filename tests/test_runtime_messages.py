@@ -8,6 +8,7 @@ import os
 import shutil
 import subprocess
 import sys
+import textwrap
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -260,3 +261,36 @@ def test_fitting_block_keeps_what_fits_and_halves_the_largest():
     assert fitting_block((2048, 1, 1), 1024, (1024, 1024, 64)) == (1024, 1, 1)
     assert fitting_block((100, 100, 1), 1000, (1024, 1024, 64)) == (25, 25, 1)
     assert fitting_block((7,), 4, (1024,)) == (3,)
+
+
+@pytest.mark.parametrize("where,message", [
+    ("folder", "--stats-json {tmp}: is a folder; name a file"),
+    ("missing", "--stats-json {tmp}/no/s.json: folder {tmp}/no does not exist"),
+])
+def test_a_stats_file_that_cannot_be_written_is_a_usage_error_before_the_run(tmp_path, where,
+                                                                             message):
+    target = tmp_path if where == "folder" else tmp_path / "no" / "s.json"
+    proc = subprocess.run([sys.executable, str(ROOT / "generated" / "vision_system.py"),
+                           "--frames", "2", "--stats-json", str(target)],
+                          capture_output=True, text=True, timeout=120, check=False)
+    assert proc.returncode == 2
+    assert message.format(tmp=tmp_path) in proc.stderr
+    assert "frame 0" not in proc.stdout, "nothing ran"
+
+
+def test_stats_that_fail_to_be_written_after_the_run_fail_the_run(tmp_path):
+    """The folder checked before the run can still go away during it: exit 1, not 0."""
+    require_opencl()
+    proc = subprocess.run([sys.executable, "-c", textwrap.dedent(f"""\
+        import sys
+        from gpucompgen.runtime import monitor
+        real = monitor.Monitor.write_stats
+        def write(self, path):
+            real(self, path / "x" / "y")  # a path whose folder does not exist
+        monitor.Monitor.write_stats = write
+        sys.argv = ["p", "--frames", "1", "-q", "--stats-json", {str(tmp_path / 'ok.json')!r}]
+        import runpy
+        runpy.run_path({str(ROOT / 'generated' / 'vision_system.py')!r}, run_name="__main__")
+        """)], capture_output=True, text=True, timeout=120, check=False, cwd=ROOT)
+    assert proc.returncode == 1, proc.stderr
+    assert "error: cannot write stats to " in proc.stderr

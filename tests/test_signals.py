@@ -265,7 +265,7 @@ def test_gpucompgen_run_names_the_signal_a_program_died_of(tmp_path, signum):
     assert (f"gpucompgen run: error: the program was killed by signal {name} ({signum})"
             in proc.stderr)
     if signum in (signal.SIGSEGV, signal.SIGBUS):
-        assert "out of bounds" in proc.stderr and "README" in proc.stderr
+        assert "out of bounds" in proc.stderr and "docs/runtime.md" in proc.stderr
     if signum == signal.SIGKILL:
         assert "out-of-memory" in proc.stderr
 

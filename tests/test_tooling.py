@@ -42,7 +42,7 @@ def test_check_fails_after_a_model_edit_and_diff_writes_nothing(tmp_path):
     assert proc.returncode == 1
     assert "is stale" in proc.stderr
     assert "--- a/vision_system.py\n+++ b/vision_system.py\n" in proc.stdout
-    # merger and detector run fused: the parameter is an argument of the group's kernel
+    # the detector runs in the fused merger_detector group: its parameter is a kernel argument
     assert "-                np.int32(150),  # detector_red_min\n" in proc.stdout
     assert "+                np.int32(140),  # detector_red_min\n" in proc.stdout
 
@@ -88,9 +88,14 @@ def test_graph_shows_the_three_generated_adapters_and_sizes():
     assert '"camera1" -> "adapter1_cpu2gpu" [label="480x640x3 uint8"' in text
     assert '"adapter1_cpu2gpu" -> "merger" [label="480x640x3 uint8", headlabel="left [GPU]"]' \
         in text
-    # merger and detector are fused: drawn in their group's cluster, joined by no buffer
+    # fused (the default): the group is a cluster and the edge inside it carries no buffer
+    assert 'subgraph "cluster_merger_detector" {' in text
     assert '"merger" -> "detector" [style=dashed, label="fused", taillabel="merged [GPU]", ' \
            'headlabel="frame [GPU]"]' in text
+    unfused = dot_text(compile_model(VISION, ROOT / "generated", fusion="off").system)
+    assert "cluster" not in unfused
+    assert '"merger" -> "detector" [label="480x1280x3 uint8", taillabel="merged [GPU]", ' \
+           'headlabel="frame [GPU]"]' in unfused
     assert '"merger" [label="merger\\nImageMerger\\nGPU-aware", peripheries=2' in text
     assert text == dot_text(compile_model(VISION, ROOT / "generated").system)
 
@@ -141,9 +146,9 @@ def test_stats_json_has_the_promised_fields(tmp_path):
     assert doc["frames"] == 3
     assert len(doc["frame_seconds"]) == 3 and all(t > 0 for t in doc["frame_seconds"])
     assert doc["wall_seconds"] > 0 and doc["frames_per_second"] > 0
-    assert list(doc["components"]) == [
+    assert list(doc["components"]) == [  # merger and detector run as one fused group
         "camera1", "camera2", "adapter1_cpu2gpu", "adapter2_cpu2gpu", "merger_detector",
-        "adapter3_gpu2cpu", "manager"]  # merger and detector fused: one part
+        "adapter3_gpu2cpu", "manager"]
     for name, c in doc["components"].items():
         assert set(c) == {"calls", "total_seconds", "mean_seconds", "max_seconds"}, name
         assert c["calls"] == 3 and c["max_seconds"] <= c["total_seconds"], name

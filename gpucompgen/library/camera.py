@@ -24,6 +24,7 @@ from gpucompgen.runtime import PipelineError, Size
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".ppm", ".bmp")
 NOISE_FIELDS = 4  # pre-rendered noise fields, cycled, so a frame costs little CPU
+RED = np.array((210, 30, 35), np.int16)  # a buoy's colour, before noise
 
 
 @dataclass(frozen=True)
@@ -43,6 +44,7 @@ class Camera:
         self.capture = None
         self.background = None
         self.noise: list[np.ndarray] = []
+        self.water: list[np.ndarray] = []
 
     # -- the component interface ------------------------------------------------------
     def initialize(self) -> Size:
@@ -62,6 +64,9 @@ class Camera:
             self.background = bg
             self.noise = [rng.integers(-12, 13, size=bg.shape, dtype=np.int16)
                           for _ in range(NOISE_FIELDS)]
+            # the water of each noise field, rendered once: a frame is a copy of one with
+            # the buoys drawn on it (the same bytes as adding and clipping every frame)
+            self.water = [np.clip(bg + noise, 0, 255).astype(np.uint8) for noise in self.noise]
         return Size(self.height, self.width, 3)
 
     def execute(self) -> np.ndarray | None:
@@ -84,6 +89,7 @@ class Camera:
     def free_memory(self) -> None:
         self.background = None
         self.noise = []
+        self.water = []
         if self.capture is not None:
             capture, self.capture = self.capture, None
             capture.release()
@@ -129,15 +135,15 @@ class Camera:
     def render(self, frame: int) -> np.ndarray:
         if self.background is None:
             raise PipelineError("execute() before initialize()")
-        img = self.background + self.noise[frame % NOISE_FIELDS]
+        img = self.water[frame % NOISE_FIELDS].copy()
         for b in self.ground_truth(frame):
             y0, y1 = b.y - b.radius, b.y + b.radius + 1
             x0, x1 = b.x - b.radius, b.x + b.radius + 1
             yy, xx = np.ogrid[y0:y1, x0:x1]
             disk = (yy - b.y) ** 2 + (xx - b.x) ** 2 <= b.radius ** 2
-            patch = img[y0:y1, x0:x1]
-            patch[disk] = (210, 30, 35) + self.noise[(frame + 1) % NOISE_FIELDS][y0:y1, x0:x1][disk]
-        return np.clip(img, 0, 255).astype(np.uint8)
+            red = np.clip(RED + self.noise[(frame + 1) % NOISE_FIELDS][y0:y1, x0:x1], 0, 255)
+            np.copyto(img[y0:y1, x0:x1], red, casting="unsafe", where=disk[..., None])
+        return img
 
     # -- real inputs ------------------------------------------------------------------
     @staticmethod

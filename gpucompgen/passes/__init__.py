@@ -8,6 +8,7 @@
     allocate_gpu        each GPU component's tile and work-group, within the thread budget
     name_variables      the variable of every port in generated code
     assign_queues       queues (lanes) and waits of GPU commands
+    stage_frames        frames in flight: the stages, one thread each, and the buffer sets
     lower               the ProgramPlan the backend prints
 
 ``pipeline`` runs them (``gpucompgen build --print-between-passes`` dumps the IR after each).

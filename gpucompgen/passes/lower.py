@@ -12,6 +12,7 @@ from __future__ import annotations
 import ast
 import copy
 import math
+from dataclasses import replace
 
 from ..backend.opencl.convention import PARAM_C_TYPES, group_parameters, kernel_parameters
 from ..ir import AdapterNode, ComponentNode, GroupNode, System
@@ -19,6 +20,7 @@ from ..model import DTYPES, ComponentType, Endpoint
 from ..plan import (
     Argument,
     Buffer,
+    FlightStage,
     GroupPlan,
     KernelClass,
     Launch,
@@ -237,6 +239,12 @@ def lower(system: System) -> ProgramPlan:
 
     standard = system.mode == "standard"
     parallel = system.execution == "parallel"
+    n_sets = system.frames_in_flight
+
+    def sets(name: str) -> int:
+        return n_sets if name in system.buffer_sets else 1
+
+    pinned = system.staging == "pinned"
     parts, buffers, launches, transfers, steps = [], [], [], [], []
     sources = [n for n in system.order if isinstance(system.nodes[n], ComponentNode)
                and not system.nodes[n].inputs and not system.nodes[n].on_gpu]
@@ -255,14 +263,33 @@ def lower(system: System) -> ProgramPlan:
             cls = ("CpuToGpuAdapter" if node.direction == "cpu2gpu" else "GpuToCpuAdapter")
             if node.zero_copy:
                 cls = f"ZeroCopy{cls}"
+                if node.direction == "cpu2gpu" and sets(name) > 1:
+                    buffers.append(Buffer(name, "output", f"{name} ({node.source}) kept",
+                                          "host", data, sets(name)))
             else:
                 side = "device" if node.direction == "cpu2gpu" else "host"
-                buffers.append(Buffer(name, "output", f"{name} ({node.source})", side, data))
+                if side == "host" and pinned:
+                    side = "pinned host"
+                buffers.append(Buffer(name, "output", f"{name} ({node.source})", side, data,
+                                      sets(name)))
+                if node.direction == "cpu2gpu" and pinned:
+                    buffers.append(Buffer(name, "staging", f"{name} staging", "pinned host",
+                                          data, sets(name)))
             runs = ("copy" if not node.zero_copy else
                     "map" if node.direction == "gpu2cpu" else "in place")
             options = [("nbytes", data.nbytes)]
             if node.direction == "cpu2gpu" and not node.zero_copy:
                 options.append(("blocking", blocking))
+            if sets(name) > 1:
+                options.append(("buffer_sets", sets(name)))
+                if (node.zero_copy and node.direction == "gpu2cpu"
+                        and queue_of(name) == queue_of(
+                            system.writer(Endpoint(name, "input")).component)):
+                    # the in-order queue puts the unmap before the writer's next kernel; a
+                    # host wait would also wait for later frames' kernels queued before it
+                    options.append(("wait_unmap", False))
+            if pinned and not node.zero_copy:
+                options.append(("staging", "pinned"))
             parts.append(Part(name, "adapter", f"runtime.{cls}", runs=runs,
                               stage=system.stages[name], queue=queue_of(name),
                               options=tuple(options),
@@ -280,10 +307,11 @@ def lower(system: System) -> ProgramPlan:
         if node.on_gpu:
             device_ports = ({**node.inputs, **node.outputs} if standard else node.outputs)
             for p, port in device_ports.items():
-                buffers.append(Buffer(name, p, f"{name}.{p}", "device", port.data))
+                buffers.append(Buffer(name, p, f"{name}.{p}", "device", port.data, sets(name)))
             if standard:
                 for p, port in node.outputs.items():
-                    buffers.append(Buffer(name, p, f"{name}.{p} (host)", "host", port.data))
+                    buffers.append(Buffer(name, p, f"{name}.{p} (host)", "host", port.data,
+                                          sets(name)))
                 for p, port in node.inputs.items():
                     transfers.append(Transfer(name, "cpu2gpu", port.data))
                 for p, port in node.outputs.items():
@@ -291,6 +319,8 @@ def lower(system: System) -> ProgramPlan:
                 options.append(("copies_own_data", True))
             elif system.zero_copy:
                 options.append(("host_visible", True))
+            if sets(name) > 1:
+                options.append(("buffer_sets", sets(name)))
             launches.append(launch(system, node, programs[t.name]))
         else:
             for p, port in node.outputs.items():
@@ -381,4 +411,43 @@ def lower(system: System) -> ProgramPlan:
         concurrent=tuple((g, sum(resident_threads(system, n) for n in g))
                          for g in system.concurrent),
         lib_files={v: k for k, v in files.items()},
+        frames_in_flight=n_sets, stages=flight_stages(system, steps),
+        flight_notes=tuple(system.flight_notes), buffer_sets=tuple(system.buffer_sets.items()),
+        staging=system.staging, staging_reason=system.staging_reason,
         placement=tuple(system.placement.lines()) if system.placement else ())
+
+
+def flight_stages(system: System, steps: list[Step]) -> tuple[FlightStage, ...]:
+    """The stream loop's steps cut into the stages of stage-frames, with the variables each
+    takes from the stage before and hands to the stage after.
+
+    A step waits only for commands of its own stage: a stage hands a frame on once its
+    commands are complete.  The end of stream goes with the sources, in the first stage.
+    """
+    if not system.flight_stages:
+        return ()
+    where = {n: i for i, names in enumerate(system.flight_stages) for n in names}
+    per_stage: list[list[Step]] = [[] for _ in system.flight_stages]
+    reader = 0  # the stage of the last execute: an unmap follows its reader there
+    for s in steps:
+        i = 0 if s.kind == "end_of_stream" else reader if s.kind == "unmap" else where[s.part]
+        if s.kind == "execute":
+            reader = i
+        per_stage[i].append(replace(s, waits=tuple(w for w in s.waits if where[w] == i)))
+    made = [{v for s in st for v in s.outputs} for st in per_stage]
+    used = [{v for s in st for v in s.inputs if s.kind != "end_of_stream"} for st in per_stage]
+    order = [v for st in per_stage for s in st for v in s.outputs]  # first made first
+    stages, carried = [], []
+    for i, st in enumerate(per_stage):
+        later = set().union(*used[i + 1:])
+        inputs = tuple(carried)
+        have = set(carried) | made[i]
+        carried = [v for v in order if v in have and v in later]
+        names = system.flight_stages[i]
+        kinds = {"device" if (system.nodes[n].kind == "adapter" or system.nodes[n].on_gpu)
+                 else "CPU" for n in names}
+        runs = ("sources" if i == 0 and any(s.kind == "end_of_stream" for s in st) else
+                "CPU and device" if len(kinds) > 1 else kinds.pop())
+        stages.append(FlightStage(f"stage{i + 1}", tuple(names), tuple(st), inputs,
+                                  tuple(carried), tuple(system.flight_end_waits[i]), runs))
+    return tuple(stages)

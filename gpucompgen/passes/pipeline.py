@@ -1,7 +1,7 @@
 """The pipeline: every pass in order, verified after each when asked, dumped when asked.
 
     check-connections → check-port-types → schedule → propagate-sizes → place → insert-adapters
-    → fuse → allocate-gpu → name-variables → assign-queues → lower
+    → fuse → allocate-gpu → name-variables → assign-queues → stage-frames → lower
 """
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ from collections.abc import Callable
 
 from ..errors import GpucompgenError, Reporter, UsageError, did_you_mean
 from ..ir import MODES, System, build_system
-from ..model import EXECUTIONS, FUSION, ZERO_COPY, SystemModel
+from ..model import EXECUTIONS, FUSION, STAGING, ZERO_COPY, SystemModel
 from ..runtime.facts import DeviceFacts
 from .allocate_gpu import AllocateGpu
 from .assign_queues import AssignQueues
@@ -25,30 +25,36 @@ from .name_variables import NameVariables
 from .place import Place
 from .propagate_sizes import PropagateSizes
 from .schedule import Schedule
+from .stage_frames import StageFrames
 
 PIPELINE: tuple[Pass, ...] = (CheckConnections(), CheckPortTypes(), Schedule(),
                              PropagateSizes(), Place(), InsertAdapters(), Fuse(), AllocateGpu(),
-                             NameVariables(), AssignQueues(), Lower())
+                             NameVariables(), AssignQueues(), StageFrames(), Lower())
 
 
 def new_system(model: SystemModel, device: DeviceFacts, mode: str = "gpu-aware",
                execution: str | None = None, zero_copy: str | None = None,
-               places: dict[str, str] | None = None,
-               fusion: str | None = None) -> System:
-    """The IR of a model with its platform decisions (mode, execution, zero-copy, fusion)
-    taken.
+               places: dict[str, str] | None = None, frames_in_flight: int | None = None,
+               staging: str | None = None, fusion: str | None = None) -> System:
+    """The IR of a model with its platform decisions (mode, execution, zero-copy, fusion,
+    frames in flight, staging) taken.
 
-    execution ("parallel" | "sequential"), zero_copy ("auto" | "on" | "off") and fusion
-    ("auto" | "off") override the model's platform settings (the command line's
-    --execution, --zero-copy and --fusion); places (--place COMPONENT=gpu|cpu) overrides
-    flexible components' placements and raises UsageError for an unknown component or one
-    whose type cannot run on that side.
+    execution ("parallel" | "sequential"), zero_copy ("auto" | "on" | "off"), fusion
+    ("auto" | "off"), frames_in_flight (1 or more) and staging ("auto" | "pinned" |
+    "pageable") override the model's platform settings (the command line's --execution,
+    --zero-copy, --fusion, --frames-in-flight and --staging); places (--place
+    COMPONENT=gpu|cpu) overrides flexible components' placements and raises UsageError for
+    an unknown component or one whose type cannot run on that side.
     """
     execution = execution or model.execution
     zero_copy = zero_copy or model.zero_copy
-    if mode not in MODES or execution not in EXECUTIONS or zero_copy not in ZERO_COPY \
-            or (fusion or "auto") not in FUSION:
+    staging = staging or model.staging
+    frames_in_flight = frames_in_flight or model.frames_in_flight
+    if (mode not in MODES or execution not in EXECUTIONS or zero_copy not in ZERO_COPY
+            or staging not in STAGING or frames_in_flight < 1
+            or (fusion or "auto") not in FUSION):
         raise ValueError(f"mode {mode!r}, execution {execution!r}, zero_copy {zero_copy!r}, "
+                         f"staging {staging!r}, frames_in_flight {frames_in_flight!r}, "
                          f"fusion {fusion!r}")
     check_places(model, places or {})
     system = build_system(model, device, mode,
@@ -68,6 +74,18 @@ def new_system(model: SystemModel, device: DeviceFacts, mode: str = "gpu-aware",
     else:
         system.zero_copy = zero_copy == "on"
         system.zero_copy_reason = "forced by the model or the command line"
+    system.frames_in_flight = frames_in_flight
+    if mode == "standard":
+        system.staging, system.staging_reason = "pageable", "standard mode: no adapters"
+    elif system.zero_copy:
+        system.staging, system.staging_reason = "pageable", "zero-copy adapters copy nothing"
+    elif staging == "auto":
+        system.staging = "pageable" if device.host_unified_memory else "pinned"
+        system.staging_reason = (f"auto: device {'has' if device.host_unified_memory else 'has no'}"
+                                 " unified host memory")
+    else:
+        system.staging = staging
+        system.staging_reason = "forced by the model or the command line"
     return system
 
 
@@ -121,11 +139,11 @@ def run_pipeline(system: System, passes: tuple[Pass, ...] = PIPELINE,
 def run_passes(model: SystemModel, device: DeviceFacts, mode: str = "gpu-aware",
                dump: Callable[[str], None] | None = None, execution: str | None = None,
                zero_copy: str | None = None, verify: bool | None = None,
-               places: dict[str, str] | None = None,
-               fusion: str | None = None) -> tuple[System, list]:
+               places: dict[str, str] | None = None, frames_in_flight: int | None = None,
+               staging: str | None = None, fusion: str | None = None) -> tuple[System, list]:
     """Build the IR of a model and run every pass on it."""
-    return run_pipeline(new_system(model, device, mode, execution, zero_copy, places, fusion),
-                        PIPELINE, dump, verify)
+    return run_pipeline(new_system(model, device, mode, execution, zero_copy, places,
+                                   frames_in_flight, staging, fusion), PIPELINE, dump, verify)
 
 
 def passes_names() -> list[str]:

@@ -37,7 +37,7 @@ from ..model import Endpoint
 from .base import Pass
 
 EXHAUSTIVE_LIMIT = 16
-# The static estimate, used without a profile (documented in the README): a component
+# The static estimate, used without a profile (documented in docs/placement.md): a component
 # reads its inputs and writes its outputs once; numpy on the CPU moves about 1 GB/s
 # through a filter, a GPU kernel 20 GB/s after a 20 µs launch; a copy between memories
 # costs 10 µs plus its bytes at 6 GB/s (PCIe 3 x8 in practice).

@@ -13,6 +13,7 @@ pyopencl and numpy only. One module per concern:
     frames      shape and element type of frames crossing components
     lifecycle   size checks, user modules, failures named by component, freeing
     profiling   --profile: event times and bytes moved
+    pipeline    frames in flight: the stages of a stream, one thread each
     monitor     progress, --stats-json, runtime options
     signals     SIGINT and SIGTERM stop a run cleanly
     cli         the generated program's command line (main)
@@ -61,6 +62,7 @@ from .lifecycle import (
     model_path,
 )
 from .monitor import Monitor
+from .pipeline import FrameFailure, stream_in_flight
 from .profiling import Profile
 from .programs import build_program, quiet_compiler
 from .signals import _stop_on_signals
@@ -72,6 +74,7 @@ __all__ = [
     "CpuToGpuAdapter",
     "DeviceLimits",
     "DeviceStatus",
+    "FrameFailure",
     "GpuToCpuAdapter",
     "KernelComponent",
     "KernelLimits",
@@ -104,6 +107,7 @@ __all__ = [
     "probe_device",
     "quiet_compiler",
     "select_device",
+    "stream_in_flight",
     "survey_devices",
     "unusable_message",
 ]

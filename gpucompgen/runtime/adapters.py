@@ -35,23 +35,60 @@ class _Adapter:
                                 "were expected")
 
 
+def _pinned(context, queue, shape, dtype, flags):
+    """A pinned host array: a buffer the implementation allocates in page-locked host
+    memory (ALLOC_HOST_PTR), mapped once for the host.  Copies to and from it run at the
+    device's DMA speed; a pageable array is staged through such memory by the driver on
+    every copy.  Returns (buffer, mapped array)."""
+    import numpy as np
+    import pyopencl as cl
+
+    nbytes = int(np.prod(shape)) * np.dtype(dtype).itemsize
+    buffer = cl.Buffer(context, flags | cl.mem_flags.ALLOC_HOST_PTR, nbytes)
+    view, _ = cl.enqueue_map_buffer(queue, buffer, cl.map_flags.READ | cl.map_flags.WRITE, 0,
+                                    shape, np.dtype(dtype), is_blocking=True)
+    return buffer, view
+
+
+def _release_pinned(queue, pinned) -> None:
+    """Unmap and release pinned staging buffers without waiting: the unmap is queued behind
+    whatever the device still runs (a kernel that never ends must not keep free_all from
+    returning), and OpenCL releases the memory once its commands are done."""
+    for buffer, view in pinned:
+        view.base.release(queue)
+        buffer.release()
+
+
 class CpuToGpuAdapter(_Adapter):
-    """One device buffer, one copy a frame.
+    """One device buffer (per buffer set), one copy a frame.
 
     Not blocking (parallel execution): the copy's event keeps the host frame alive until
     the device has read it; blocking (sequential execution): the copy is done on return.
+    staging="pinned": the frame is first put in a pinned host array (a host copy), and
+    the device copies from there.  buffer_sets (frames in flight): the device reads set f
+    while the next frame is copied to set f + 1.
     """
 
-    def __init__(self, context, queue, nbytes: int, blocking: bool = True):
+    def __init__(self, context, queue, nbytes: int, blocking: bool = True,
+                 buffer_sets: int = 1, staging: str = "pageable"):
         super().__init__(context, queue, nbytes)
         self.blocking = blocking
-        self.buffer = None
+        self.buffer_sets, self.staging = buffer_sets, staging
+        self.buffers: list = []
+        self.pinned: list = []  # (buffer, mapped array) per set, with staging="pinned"
+        self.buffer = None  # the buffer of the last frame
+        self._turn = 0
 
     def initialize(self, size, dtype):
         import pyopencl as cl
 
         size = super().initialize(size, dtype)
-        self.buffer = cl.Buffer(self.context, cl.mem_flags.READ_ONLY, self.nbytes)
+        for _ in range(self.buffer_sets):
+            self.buffers.append(cl.Buffer(self.context, cl.mem_flags.READ_ONLY, self.nbytes))
+            if self.staging == "pinned":
+                self.pinned.append(_pinned(self.context, self.queue, size.shape, dtype,
+                                           cl.mem_flags.READ_WRITE))
+        self.buffer = self.buffers[0]
         return size
 
     def transfer(self, host, wait_for=None):
@@ -59,16 +96,26 @@ class CpuToGpuAdapter(_Adapter):
         import pyopencl as cl
 
         self._check(host)
-        self.event = cl.enqueue_copy(self.queue, self.buffer, np.ascontiguousarray(host),
+        k = self._turn
+        self._turn = (k + 1) % self.buffer_sets
+        self.buffer = self.buffers[k]
+        if self.pinned:
+            source = self.pinned[k][1]
+            np.copyto(source, np.reshape(host, source.shape), casting="no")
+        else:
+            source = np.ascontiguousarray(host)
+        self.event = cl.enqueue_copy(self.queue, self.buffer, source,
                                      is_blocking=self.blocking, wait_for=wait_for)
         if self.profile is not None:
             self.profile.copy(self, "cpu2gpu", self.event, self.nbytes)
         return self.buffer
 
     def free_memory(self):
-        if self.buffer is not None:
-            self.buffer.release()
-            self.buffer = None
+        pinned, self.pinned = self.pinned, []
+        _release_pinned(self.queue, pinned)
+        for buffer in self.buffers:
+            buffer.release()
+        self.buffers, self.buffer = [], None
 
 
 class ZeroCopyCpuToGpuAdapter(_Adapter):
@@ -77,18 +124,43 @@ class ZeroCopyCpuToGpuAdapter(_Adapter):
     A buffer made with USE_HOST_PTR over the frame is the frame: nothing is copied, and
     nothing is enqueued, so --profile shows no device time for it.  The frame must not
     change while the device reads it; the program finishes every frame before the next.
+    With buffer_sets (frames in flight) the producer makes its next frame while the
+    device still reads this one: the frame is kept in one of the adapter's own host
+    arrays (a host copy, no CPU-GPU copy), each wrapped once in a USE_HOST_PTR buffer.
     """
 
-    def __init__(self, context, queue, nbytes: int):
+    def __init__(self, context, queue, nbytes: int, buffer_sets: int = 1):
         super().__init__(context, queue, nbytes)
+        self.buffer_sets = buffer_sets
         self.buffer = None
         self.host = None
+        self.snapshots: list = []  # (host array, buffer over it) per set
+        self._turn = 0
+
+    def initialize(self, size, dtype):
+        import numpy as np
+        import pyopencl as cl
+
+        size = super().initialize(size, dtype)
+        if self.buffer_sets > 1:
+            for _ in range(self.buffer_sets):
+                host = np.empty(size.shape, dtype)
+                self.snapshots.append((host, cl.Buffer(
+                    self.context, cl.mem_flags.READ_ONLY | cl.mem_flags.USE_HOST_PTR,
+                    hostbuf=host)))
+        return size
 
     def transfer(self, host, wait_for=None):
         import numpy as np
         import pyopencl as cl
 
         self._check(host)
+        if self.snapshots:
+            k = self._turn
+            self._turn = (k + 1) % self.buffer_sets
+            self.host, self.buffer = self.snapshots[k]
+            np.copyto(self.host, np.reshape(host, self.host.shape), casting="no")
+            return self.buffer
         self.free_memory()  # the previous frame's buffer: its frame is complete
         self.host = np.ascontiguousarray(host)  # kept alive while the device reads it
         self.buffer = cl.Buffer(self.context,
@@ -97,36 +169,62 @@ class ZeroCopyCpuToGpuAdapter(_Adapter):
         return self.buffer
 
     def free_memory(self):
-        if self.buffer is not None:
+        if self.buffer is not None and not self.snapshots:
             self.buffer.release()
-            self.buffer = None
+        self.buffer = None
         self.host = None
+        snapshots, self.snapshots = self.snapshots, []
+        for _, buffer in snapshots:
+            buffer.release()
 
 
 class GpuToCpuAdapter(_Adapter):
-    """One host array, one blocking copy a frame (the host reads it next)."""
+    """One host array (per buffer set), one blocking copy a frame (the host reads it next).
 
-    def __init__(self, context, queue, nbytes: int):
+    staging="pinned": the host arrays are pinned (mapped ALLOC_HOST_PTR buffers), so the
+    device copies straight into them.  buffer_sets (frames in flight): the consumer reads
+    set f while the device copies the next frame into set f + 1.
+    """
+
+    def __init__(self, context, queue, nbytes: int, buffer_sets: int = 1,
+                 staging: str = "pageable"):
         super().__init__(context, queue, nbytes)
-        self.host = None
+        self.buffer_sets, self.staging = buffer_sets, staging
+        self.hosts: list = []
+        self.pinned: list = []
+        self.host = None  # the array of the last frame
+        self._turn = 0
 
     def initialize(self, size, dtype):
         import numpy as np
+        import pyopencl as cl
 
         size = super().initialize(size, dtype)
-        self.host = np.empty(size.shape, dtype)
+        for _ in range(self.buffer_sets):
+            if self.staging == "pinned":
+                self.pinned.append(_pinned(self.context, self.queue, size.shape, dtype,
+                                           cl.mem_flags.READ_WRITE))
+                self.hosts.append(self.pinned[-1][1])
+            else:
+                self.hosts.append(np.empty(size.shape, dtype))
+        self.host = self.hosts[0]
         return size
 
     def transfer(self, buffer, wait_for=None):
         import pyopencl as cl
 
+        k = self._turn
+        self._turn = (k + 1) % self.buffer_sets
+        self.host = self.hosts[k]
         self.event = cl.enqueue_copy(self.queue, self.host, buffer, wait_for=wait_for)
         if self.profile is not None:
             self.profile.copy(self, "gpu2cpu", self.event, self.nbytes)
         return self.host
 
     def free_memory(self):
-        self.host = None
+        self.hosts, self.host = [], None
+        pinned, self.pinned = self.pinned, []
+        _release_pinned(self.queue, pinned)
 
 
 class ZeroCopyGpuToCpuAdapter(_Adapter):
@@ -135,33 +233,51 @@ class ZeroCopyGpuToCpuAdapter(_Adapter):
     transfer() maps the buffer for reading (blocking: the device has finished writing it)
     and returns the mapped view; unmap() gives the buffer back to the device and must come
     before the device writes it again (OpenCL's mapping rule).  A consumer that keeps data
-    past its execute() copies it, as with any adapter's output.
+    past its execute() copies it, as with any adapter's output.  With buffer_sets (frames
+    in flight) up to that many frames' buffers are mapped at once (the producer writes
+    one set per frame); unmap() gives back the oldest.  wait_unmap=False (frames in flight,
+    where the buffer's writer uses this adapter's in-order queue): unmap() enqueues the
+    unmap without waiting for it; the queue runs it before the writer's next kernel, and a
+    wait would also wait for the kernels of later frames queued before it.
     """
 
-    def __init__(self, context, queue, nbytes: int):
+    def __init__(self, context, queue, nbytes: int, buffer_sets: int = 1,
+                 wait_unmap: bool = True):
+        from collections import deque
+
         super().__init__(context, queue, nbytes)
-        self.view = None
+        self.buffer_sets = buffer_sets
+        self.wait_unmap = wait_unmap
+        self.views = deque()  # mapped, oldest first
+
+    @property
+    def view(self):
+        """The view of the last frame mapped (None when every buffer is unmapped)."""
+        return self.views[-1] if self.views else None
 
     def transfer(self, buffer, wait_for=None):
         import numpy as np
         import pyopencl as cl
 
-        if self.view is not None:
+        if len(self.views) >= self.buffer_sets:
             raise PipelineError("buffer mapped twice: unmap() was not called")
-        self.view, self.event = cl.enqueue_map_buffer(
+        view, self.event = cl.enqueue_map_buffer(
             self.queue, buffer, cl.map_flags.READ, 0, self.shape, np.dtype(self.dtype),
             is_blocking=True, wait_for=wait_for)
+        self.views.append(view)
         if self.profile is not None:
             self.profile.mapping(self, "map", self.event)
-        return self.view
+        return view
 
     def unmap(self):
-        if self.view is not None:
-            event = self.view.base.release(self.queue)
-            event.wait()
-            self.view = None
+        if self.views:
+            view = self.views.popleft()
+            event = view.base.release(self.queue)
+            if self.wait_unmap:
+                event.wait()
             if self.profile is not None:
                 self.profile.mapping(self, "unmap", event)
 
     def free_memory(self):
-        self.unmap()
+        while self.views:
+            self.unmap()

@@ -10,6 +10,7 @@ import sys
 import threading
 import traceback
 from collections.abc import Callable
+from pathlib import Path
 
 from .errors import PipelineError, Stopped
 from .lifecycle import Result
@@ -36,6 +37,18 @@ def add_program_options(parser: argparse.ArgumentParser) -> None:
                              "count the bytes moved between CPU and GPU (printed at the end)")
 
 
+def output_file_problem(path: Path) -> str:
+    """Why a file could not be written there, or '' (the folder exists, the path is not one)."""
+    if path.is_dir():
+        return "is a folder; name a file"
+    folder = path.parent
+    if not folder.is_dir():
+        return f"folder {folder} does not exist"
+    if not os.access(folder, os.W_OK):
+        return f"folder {folder} is not writable"
+    return ""
+
+
 def main(run: Callable[..., Result], description: str, argv: list[str] | None = None) -> int:
     """Command line of a generated program: run it, print errors without tracebacks.
 
@@ -53,6 +66,10 @@ def main(run: Callable[..., Result], description: str, argv: list[str] | None = 
     args = parser.parse_args(argv)
     if args.frames is not None and args.frames < 0:
         parser.error("--frames must be 0 or more")
+    if args.stats_json is not None:  # found out before the run, not after it
+        problem = output_file_problem(Path(args.stats_json))
+        if problem:
+            parser.error(f"--stats-json {args.stats_json}: {problem}")
     monitor = Monitor(progress=False if args.quiet else None, stats_path=args.stats_json,
                       options={"decisions": args.decisions, "save_images": args.save_images,
                                "quiet": args.quiet})
@@ -93,7 +110,7 @@ def main(run: Callable[..., Result], description: str, argv: list[str] | None = 
         print(result.profile.report(result.frames), file=sys.stderr)
     if not args.quiet:
         print(f"processed {result.frames} frame(s)", file=sys.stderr)
-    return 0
+    return 1 if monitor.stats_failed else 0
 
 
 def _exit_now_if_something_would_wait(monitor: Monitor, code: int) -> None:

@@ -22,15 +22,21 @@ class KernelComponent:
     outputs: ClassVar[tuple[tuple[str, Any], ...]] = ()
 
     def __init__(self, context, queue, program, *, copies_own_data: bool = False,
-                 host_visible: bool = False, **params: Any):
+                 host_visible: bool = False, buffer_sets: int = 1, **params: Any):
         """copies_own_data: a standard component (paper, Section II) that copies its inputs
         to the device and its outputs back itself on every execute; host_visible: outputs
-        in host-visible memory, so a zero-copy adapter can map them."""
+        in host-visible memory, so a zero-copy adapter can map them; buffer_sets: with
+        frames in flight, one set of buffers per frame in flight, used in turn (another
+        stage reads set f while this one writes set f + 1)."""
         import pyopencl as cl
 
         self.context = context
         self.queue = queue
-        self.kernel = cl.Kernel(program, self.function)
+        self.buffer_sets = buffer_sets
+        # one kernel object per buffer set: arguments that do not change from frame to
+        # frame are set once per set, not once per launch
+        self.kernels = [cl.Kernel(program, self.function) for _ in range(buffer_sets)]
+        self.kernel = self.kernels[0]
         self.copies_own_data = copies_own_data
         self.host_visible = host_visible
         self.profile = None  # a runtime.Profile with --profile
@@ -39,8 +45,18 @@ class KernelComponent:
             setattr(self, name, value)
         self._inputs, self._outputs = dict(self.inputs), dict(self.outputs)
         self.sizes: dict[str, Size] = {}
-        self.buffers: dict[str, Any] = {}  # device buffers by port
-        self.hosts: dict[str, Any] = {}  # host arrays of outputs (copies_own_data)
+        self.sets: list[dict[str, Any]] = []  # device buffers by port, per set
+        self.host_sets: list[dict[str, Any]] = []  # host arrays of outputs (copies_own_data)
+        self._turn = 0  # the set the next execute() uses
+
+    @property
+    def buffers(self) -> dict[str, Any]:
+        """The device buffers of the first set, by port."""
+        return self.sets[0] if self.sets else {}
+
+    @property
+    def hosts(self) -> dict[str, Any]:
+        return self.host_sets[0] if self.host_sets else {}
 
     def output_sizes(self, *inputs: Size) -> list[Size]:
         raise NotImplementedError
@@ -56,19 +72,23 @@ class KernelComponent:
         for port, size in zip(self._outputs, out_sizes):
             self.sizes[port] = size
         mf = cl.mem_flags
-        if self.copies_own_data:
-            for port, dtype in self._inputs.items():
-                self.buffers[port] = cl.Buffer(self.context, mf.READ_ONLY,
-                                               self.sizes[port].nbytes(dtype))
-            for port, dtype in self._outputs.items():
-                self.buffers[port] = cl.Buffer(self.context, mf.WRITE_ONLY,
-                                               self.sizes[port].nbytes(dtype))
-                self.hosts[port] = np.empty(self.sizes[port].shape, dtype)
-        else:
-            flags = mf.READ_WRITE | (mf.ALLOC_HOST_PTR if self.host_visible else 0)
-            for port, dtype in self._outputs.items():
-                self.buffers[port] = cl.Buffer(self.context, flags,
-                                               self.sizes[port].nbytes(dtype))
+        for _ in range(self.buffer_sets):
+            buffers, hosts = {}, {}
+            if self.copies_own_data:
+                for port, dtype in self._inputs.items():
+                    buffers[port] = cl.Buffer(self.context, mf.READ_ONLY,
+                                              self.sizes[port].nbytes(dtype))
+                for port, dtype in self._outputs.items():
+                    buffers[port] = cl.Buffer(self.context, mf.WRITE_ONLY,
+                                              self.sizes[port].nbytes(dtype))
+                    hosts[port] = np.empty(self.sizes[port].shape, dtype)
+            else:
+                flags = mf.READ_WRITE | (mf.ALLOC_HOST_PTR if self.host_visible else 0)
+                for port, dtype in self._outputs.items():
+                    buffers[port] = cl.Buffer(self.context, flags,
+                                              self.sizes[port].nbytes(dtype))
+            self.sets.append(buffers)
+            self.host_sets.append(hosts)
         return out_sizes[0] if len(out_sizes) == 1 else tuple(out_sizes)
 
     def config_gpu(self, tile: int, local_size: tuple[int, int, int],
@@ -81,51 +101,83 @@ class KernelComponent:
         self.arguments = list(arguments)
         inputs = [port for port, _ in self.inputs]
         self._slots = []  # (argument index, input index) filled in by execute()
+        self._argument_sets = []  # per set: the arguments with its own buffers in place
+        for buffers in self.sets:
+            args = list(arguments)
+            for i, arg in enumerate(args):
+                if isinstance(arg, str) and arg in buffers:
+                    args[i] = buffers[arg]
+            self._argument_sets.append(args)
         for i, arg in enumerate(self.arguments):
             if isinstance(arg, str):
                 if arg in self.buffers:
                     self.arguments[i] = self.buffers[arg]
                 else:
                     self._slots.append((i, inputs.index(arg)))
+        self._bound: list[tuple | None] = [None] * self.buffer_sets  # inputs last set
+
+    def _kernel_for(self, k: int, inputs) -> Any:
+        """Set k's kernel with its arguments: all of them the first time, then only when
+        an input buffer differs from the one set last time (never, once producers keep
+        their buffers: the host cost of a launch is then the enqueue alone)."""
+        kernel = self.kernels[k]
+        given = tuple(inputs)
+        bound = self._bound[k]
+        if bound is None or len(bound) != len(given) or any(
+                a is not b for a, b in zip(bound, given)):
+            args = self._argument_sets[k]
+            if self.copies_own_data:
+                kernel.set_args(*args)
+            else:
+                for i, j in self._slots:
+                    args[i] = given[j]
+                kernel.set_args(*args)
+            self._bound[k] = given
+        return kernel
 
     def execute(self, *inputs, wait_for=None):
         import numpy as np
         import pyopencl as cl
 
+        k = self._turn
+        self._turn = (k + 1) % self.buffer_sets
+        buffers = self.sets[k]
         if self.copies_own_data:
-            copied_in = [cl.enqueue_copy(self.queue, self.buffers[port], np.ascontiguousarray(x))
+            hosts = self.host_sets[k]
+            copied_in = [cl.enqueue_copy(self.queue, buffers[port], np.ascontiguousarray(x))
                          for port, x in zip(self._inputs, inputs)]
-            self.kernel.set_args(*self.arguments)
-            ran = cl.enqueue_nd_range_kernel(self.queue, self.kernel, self.global_size,
+            kernel = self._kernel_for(k, ())
+            ran = cl.enqueue_nd_range_kernel(self.queue, kernel, self.global_size,
                                              self.local_size)
-            copied_out = [cl.enqueue_copy(self.queue, self.hosts[port], self.buffers[port])
+            copied_out = [cl.enqueue_copy(self.queue, hosts[port], buffers[port])
                           for port in self._outputs]
             if self.profile is not None:
                 for port, event in zip(self._inputs, copied_in):
-                    self.profile.copy(self, "cpu2gpu", event, self.buffers[port].size)
+                    self.profile.copy(self, "cpu2gpu", event, buffers[port].size)
                 self.profile.kernel(self, ran)
                 for port, event in zip(self._outputs, copied_out):
-                    self.profile.copy(self, "gpu2cpu", event, self.hosts[port].nbytes)
-            results = [self.hosts[port] for port in self._outputs]
+                    self.profile.copy(self, "gpu2cpu", event, hosts[port].nbytes)
+            results = [hosts[port] for port in self._outputs]
         else:
-            args = list(self.arguments)
-            for i, k in self._slots:
-                args[i] = inputs[k]
-            self.kernel.set_args(*args)
-            self.event = cl.enqueue_nd_range_kernel(self.queue, self.kernel, self.global_size,
+            kernel = self._kernel_for(k, inputs)
+            self.event = cl.enqueue_nd_range_kernel(self.queue, kernel, self.global_size,
                                                     self.local_size, wait_for=wait_for)
             if self.profile is not None:
                 self.profile.kernel(self, self.event)
-            results = [self.buffers[port] for port, _ in self.outputs]
+            results = [buffers[port] for port, _ in self.outputs]
         return results[0] if len(results) == 1 else tuple(results)
 
     def free_memory(self):
-        self.hosts.clear()
-        for port, _ in self.outputs + self.inputs:
-            buffer = self.buffers.pop(port, None)
-            if buffer is not None:
-                buffer.release()
+        for hosts in self.host_sets:
+            hosts.clear()
+        for buffers in self.sets:
+            for port, _ in self.outputs + self.inputs:
+                buffer = buffers.pop(port, None)
+                if buffer is not None:
+                    buffer.release()
+        self.sets, self.host_sets = [], []
         self.arguments = []
+        self._argument_sets = []
 
 
 def _check_work_group(kernel, device, local_size, component: str, settings_source: str):

@@ -10,6 +10,7 @@ from pathlib import Path
 from typing import Any, NamedTuple
 
 from .errors import PipelineError
+from .pipeline import FrameFailure
 from .profiling import Profile
 from .signals import freeing
 from .sizes import Size
@@ -145,8 +146,11 @@ def component_failure(exc: BaseException, frame: int | None,
 
     frame is None while the components are being constructed, initialized and
     configured; parts maps every planned name to its object, None until constructed, so
-    a constructor that raises is the first name still None.
+    a constructor that raises is the first name still None.  With frames in flight, the
+    stages' runner raises a FrameFailure that carries the frame the failing stage was on.
     """
+    if isinstance(exc, FrameFailure):
+        exc, frame = exc.exc, exc.frame
     # a check of what a part returned names that part (runtime.check_frame)
     who = failing_component(exc, parts) or getattr(exc, "component", None)
     when = "while initializing" if frame is None else f"at frame {frame}"

@@ -46,11 +46,14 @@ class Monitor:
             progress = hasattr(self.stream, "isatty") and self.stream.isatty()
         self.progress = progress
         self.stats_path = Path(stats_path) if stats_path else None
+        self.stats_failed = False  # --stats-json could not be written: exit 1
         self.options = dict(options or {})
         self.frames = 0
         self.parts: dict[str, Any] = {}
         self.calls: dict[str, list[float]] | None = None
         self.frame_seconds: list[float] = []
+        self.frames_in_flight = 1  # set by the stages' runner (runtime.pipeline)
+        self._latency_given = False  # frame_latency() measures frames, not the wrappers
         self._started = time.perf_counter()
         self._frame_start: float | None = None
         self._drawn = 0.0  # when the progress line was last drawn
@@ -100,6 +103,14 @@ class Monitor:
 
         return timed
 
+    def frame_latency(self, seconds: float) -> None:
+        """With frames in flight: the latency of the frame about to be reported done (start
+        of its sources to end of its last sink), measured by the stages' runner; frames
+        overlap, so the wrappers' first-call-of-the-frame clock cannot measure it."""
+        self._latency_given = True
+        if self.calls is not None:
+            self.frame_seconds.append(seconds)
+
     def request_stop(self, signum: int) -> None:
         """Ask the run to stop: the next frame_done() raises Stopped (runtime.main calls
         this on SIGINT and SIGTERM)."""
@@ -116,7 +127,9 @@ class Monitor:
             raise Stopped(self.stop_signal)
         if self.calls is not None or self.progress:
             now = time.perf_counter()
-            if self.calls is not None and self._frame_start is not None:
+            if self._latency_given:
+                self._frame_start = None
+            elif self.calls is not None and self._frame_start is not None:
                 self.frame_seconds.append(now - self._frame_start)
                 self._frame_start = None
             if self.progress and now - self._drawn >= 0.5:
@@ -149,8 +162,10 @@ class Monitor:
 
         frames: frames processed; wall_seconds: from the end of construction to the end of
         the run (initialize included); frames_per_second: frames / wall_seconds;
-        frame_seconds: per frame, from the first execute() or transfer() of the frame to its
-        end; components: per component and adapter, in run order, the calls made and the
+        frame_seconds: per frame, its latency: from the first execute() or transfer() of the
+        frame (its sources) to its end (its last sink); latency_seconds: their median, 95th
+        percentile, mean and max; frames_in_flight: frames the program worked on at the same
+        time (with 2 or more, frames overlap: frames/s rises, and so may latency); components: per component and adapter, in run order, the calls made and the
         total, mean and max seconds spent in execute() or transfer(). For a GPU-aware
         component that is the time to enqueue its kernel: the kernel's own time shows in
         the next blocking transfer (or with the OpenCL profiling events, not here).
@@ -168,6 +183,8 @@ class Monitor:
             "frames": self.frames,
             "wall_seconds": wall,
             "frames_per_second": self.frames / wall if wall > 0 else 0.0,
+            "frames_in_flight": self.frames_in_flight,
+            "latency_seconds": latency_summary(self.frame_seconds),
             "frame_seconds": list(self.frame_seconds),
             "components": components,
         }
@@ -176,4 +193,26 @@ class Monitor:
         try:
             path.write_text(json.dumps(self.stats(), indent=2) + "\n", encoding="utf-8")
         except OSError as exc:
+            self.stats_failed = True  # the run's exit code says so
             print(f"error: cannot write stats to {path}: {exc.strerror}", file=sys.stderr)
+
+
+def percentile(values: list[float], q: float) -> float:
+    """The q-th percentile (0..100) of values, linearly interpolated (numpy's default)."""
+    if not values:
+        return 0.0
+    ordered = sorted(values)
+    pos = (len(ordered) - 1) * q / 100
+    low = int(pos)
+    high = min(low + 1, len(ordered) - 1)
+    return ordered[low] + (ordered[high] - ordered[low]) * (pos - low)
+
+
+def latency_summary(seconds: list[float]) -> dict[str, float]:
+    """Median, 95th percentile, mean and max of per-frame latencies, in seconds."""
+    return {
+        "median": percentile(seconds, 50),
+        "p95": percentile(seconds, 95),
+        "mean": sum(seconds) / len(seconds) if seconds else 0.0,
+        "max": max(seconds, default=0.0),
+    }

@@ -103,6 +103,13 @@ def model_schema() -> dict[str, Any]:
                            "(default gpu); auto chooses for the least estimated time"),
         "profile": dict(TEXT, description="a profile file written by 'gpucompgen tune', "
                         "relative to this model"),
+        "frames_in_flight": dict(POSITIVE, maximum=model.MAX_FRAMES_IN_FLIGHT,
+                                 description="frames the program works on at the same time: "
+                                 "1 runs one frame at a time (default); 2 or more overlap "
+                                 "sources, device work and sinks of consecutive frames"),
+        "staging": _enum(model.STAGING, "how copying adapters stage host memory: pinned "
+                         "(ALLOC_HOST_PTR buffers, mapped) or pageable; auto is pinned when "
+                         "the device has no unified host memory (default)"),
         "fusion": _enum(model.FUSION, "auto: chains of fusable GPU components run as one "
                         "kernel (default); off: one kernel per component"),
     })
