@@ -128,7 +128,7 @@ def snippet_problems(value: str, form: str, inputs: list[str], outputs: list[str
                             "kernel, its memory accesses and its synchronisation")
         elif t in C_KEYWORDS:
             continue
-        elif prev in C_TYPES_WORDS or (prev == "," and _in_declaration(toks, i)):
+        elif prev in C_TYPES_WORDS or (prev in (",", "*") and _in_declaration(toks, i)):
             if t in known or t in inputs:
                 problems.append(f"local '{t}' hides a name the snippet is given")
             declared.add(t)

@@ -182,6 +182,10 @@ class GroupPlan:
     part: str
     members: tuple[tuple[str, str, str], ...]
     file: str
+    # the group's ports as the model names them: input port -> "member.port" it feeds,
+    # and every member's output -> its size ("" for the group's output: a buffer)
+    feeds: tuple[tuple[str, str], ...] = ()
+    outputs: tuple[tuple[str, str, bool], ...] = ()  # ("member.port", data, fused away)
 
 
 @dataclass
@@ -382,17 +386,32 @@ def _table(rows: list[tuple[str, ...]], right: tuple[int, ...] = ()) -> list[str
 def summary_lines(plan: ProgramPlan) -> list[str]:
     """What `gpucompgen check` prints about a checked system: components, adapters, sizes."""
     comps = [p for p in plan.parts if p.kind == "component"]
-    lines = [f"{len(comps)} component{'s' if len(comps) != 1 else ''}, in order: "
-             + ", ".join(f"{p.name} ({p.type_name}, {'GPU' if p.runs == 'GPU' else 'CPU'})"
-                         for p in comps)]
+    groups = {g.part: g for g in plan.groups}
+    named = {f"{g.part}.{port}": end for g in plan.groups for port, end in g.feeds}
+
+    def listed(p) -> str:
+        side = "GPU" if p.runs == "GPU" else "CPU"
+        g = groups.get(p.name)
+        if g is None:
+            return f"{p.name} ({p.type_name}, {side})"
+        return ", ".join(f"{m} ({t}, {side}, fused in {g.part})" for m, t, _ in g.members)
+
+    count = sum(len(groups[p.name].members) if p.name in groups else 1 for p in comps)
+    lines = [f"{count} component{'s' if count != 1 else ''}, in order: "
+             + ", ".join(listed(p) for p in comps)]
     adapters = [t for t in plan.transfers if t.source is not None]
     n = len(adapters)
     lines.append(f"{n} adapter{'s' if n != 1 else ''} will be inserted" + (":" if n else ""))
     for t in adapters:
-        lines.append(f"  {t.part}: {t.source} -> {', '.join(map(str, t.consumers))} "
+        lines.append(f"  {t.part}: {t.source} -> "
+                     f"{', '.join(named.get(str(c), str(c)) for c in t.consumers)} "
                      f"({t.data}, {t.nbytes:,} bytes a frame)")
     lines.append("sizes:")
     for p in comps:
+        if p.name in groups:
+            lines += [f"  {end}: {data}" + (" (fused: no buffer)" if gone else "")
+                      for end, data, gone in groups[p.name].outputs]
+            continue
         for _, port, size in sorted(p.init_outputs, key=lambda o: o[1]):
             data = next(b.data for b in plan.buffers if b.owner == p.name and b.port == port)
             lines.append(f"  {p.name}.{port}: {data}")

@@ -23,7 +23,7 @@ from conftest import ROOT, load_generated, require_opencl
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from gpucompgen import fusable
+from gpucompgen import fusable, sizeexpr
 from gpucompgen.build import compile_model, write
 from gpucompgen.errors import GpucompgenError
 from gpucompgen.library import cpu_kernels
@@ -43,14 +43,14 @@ def _module(model: Path, out: Path, **options):
 
 
 def _outputs(module, frames: int) -> list[np.ndarray]:
-    """Every array a CPU sink got (FrameSink, VisionManager, MaskWriter), in order; each a
-    copy."""
+    """Every array a CPU sink got (FrameSink, VisionManager, MaskWriter, the property
+    test's Keep_* sinks), in order; each a copy."""
     got: list[np.ndarray] = []
     patched = []
-    for cls_name in ("FrameSink", "VisionManager", "MaskWriter"):
-        cls = getattr(module, cls_name, None)
-        if cls is None:
-            continue
+    names = ["FrameSink", "VisionManager", "MaskWriter"]
+    names += [n for n in vars(module) if n.startswith("Keep_")]
+    classes = {id(c): c for c in (getattr(module, n, None) for n in names) if c is not None}
+    for cls in classes.values():
         original = cls.execute
 
         def spy(self, *data, _original=original):
@@ -301,66 +301,123 @@ def test_every_model_fused_and_unfused_give_the_same_bytes(tmp_path, model):
         assert np.array_equal(x, y)
 
 
+def _fusable_library() -> dict[str, object]:
+    """Every library type with a fusable form whose inputs are all GPU ports: the property
+    test draws from these, so a type that gains a form is tested without a change here."""
+    return {n: t for n, t in sorted(library_types().items())
+            if t.fusable is not None and t.inputs and all(
+                p.memory in ("gpu", "any") for p in t.inputs.values())}
+
+
+def test_every_fusable_library_type_has_a_numpy_reference():
+    fusable_types = _fusable_library()
+    assert {"VerticalMirror", "BoxBlur", "ImageMerger", "ObjectDetector"} <= set(fusable_types)
+    assert set(fusable_types) <= set(cpu_kernels.CPU_IMPLEMENTATIONS)
+
+
+def _kind(decl) -> tuple[str, int]:
+    return decl.dtype, decl.channels
+
+
+def _param_values(draw, ctype) -> dict:
+    """Parameters drawn in their declared ranges (long ranges cut to their low end, so
+    that sizes stay small); a parameter without a range keeps its default or takes a
+    small value."""
+    values = {}
+    for name, p in ctype.params.items():
+        if p.type == "int":
+            lo = int(p.minimum) if p.minimum is not None else 0
+            hi = int(p.maximum) if p.maximum is not None else lo + 15
+            values[name] = draw(st.integers(lo, hi if hi - lo <= 255 else lo + 15))
+        elif p.type == "float":
+            lo = p.minimum if p.minimum is not None else -3.0
+            hi = p.maximum if p.maximum is not None else 3.0
+            values[name] = draw(st.integers(0, 100)) / 100 * (hi - lo) + lo
+            values[name] = round(values[name], 2)
+        elif p.default is not None:
+            values[name] = p.default
+    return values
+
+
 @st.composite
 def fusable_systems(draw):
-    """A model of StillImage sources and VerticalMirror / BoxBlur / ImageMerger stages
-    (streams may be read by several stages and by FrameSinks), optionally ending in an
-    ObjectDetector and a VisionManager; with the numpy reference of every sink's input."""
+    """A model of StillImage sources and stages of the library's fusable types (streams
+    may be read by several stages and by sinks, stages may say 'fuse: false'), with the
+    numpy reference of every sink's input.  A stream of uint8x3 goes to a FrameSink, any
+    other to a Keep sink of its element type (written by the test)."""
+    fusable_types = _fusable_library()
     height = draw(st.integers(1, 9))
     comps = {}
     conns = []
-    streams = []  # (endpoint, reference array)
+    streams = []  # (endpoint, reference array, (dtype, channels))
     for i in range(draw(st.integers(1, 2))):
         w = draw(st.integers(1, 11))
         comps[f"src{i}"] = {"type": "StillImage",
                             "params": {"width": w, "height": height, "seed": i + 1}}
-        streams.append((f"src{i}.image", still_frame(w, height, i + 1)))
-    readers = {}
+        streams.append((f"src{i}.image", still_frame(w, height, i + 1), ("uint8", 3)))
+    readers = set()
     for i in range(draw(st.integers(1, 5))):
-        op = draw(st.sampled_from(["mirror", "blur", "merge"]))
-        pick = draw(st.integers(0, len(streams) - 1))
-        end, ref = streams[pick]
-        name = f"{op}{i}"
-        if op == "mirror":
-            comps[name] = {"type": "VerticalMirror"}
-            conns.append(f"{end} -> {name}.image")
-            out = (f"{name}.mirrored", cpu_kernels.vertical_mirror(ref))
-        elif op == "blur":
-            r = draw(st.integers(0, 2))
-            comps[name] = {"type": "BoxBlur", "params": {"radius": r}}
-            conns.append(f"{end} -> {name}.image")
-            out = (f"{name}.smooth", cpu_kernels.box_blur(ref, radius=r))
-        else:
-            end2, ref2 = streams[draw(st.integers(0, len(streams) - 1))]
-            comps[name] = {"type": "ImageMerger"}
-            conns += [f"{end} -> {name}.left", f"{end2} -> {name}.right"]
-            readers[end2] = True
-            out = (f"{name}.merged", cpu_kernels.image_merger(ref, ref2))
+        kinds = {s[2] for s in streams}
+        usable = [n for n, t in fusable_types.items()
+                  if all(_kind(p) in kinds for p in t.inputs.values())]
+        name = f"stage{i}"
+        tname = draw(st.sampled_from(usable))
+        ctype = fusable_types[tname]
+        feeds = []
+        for port in ctype.inputs.values():
+            fitting = [s for s in streams if s[2] == _kind(port)]
+            feeds.append(fitting[draw(st.integers(0, len(fitting) - 1))])
+        sizes = {p: ref.shape[:2] for p, (_, ref, _) in zip(ctype.inputs, feeds)}
+        params = _param_values(draw, ctype)
+        ints = {k: v for k, v in params.items() if ctype.params[k].type == "int"}
+        if not all(sizeexpr.evaluate(tree, sizes, ints) for tree, _ in ctype.requires):
+            continue  # the type's requirements fail for these inputs: no stage here
+        comps[name] = {"type": tname, "params": params}
         if draw(st.booleans()):
             comps[name]["fuse"] = draw(st.booleans())
-        readers[end] = True
-        streams.append(out)
+        for port, (end, _, _) in zip(ctype.inputs, feeds):
+            conns.append(f"{end} -> {name}.{port}")
+            readers.add(end)
+        (out_name, out_decl), = ctype.outputs.items()
+        ref = cpu_kernels.CPU_IMPLEMENTATIONS[tname](*(f[1] for f in feeds), **params)
+        streams.append((f"{name}.{out_name}", ref, _kind(out_decl)))
     expected = []
-    last_end, last_ref = streams[-1]
-    if draw(st.booleans()):
-        red_min, margin = draw(st.integers(0, 255)), draw(st.integers(0, 120))
-        comps["det"] = {"type": "ObjectDetector", "params": {"red_min": red_min,
-                                                             "margin": margin}}
-        comps["vm"] = {"type": "VisionManager", "params": {"print_decisions": False}}
-        conns += [f"{last_end} -> det.frame", "det.mask -> vm.mask"]
-        readers[last_end] = True
-        mask = cpu_kernels.object_detector(last_ref, red_min=red_min, margin=margin)
-    else:
-        mask = None
-    # every stream nobody reads (and some that are read) goes to a FrameSink
-    for j, (end, ref) in enumerate(streams):
+    # every stream nobody reads (and some that are read) goes to a sink
+    for j, (end, ref, kind) in enumerate(streams):
         if end not in readers or (not end.startswith("src") and draw(st.booleans())):
-            comps[f"sink{j}"] = {"type": "FrameSink"}
+            sink = "FrameSink" if kind == ("uint8", 3) else f"Keep_{kind[0]}x{kind[1]}"
+            comps[f"sink{j}"] = {"type": sink}
             conns.append(f"{end} -> sink{j}.image")
             expected.append(ref)
-    if mask is not None:
-        expected.append(mask)
     return comps, conns, expected
+
+
+KEEP_PY = '''class Keep:
+    """Sink of the property test: the test spies on execute."""
+
+    def initialize(self, image):
+        pass
+
+    def execute(self, image):
+        pass
+
+    def free_memory(self):
+        pass
+'''
+
+
+def _keep_types(comps: dict) -> dict:
+    """The Keep_<dtype>x<channels> sink types a drawn model uses."""
+    types = {}
+    for spec in comps.values():
+        if spec["type"].startswith("Keep_"):
+            dtype, channels = spec["type"][len("Keep_"):].split("x")
+            types[spec["type"]] = {
+                "kind": "standard", "description": "keeps nothing (test sink)",
+                "inputs": {"image": {"memory": "cpu", "dtype": dtype,
+                                     "channels": int(channels)}},
+                "python": {"file": "keep.py", "class": "Keep"}}
+    return types
 
 
 _modules: dict[str, object] = {}
@@ -378,8 +435,14 @@ def test_random_fusable_systems_fused_equals_unfused_equals_numpy(tmp_path_facto
     comps, conns, expected = system
     folder = tmp_path_factory.mktemp("fz")
     model = folder / "m.yaml"
-    model.write_text(yaml.safe_dump({"system": "fz", "components": comps,
-                                     "connections": conns}, sort_keys=False))
+    doc = {"system": "fz", "components": comps, "connections": conns}
+    keep = _keep_types(comps)
+    if keep:
+        (folder / "keep.py").write_text(KEEP_PY)
+        (folder / "keep.yaml").write_text(yaml.safe_dump({"component_types": keep}))
+        doc = {"system": "fz", "types": ["keep.yaml"], "components": comps,
+               "connections": conns}
+    model.write_text(yaml.safe_dump(doc, sort_keys=False))
     got = {}
     for fusion in ("auto", "off"):
         _, module = _module(model, folder / fusion, fusion=fusion, execution=execution,

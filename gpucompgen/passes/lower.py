@@ -409,7 +409,10 @@ def lower(system: System) -> ProgramPlan:
         kernel_classes=tuple(kernel_class(t, files[lib_key(t)], groups.get(t.name))
                              for t in gpu_types),
         groups=tuple(GroupPlan(g.name, tuple((m.name, m.type.name, m.type.fusable.form)
-                                             for m in g.members), files[lib_key(g.type)])
+                                             for m in g.members), files[lib_key(g.type)],
+                               tuple((p, str(end)) for p, end in g.feeds.items()),
+                               tuple((f"{m.name}.{p}", str(port.data), m is not g.root)
+                                     for m in g.members for p, port in m.outputs.items()))
                      for g in system.groups),
         unfused=tuple(system.unfused.items()), fusion=system.fusion,
         parts=tuple(parts), buffers=tuple(buffers), launches=tuple(launches),
