@@ -332,7 +332,9 @@ def plan_lines(plan: ProgramPlan) -> list[str]:
         lines.append(f"thread budget: {plan.thread_budget:,} ({plan.thread_budget_source}); "
                      "GPU components that can run at the same time:")
         for group, threads in plan.concurrent:
-            lines.append(f"  {', '.join(group)}: {threads:,} threads")
+            lines += textwrap.wrap(f"{', '.join(group)}: {threads:,} threads", 88,
+                                   initial_indent="  ", subsequent_indent="    ",
+                                   break_on_hyphens=False)
     lines += fusion_lines(plan)
     if flight:
         lines += flight_lines(plan)

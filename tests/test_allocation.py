@@ -337,3 +337,38 @@ def test_block_shape_constraints_hold_when_fitting_and_sharing_the_budget(tmp_pa
     assert sum(_resident(system, n) for n in ("a", "b")) <= cap
     if budget == 300:  # 2 x (10 x 8 work-groups of tile 32) = 160 groups: 1 thread each
         assert [system.settings[n].block_x for n in ("a", "b")] == [1, 1]
+
+
+def test_many_parallel_branches_are_budgeted_as_one_group(tmp_path):
+    """k parallel branches of L GPU components have L^k groups that can run together
+    (8 branches of 4: 65,536); enumerating them all made build time explode. Past
+    MAX_CONCURRENT_GROUPS every GPU component counts as concurrent with every other."""
+    from gpucompgen.passes.allocate_gpu import MAX_CONCURRENT_GROUPS, resident_threads
+
+    lines = ["system: par", "platform: {fusion: off}", "components:",
+             "  src: {type: StillImage, params: {width: 16, height: 16}}"]
+    conns = []
+    for i in range(8):
+        prev = "src.image"
+        for j in range(4):
+            lines.append(f"  m{i}_{j}: VerticalMirror")
+            conns.append(f"  - {prev} -> m{i}_{j}.image")
+            prev = f"m{i}_{j}.mirrored"
+        lines.append(f"  s{i}: FrameSink")
+        conns.append(f"  - {prev} -> s{i}.image")
+    model = tmp_path / "par.yaml"
+    model.write_text("\n".join(lines + ["connections:"] + conns) + "\n")
+    system = compile_model(model, tmp_path / "out").system
+    assert 4 ** 8 > MAX_CONCURRENT_GROUPS
+    gpu = [n for n in system.order if n in system.settings]
+    assert len(gpu) == 32 and system.concurrent == [tuple(gpu)]
+    total = sum(resident_threads(system, n) for n in gpu)
+    assert total <= system.thread_budget
+    # below the cap the groups are listed exactly: 2 branches of 4 give 4 x 4 pairs
+    two = tmp_path / "two.yaml"
+    text = model.read_text()
+    two.write_text("\n".join(line for line in text.splitlines()
+                             if not any(f"m{i}_" in line or f"s{i}" in line
+                                        for i in range(2, 8))) + "\n")
+    system = compile_model(two, tmp_path / "out2").system
+    assert len(system.concurrent) == 16 and all(len(g) == 2 for g in system.concurrent)

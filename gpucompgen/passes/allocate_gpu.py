@@ -156,7 +156,11 @@ def concurrent_groups(system: System) -> list[tuple[str, ...]]:
     """Maximal groups of GPU-aware components with no path between any two of them.
 
     These are the maximal cliques of the 'no path either way' graph (Bron-Kerbosch with
-    a pivot); pipelines are small, so enumerating them is cheap.
+    a pivot); pipelines are small, so enumerating them is usually cheap.
+    Their number can grow exponentially with parallel branches (k branches of L
+    components: L^k groups), so enumeration stops after MAX_CONCURRENT_GROUPS: then every
+    GPU component is taken to run at the same time as every other, one group that
+    over-approximates them all (settings may come out smaller than needed, never too large).
     """
     gpu = [n for n in system.order if n in system.settings]
     below = descendants(system)
@@ -167,6 +171,8 @@ def concurrent_groups(system: System) -> list[tuple[str, ...]]:
     def expand(clique: set[str], cands: set[str], done: set[str]) -> None:
         if not cands and not done:
             groups.append(tuple(sorted(clique, key=system.order.index)))
+            if len(groups) > MAX_CONCURRENT_GROUPS:
+                raise _TooMany
             return
         pivot = max(cands | done, key=lambda n: (len(free[n] & cands), n))
         for n in sorted(cands - free[pivot]):
@@ -175,8 +181,18 @@ def concurrent_groups(system: System) -> list[tuple[str, ...]]:
             done = done | {n}
 
     if gpu:
-        expand(set(), set(gpu), set())
+        try:
+            expand(set(), set(gpu), set())
+        except _TooMany:
+            return [tuple(gpu)]
     return sorted(groups, key=lambda g: [system.order.index(n) for n in g])
+
+
+MAX_CONCURRENT_GROUPS = 64
+
+
+class _TooMany(Exception):
+    """More groups of concurrent components than are worth listing."""
 
 
 def descendants(system: System) -> dict[str, set[str]]:

@@ -389,9 +389,9 @@ def lower(system: System) -> ProgramPlan:
                             "" if t.python_class == t.name else t.name))
         else:
             user_classes.append(UserClass(t.name, files[lib_key(t)], t.python_class))
-    users = {t.name: ", ".join(n for n in system.order
-                               if isinstance(system.nodes[n], (ComponentNode, GroupNode))
-                               and system.nodes[n].type is t and system.nodes[n].on_gpu)
+    users = {t.name: _some([n for n in system.order
+                            if isinstance(system.nodes[n], (ComponentNode, GroupNode))
+                            and system.nodes[n].type is t and system.nodes[n].on_gpu])
              for t in gpu_types}
     groups = {g.type.name: g for g in system.groups}
     asked = model.thread_budget
@@ -462,3 +462,10 @@ def flight_stages(system: System, steps: list[Step]) -> tuple[FlightStage, ...]:
         stages.append(FlightStage(f"stage{i + 1}", tuple(names), tuple(st), inputs,
                                   tuple(carried), tuple(system.flight_end_waits[i]), runs))
     return tuple(stages)
+
+
+def _some(names: list[str], most: int = 3) -> str:
+    """Names for a message: all of a few, else the first ones and how many more."""
+    if len(names) <= most:
+        return ", ".join(names)
+    return f"{', '.join(names[:most])} and {len(names) - most} more"
