@@ -243,6 +243,10 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:  # `gpucompgen types | head`: the reader has all it wanted
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())  # so that exiting does not flush into it
+        return 0
     except Exception as exc:  # an internal error: a bug in gpucompgen
         if args.debug:
             traceback.print_exc()

@@ -153,3 +153,20 @@ def test_fusable_forms_are_listed_with_their_snippets(capsys):
     _, out, _ = run(capsys, "BoxBlur")
     text = " ".join(out.split())
     assert "fusable stencil; window radius radius, border clamp: const int n =" in text
+
+
+
+
+def test_a_reader_that_stops_early_is_not_an_internal_error():
+    """`gpucompgen types | head -1`: a closed pipe ends the command quietly."""
+    import os
+    import subprocess
+    import sys
+
+    read_end, write_end = os.pipe()
+    os.close(read_end)  # the reader is gone before anything is written
+    proc = subprocess.run([sys.executable, "-m", "gpucompgen", "types"], stdout=write_end,
+                          stderr=subprocess.PIPE, text=True, timeout=60, check=False)
+    os.close(write_end)
+    assert proc.returncode == 0, proc.stderr
+    assert "internal error" not in proc.stderr and "Traceback" not in proc.stderr
