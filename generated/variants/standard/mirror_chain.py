@@ -131,7 +131,7 @@ def run(frames=None, context=None, monitor=None, profile=False):
     })
     vertical_mirror_program = runtime.build_program(
         context, LIB_DIR / 'vertical_mirror.cl',
-        'mirror1, mirror2, mirror3, mirror4, mirror5 (VerticalMirror)')
+        'mirror1, mirror2, mirror3 and 2 more (VerticalMirror)')
 
     # every component and adapter, filled in as it is constructed; freed in reverse order
     parts = dict.fromkeys([
