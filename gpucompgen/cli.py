@@ -7,7 +7,9 @@ Exit codes as in black and datamodel-codegen: 0 ok, 1 problems found (or stale o
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -321,11 +323,30 @@ def cmd_run(args) -> int:
 
     # installed before the folder exists and kept until run_program forwards SIGTERM
     previous = signal.signal(signal.SIGTERM, stop_building)
+    tmp = None
     try:
-        with tempfile.TemporaryDirectory(prefix="gpucompgen-run-") as tmp:
-            return _build_and_run(args, Path(tmp))
+        # a signal arriving while the folder is made or removed waits until that is done
+        # (with TemporaryDirectory, a SIGINT inside its set-up or clean-up left the folder)
+        with _signals_held():
+            tmp = tempfile.mkdtemp(prefix="gpucompgen-run-")
+        return _build_and_run(args, Path(tmp))
     finally:
+        with _signals_held():
+            if tmp is not None:
+                shutil.rmtree(tmp, ignore_errors=True)
+        # a signal held above lands here: SIGINT as KeyboardInterrupt, SIGTERM in
+        # stop_building; both end the command with the folder gone
         signal.signal(signal.SIGTERM, previous)
+
+
+@contextlib.contextmanager
+def _signals_held():
+    """SIGINT and SIGTERM are delivered after the block, not inside it."""
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)
 
 
 def _build_and_run(args, out: Path) -> int:

@@ -79,10 +79,10 @@ def test_check_writes_nothing_and_exits_by_severity(tmp_path):
     assert proc.returncode == 0, proc.stderr
     assert "3 adapters will be inserted" in proc.stdout
     assert "adapter3_gpu2cpu: detector.mask -> manager.mask (480x1280x1 uint8" in proc.stdout
-    assert "merger_detector.mask: 480x1280x1 uint8" in proc.stdout  # fused: no merged buffer
-    assert "merger.merged" not in proc.stdout
-    assert "merger.merged: 480x1280x3 uint8" in _gpucompgen("check", MODEL, "--fusion", "off",
-                                                            cwd=tmp_path).stdout
+    # merger and detector are fused: the merged frame is never in memory, and check says so
+    assert "merger.merged: 480x1280x3 uint8 (fused: no buffer)" in proc.stdout
+    assert "merger.merged: 480x1280x3 uint8\n" in _gpucompgen("check", MODEL, "--fusion", "off",
+                                                              cwd=tmp_path).stdout
     assert list(tmp_path.iterdir()) == []
     warn = tmp_path / "w.yaml"
     warn.write_text(MODEL.read_text().replace("  - detector.mask -> manager.mask\n", "")
