@@ -111,3 +111,43 @@ def configure(comp, tile: int, bx: int, by: int, bz: int) -> None:
     grid = comp.sizes[ctype.grid]
     gx = bx if ctype.cover == "rows" else math.ceil(grid.width / tile) * bx
     comp.config_gpu(tile, (bx, by, bz), (gx, math.ceil(grid.height / tile) * by, bz), args)
+
+
+# Collectors for tests that build models: one standard type per element type and channel
+# count (Keep3, Keep1, KeepS3, KeepS1), one class for all, keeping a copy of every frame.
+KEEP_TYPES = "component_types:\n" + "".join(f"""
+  {name}:
+    kind: standard
+    description: Keeps a copy of every frame it gets.
+    inputs:
+      image: {{memory: cpu, dtype: {dtype}, channels: {channels}}}
+    python: {{file: keep.py, class: Keep}}
+""" for name, dtype, channels in (("Keep3", "uint8", 3), ("Keep1", "uint8", 1),
+                                  ("KeepS3", "int16", 3), ("KeepS1", "int16", 1)))
+KEEP_PY = """import numpy as np
+
+
+class Keep:
+    def __init__(self):
+        self.frames = []
+
+    def initialize(self, image):
+        self.size = image
+
+    def execute(self, image):
+        self.frames.append(np.array(image, copy=True))
+
+    def free_memory(self):
+        pass
+"""
+
+
+def write_keep_types(folder: Path) -> None:
+    """keep.yaml and keep.py in folder: a model there lists 'types: [keep.yaml]'."""
+    (folder / "keep.yaml").write_text(KEEP_TYPES)
+    (folder / "keep.py").write_text(KEEP_PY)
+
+
+def keep_type_for(port) -> str:
+    """The Keep type that takes what a port (a PortDecl) carries."""
+    return ("KeepS" if port.dtype == "int16" else "Keep") + str(port.channels)

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import ROOT, load_generated, require_opencl
+from conftest import ROOT, keep_type_for, load_generated, require_opencl, write_keep_types
 from test_imgproc import SPECS, imgproc_types, inputs_for
 
 from gpucompgen.library import cpu_kernels
@@ -200,33 +200,6 @@ CHAIN: dict[str, tuple[str, dict, tuple[str, ...]]] = {
 }
 ENDS = ["blur", "median", "erode", "dilate", "sobel", "reddil", "gblur", "gmedian", "gerode",
         "gsobel"]
-KEEP_TYPES = "component_types:\n" + "".join(f"""
-  {name}:
-    kind: standard
-    description: Keeps a copy of every frame it gets.
-    inputs:
-      image: {{memory: cpu, dtype: {dtype}, channels: {channels}}}
-    python: {{file: keep.py, class: Keep}}
-""" for name, dtype, channels in (("Keep3", "uint8", 3), ("Keep1", "uint8", 1),
-                                  ("KeepS3", "int16", 3), ("KeepS1", "int16", 1)))
-KEEP_PY = """import numpy as np
-
-
-class Keep:
-    def __init__(self):
-        self.frames = []
-
-    def initialize(self, image):
-        self.size = image
-
-    def execute(self, image):
-        self.frames.append(np.array(image, copy=True))
-
-    def free_memory(self):
-        pass
-"""
-
-
 def output_port(type_name: str) -> str:
     return next(iter(imgproc_types()[type_name].outputs))
 
@@ -245,7 +218,7 @@ def model_text(placement: str) -> str:
             connections.append(f"  - {source}.{out} -> {name}.{port}")
     for name in ENDS:
         (port,) = imgproc_types()[CHAIN[name][0]].outputs.values()
-        keep = ("KeepS" if port.dtype == "int16" else "Keep") + str(port.channels)
+        keep = keep_type_for(port)
         lines.append(f"  keep_{name}: {{type: {keep}}}")
         connections.append(f"  - {name}.{output_port(CHAIN[name][0])} -> keep_{name}.image")
     return "\n".join(lines + ["connections:"] + connections) + "\n"
@@ -258,8 +231,7 @@ def programs(tmp_path_factory, cl_context):
     from gpucompgen.build import compile_model, write
 
     folder = tmp_path_factory.mktemp("imgproc_fused")
-    (folder / "keep.yaml").write_text(KEEP_TYPES)
-    (folder / "keep.py").write_text(KEEP_PY)
+    write_keep_types(folder)
     found = {}
     for variant, placement, fusion in (("fused", "gpu", "auto"), ("unfused", "gpu", "off"),
                                        ("cpu", "cpu", "auto")):

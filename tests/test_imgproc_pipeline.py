@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import ROOT, load_generated, require_opencl
+from conftest import ROOT, keep_type_for, load_generated, require_opencl, write_keep_types
 from test_imgproc import SPECS, imgproc_types, largest_difference
 
 cv2 = pytest.importorskip("cv2")
@@ -70,39 +70,9 @@ CHAIN: dict[str, tuple[str, dict, tuple[str, ...]]] = {
     "ginv": ("ThresholdGray", {"thresh": 100, "maxval": 200, "thresh_type": 1}, ("gcrop",)),
 }
 
-# collectors: one standard type per element type and channel count, one class for all
-KEEP_TYPES = """
-component_types:
-""" + "".join(f"""
-  {name}:
-    kind: standard
-    description: Keeps a copy of every frame it gets.
-    inputs:
-      image: {{memory: cpu, dtype: {dtype}, channels: {channels}}}
-    python: {{file: keep.py, class: Keep}}
-""" for name, dtype, channels in (("Keep3", "uint8", 3), ("Keep1", "uint8", 1),
-                                  ("KeepS3", "int16", 3), ("KeepS1", "int16", 1)))
-KEEP_PY = """import numpy as np
-
-
-class Keep:
-    def __init__(self):
-        self.frames = []
-
-    def initialize(self, image):
-        self.size = image
-
-    def execute(self, image):
-        self.frames.append(np.array(image, copy=True))
-
-    def free_memory(self):
-        pass
-"""
-
-
 def keep_type(type_name: str) -> str:
     (port,) = imgproc_types()[type_name].outputs.values()
-    return ("KeepS" if port.dtype == "int16" else "Keep") + str(port.channels)
+    return keep_type_for(port)
 
 
 def model_text(placement: str) -> str:
@@ -135,8 +105,7 @@ def outputs(tmp_path_factory, cl_context):
     from gpucompgen.build import compile_model, write
 
     folder = tmp_path_factory.mktemp("imgproc_all")
-    (folder / "keep.yaml").write_text(KEEP_TYPES)
-    (folder / "keep.py").write_text(KEEP_PY)
+    write_keep_types(folder)
     found, placed = {}, {}
     for placement, places in (("gpu", None), ("cpu", None), ("mixed", MIXED)):
         model = folder / f"imgproc_{placement}.yaml"
