@@ -98,22 +98,13 @@ class KernelComponent:
         self.tile, self.local_size, self.global_size = tile, local_size, global_size
         _check_work_group(self.kernel, self.queue.device, local_size, type(self).__name__,
                           settings_source)
-        self.arguments = list(arguments)
         inputs = [port for port, _ in self.inputs]
-        self._slots = []  # (argument index, input index) filled in by execute()
-        self._argument_sets = []  # per set: the arguments with its own buffers in place
-        for buffers in self.sets:
-            args = list(arguments)
-            for i, arg in enumerate(args):
-                if isinstance(arg, str) and arg in buffers:
-                    args[i] = buffers[arg]
-            self._argument_sets.append(args)
-        for i, arg in enumerate(self.arguments):
-            if isinstance(arg, str):
-                if arg in self.buffers:
-                    self.arguments[i] = self.buffers[arg]
-                else:
-                    self._slots.append((i, inputs.index(arg)))
+        # (argument index, input index): filled in by execute() with the inputs it is given
+        self._slots = [(i, inputs.index(arg)) for i, arg in enumerate(arguments)
+                       if isinstance(arg, str) and arg not in self.buffers]
+        # per set: the arguments with that set's own buffers in place
+        self._argument_sets = [[buffers.get(arg, arg) if isinstance(arg, str) else arg
+                                for arg in arguments] for buffers in self.sets]
         self._bound: list[tuple | None] = [None] * self.buffer_sets  # inputs last set
 
     def _kernel_for(self, k: int, inputs) -> Any:
@@ -176,7 +167,6 @@ class KernelComponent:
                 if buffer is not None:
                     buffer.release()
         self.sets, self.host_sets = [], []
-        self.arguments = []
         self._argument_sets = []
 
 
