@@ -477,6 +477,8 @@ def cmd_check(args) -> int:
     from .plan import summary_lines
 
     result = _compile(args, Path("generated"))
+    for note in result.system.model.notes:
+        print(note.format(), file=sys.stderr)
     status = "ok" if not result.warnings else "ok with warnings"
     print(f"{args.model}: {status}: system '{result.system.name}'")
     for line in summary_lines(result.system.plan):
@@ -590,20 +592,27 @@ def cmd_schema(args) -> int:
 def cmd_types(args) -> int:
     """The types available (library, and the model's own with --model), or one in full."""
     from .errors import did_you_mean
-    from .model import library_types, load_system
+    from .model import LIBRARY_PREFIX, library_types, load_system
     from .typeinfo import details, listing
 
-    types = load_system(args.model).types if args.model else library_types()
-    if args.name is None:
+    library = library_types()
+    types = load_system(args.model).types if args.model else library
+    name = args.name
+    if name is not None and name.startswith(LIBRARY_PREFIX) and \
+            name[len(LIBRARY_PREFIX):] in library:
+        name = name[len(LIBRARY_PREFIX):]
+        types = library  # the library's type, even where a model's own one shadows it
+    if name is None:
         lines = listing(types)
-    elif args.name in types:
-        lines = details(types[args.name])
+    elif name in types:
+        lines = details(types[name])
     else:
         where = f"available to {args.model}" if args.model else "in the library"
-        hint = did_you_mean(args.name, types)
+        # the name as Python writes it: escape sequences and line breaks stay visible
+        hint = did_you_mean(name, types)
         if not args.model:
             hint += " (a model's own types are listed with --model MODEL)"
-        print(f"gpucompgen types: error: no component type '{args.name}' {where}\n"
+        print(f"gpucompgen types: error: no component type {name!r} {where}\n"
               f"  hint: {hint}", file=sys.stderr)
         return 1
     print("\n".join(lines))

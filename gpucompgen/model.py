@@ -223,6 +223,8 @@ class SystemModel:
     placement_pos: Pos | None = None
     profile: Path | None = None
     profile_pos: Pos | None = None
+    # things check says that are no problem: a user's type shadowing a library type
+    notes: list[Diagnostic] = field(default_factory=list)
 
 
 # --------------------------------------------------------------------------- helpers
@@ -992,6 +994,8 @@ CONNECTION_RE = re.compile(r"^\s*([^\s.]+)\.([^\s.]+)\s*->\s*([^\s.]+)\.([^\s.]+
 
 
 TYPE_FILE_SUFFIXES = (".yaml", ".yml")
+# a model names a library type shadowed by its own type of the same name as lib.Name
+LIBRARY_PREFIX = "lib."
 
 
 def _load_user_types(doc: Document, rep: Reporter, path: Path, display: str, i: int,
@@ -1091,7 +1095,9 @@ def load_system(path: Path, display: str | None = None) -> SystemModel:
                   f"at most {MAX_TYPE_FILES} are allowed", "put related types in one file")
         rep.raise_if_errors()
     types_failed = False  # a type file could not be read: its types are not "unknown"
+    library = dict(types)
     folded_types = {fold(t): t for t in types}
+    notes: list[Diagnostic] = []
     read: dict[Path, tuple[int, int]] = {}  # type file read -> (index in the list, bytes)
     for i, rel in enumerate(type_files):
         user = _load_user_types(doc, rep, path, display, i, rel, read)
@@ -1099,9 +1105,16 @@ def load_system(path: Path, display: str | None = None) -> SystemModel:
         user = user or {}
         for tname, ctype in user.items():
             clash = folded_types.get(fold(tname))
-            if clash is not None:
-                where = "by the library" if types[clash].origin == "library" else "elsewhere"
-                rep.error(ctype.pos, f"component type '{tname}' is already defined {where}"
+            if clash is not None and types[clash].origin == "library":
+                # The user's own type is the one their model gets: a type the library adds
+                # later never breaks a model that worked before.
+                del types[clash]
+                notes.append(Diagnostic(ctype.pos.file, ctype.pos.line, ctype.pos.col, "note",
+                                        f"component type '{tname}' shadows the library's "
+                                        f"'{clash}'", f"the model gets this file's '{tname}'; "
+                                        f"write '{LIBRARY_PREFIX}{clash}' for the library's"))
+            elif clash is not None:
+                rep.error(ctype.pos, f"component type '{tname}' is already defined elsewhere"
                           + ("" if clash == tname else f" as '{clash}'"),
                           "give your type another name (case and underscores do not count)")
                 continue
@@ -1192,10 +1205,6 @@ def load_system(path: Path, display: str | None = None) -> SystemModel:
                   "are allowed", "split it into several systems")
         rep.raise_if_errors()
     folded: dict[str, str] = {}
-    # a component is a variable of run(): it must not hide a class the program defines or
-    # imports (a GPU-aware type's own class, or a standard type's Python class)
-    class_names = {t.python_class or t.name: t.name for t in types.values()}
-    class_names.update({t.name: t.name for t in types.values()})
     for order, (cname, written) in enumerate(comps.items()):
         cpath = ("components", cname)
         problem = name_problem(cname, "component name", top_level=True)
@@ -1212,23 +1221,18 @@ def load_system(path: Path, display: str | None = None) -> SystemModel:
                             else written, f"component '{cname}'")
         _unknown_keys(doc, rep, cpath, cspec, INSTANCE_KEYS, f"component '{cname}'")
         tname = cspec.get("type")
-        if not _named(tname, types):
+        if isinstance(tname, str) and tname.startswith(LIBRARY_PREFIX) and \
+                tname[len(LIBRARY_PREFIX):] in library:
+            ctype = library[tname[len(LIBRARY_PREFIX):]]  # the library's, even if shadowed
+        elif not _named(tname, types):
             if types_failed and isinstance(tname, str):
                 continue
             rep.error(doc.pos(*cpath, "type") if "type" in cspec else doc.key_pos(*cpath),
                       f"unknown component type {tname!r} for '{cname}'",
                       did_you_mean(str(tname), types))
             continue
-        ctype = types[tname]
-        clash = class_names.get(cname)  # `Camera = Camera()` would shadow the class
-        if clash is not None:
-            rep.error(doc.key_pos(*cpath),
-                      f"component name '{cname}' collides with "
-                      + (f"component type '{clash}'" if clash == cname else
-                         f"the Python class of component type '{clash}'"),
-                      "the generated program uses type names as class names: name the "
-                      f"component after its role, e.g. '{snake(clash)}1'")
-            continue
+        else:
+            ctype = types[tname]
         params = _instance_params(doc, rep, cpath, ctype, cspec.get("params"))
         fuse = cspec.get("fuse", True)
         if not isinstance(fuse, bool):
@@ -1241,6 +1245,7 @@ def load_system(path: Path, display: str | None = None) -> SystemModel:
             where = placement_problem(rep, where_pos, cname, ctype, where)
         components[cname] = Instance(cname, ctype, params, doc.key_pos(*cpath), order,
                                      where, where_pos, fuse=fuse)
+    _check_class_names(doc, rep, components)
     for cname, (_, pos) in overrides.items():
         if cname not in components and cname in comps:
             continue
@@ -1277,10 +1282,44 @@ def load_system(path: Path, display: str | None = None) -> SystemModel:
                        staging=staging, platform_pos=doc.pos("platform"), fusion=fusion,
                        placement=placement, placement_pos=doc.pos("platform", "placement"),
                        profile=profile, profile_pos=doc.pos("platform", "profile"),
+                       notes=notes,
                        device_positions={k: (doc.key_pos("platform", "device", k),
                                              doc.pos("platform", "device", k))
                                          for k in (device if isinstance(device, dict) else {})
                                          if isinstance(k, str)})
+
+
+def _check_class_names(doc: Document, rep: Reporter, components: dict[str, Instance]) -> None:
+    """Names the generated program gives classes: those of the types the model uses.
+
+    A component is a variable of run(): it must not hide a class the program defines or
+    imports (a GPU-aware type's own class, or a standard type's Python class).  Only the
+    types used count, so a type the library adds can never collide with a model's names.
+    Two types used under names that differ only by case and underscores (the user's own
+    'AbsDiff' and the library's 'lib.AbsDiff') would be two classes of one name.
+    """
+    used: dict[str, ComponentType] = {}
+    for inst in components.values():
+        first = used.setdefault(fold(inst.type.name), inst.type)
+        if first is not inst.type:
+            rep.error(inst.pos, f"component '{inst.name}' uses the library's type "
+                      f"'{LIBRARY_PREFIX}{inst.type.name}' and the model also uses its own "
+                      f"'{first.name}'" if inst.type.origin == "library" else
+                      f"component '{inst.name}' uses the model's own type '{inst.type.name}' "
+                      f"and the model also uses the library's '{LIBRARY_PREFIX}{first.name}'",
+                      "the generated program names a class after each type: rename your own "
+                      "type to use both")
+    class_names = {t.python_class or t.name: t.name for t in used.values()}
+    class_names.update({t.name: t.name for t in used.values()})
+    for inst in components.values():
+        clash = class_names.get(inst.name)  # `Camera = Camera()` would shadow the class
+        if clash is not None:
+            rep.error(doc.key_pos("components", inst.name),
+                      f"component name '{inst.name}' collides with "
+                      + (f"component type '{clash}'" if clash == inst.name else
+                         f"the Python class of component type '{clash}'"),
+                      "the generated program uses type names as class names: name the "
+                      f"component after its role, e.g. '{snake(clash)}1'")
 
 
 def placement_problem(rep: Reporter, pos: Pos, cname: str, ctype: ComponentType,
