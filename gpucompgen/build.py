@@ -20,7 +20,7 @@ from pathlib import Path
 
 from . import device as device_mod
 from .backend.opencl.render import HEADER_PREFIX, OutputFile, render, source_path
-from .errors import Diagnostic, GpucompgenError, OutputError, Reporter
+from .errors import Diagnostic, OutputError, Reporter
 from .ir import MODES, System
 from .model import load_system
 from .passes import run_passes
@@ -82,6 +82,7 @@ def owned_paths(system_name: str, out_dir: Path) -> tuple[Path, Path]:
 
 def check_ownership(result: BuildResult, out_dir: Path) -> None:
     """Refuse to replace files that gpucompgen did not write."""
+    refuse_replacing_inputs(result, out_dir)  # never to be replaced, even with --overwrite
     program, lib = owned_paths(result.system.name, out_dir)
     foreign = []
     if program.exists() and not _generated(program):
@@ -91,11 +92,10 @@ def check_ownership(result: BuildResult, out_dir: Path) -> None:
             foreign.append(lib)
         else:
             foreign += [p for p in sorted(lib.rglob("*")) if p.is_file() and not _generated(p)]
-    if foreign:
-        raise GpucompgenError([Diagnostic(
-            str(foreign[0]), 0, 0, "error",
-            f"refusing to overwrite {len(foreign)} file(s) that gpucompgen did not generate",
-            "choose another output folder with -o, or pass --overwrite")])
+    if foreign:  # an output problem, a usage error (exit 2) like the others
+        raise OutputError(
+            f"{foreign[0]}: refusing to overwrite {len(foreign)} file(s) that gpucompgen did "
+            "not generate\n  hint: choose another output folder with -o, or pass --overwrite")
 
 
 def _generated(path: Path) -> bool:
@@ -154,6 +154,35 @@ def _running(pid: int) -> bool:
     return True
 
 
+def build_inputs(result: BuildResult) -> list[Path]:
+    """Every file the build reads (model.inputs: the model, type files, kernel, Python and
+    CPU files, the profile) and every path parameter, resolved."""
+    model = result.system.model
+    paths = list(model.inputs)
+    for inst in model.components.values():
+        for pname, value in inst.params.items():
+            decl = inst.type.params.get(pname)
+            if decl is not None and decl.type == "path" and isinstance(value, str) and value:
+                paths.append((model.file.parent / value).resolve())
+    return paths
+
+
+def refuse_replacing_inputs(result: BuildResult, out_dir: Path) -> None:
+    """A build replaces <system>.py and the whole <system>_lib/: refuse (a usage error)
+    when an input of the build is one of them or lies inside, whatever --overwrite says."""
+    program, lib = (p.resolve() for p in owned_paths(result.system.name, out_dir))
+    for path in build_inputs(result):
+        if path == program or path == lib or lib in path.parents:
+            try:
+                shown = os.path.relpath(path)
+            except ValueError:
+                shown = str(path)
+            raise OutputError(
+                f"building into {out_dir} would replace {shown}, an input of the build "
+                f"(the build owns {program.name} and {lib.name}/ there); choose another "
+                "output folder with -o, or move the file")
+
+
 def write(result: BuildResult, out_dir: Path) -> list[Path]:
     """Write all files, all or nothing: everything is staged first, then the lib folder and
     the program replace the old ones; if that fails, the old lib folder is put back.
@@ -162,6 +191,7 @@ def write(result: BuildResult, out_dir: Path) -> list[Path]:
     previous/, so no system name can make them collide."""
     name = result.system.name
     program, lib = owned_paths(name, out_dir)
+    refuse_replacing_inputs(result, out_dir)
     if out_dir.exists() and not out_dir.is_dir():
         raise OutputError(f"output folder {out_dir} is a file")
     if program.is_dir():
@@ -200,19 +230,83 @@ def write(result: BuildResult, out_dir: Path) -> list[Path]:
     return [out_dir / f.path for f in result.files]
 
 
+MAX_DIFF_FILE_BYTES = 1 << 20  # a file larger than this is compared, never shown line by line
+MAX_DIFF_LINES = 5000  # lines of diff printed at most (the rest are counted)
+
+
 def diff(result: BuildResult, out_dir: Path) -> str:
-    """Unified diff from what is in out_dir to what a build would write ('' when current)."""
+    """Unified diff from what is in out_dir to what a build would write ('' when current).
+
+    Files are compared by size, then streamed in blocks: whatever lies in the folder, no
+    more than MAX_DIFF_FILE_BYTES of one file is ever held in memory, a larger (or binary)
+    file is named with its size instead of shown, and the diff stops after MAX_DIFF_LINES
+    lines."""
     program, lib = owned_paths(result.system.name, out_dir)
-    wanted = {out_dir / f.path: f.text for f in result.files}
+    wanted = {out_dir / f.path: f.text.encode("utf-8") for f in result.files}
     existing = {program} | ({p for p in lib.rglob("*") if p.is_file()} if lib.is_dir() else set())
-    chunks = []
+    lines: list[str] = []
     for path in sorted(set(wanted) | existing):
-        old = path.read_text(encoding="utf-8", errors="replace") if path.is_file() else ""
-        new = wanted.get(path, "")
-        if old != new:
-            rel = path.relative_to(out_dir).as_posix()
-            chunks.append("".join(difflib.unified_diff(
-                old.splitlines(keepends=True), new.splitlines(keepends=True),
-                fromfile=f"a/{rel}" if path.is_file() else "/dev/null",
-                tofile=f"b/{rel}" if path in wanted else "/dev/null")))
-    return "".join(chunks)
+        new = wanted.get(path)
+        if _same(path, new):
+            continue
+        rel = path.relative_to(out_dir).as_posix()
+        old = _small_text(path)
+        fromfile = f"a/{rel}" if path.is_file() else "/dev/null"
+        tofile = f"b/{rel}" if new is not None else "/dev/null"
+        if old is None:  # too large or not text: say so in place of its lines
+            size = _size(path)
+            lines += [f"--- {fromfile}\n", f"+++ {tofile}\n",
+                      f"@@ {rel}: {size:,} bytes, not shown (larger than "
+                      f"{MAX_DIFF_FILE_BYTES:,} bytes or not UTF-8 text); a build "
+                      + ("replaces it" if new is not None else "removes it") + " @@\n"]
+            continue
+        lines += difflib.unified_diff(old.splitlines(keepends=True),
+                                      (new or b"").decode("utf-8").splitlines(keepends=True),
+                                      fromfile=fromfile, tofile=tofile)
+    if len(lines) > MAX_DIFF_LINES:
+        more = len(lines) - MAX_DIFF_LINES
+        lines = lines[:MAX_DIFF_LINES] + [f"... {more:,} more lines of diff not shown\n"]
+    return "".join(line if line.endswith("\n") else line + "\n\\ No newline at end of file\n"
+                   for line in lines)
+
+
+def _size(path: Path) -> int:
+    try:
+        return path.stat().st_size
+    except OSError:
+        return 0
+
+
+def _same(path: Path, new: bytes | None) -> bool:
+    """The file at path holds exactly new (None: a file no build writes), read in blocks."""
+    if new is None or not path.is_file() or _size(path) != len(new):
+        return False
+    try:
+        with path.open("rb") as f:
+            offset = 0
+            while block := f.read(1 << 16):
+                if block != new[offset:offset + len(block)]:
+                    return False
+                offset += len(block)
+            return offset == len(new)
+    except OSError:
+        return False
+
+
+def _small_text(path: Path) -> str | None:
+    """The file's text for a diff: '' when there is none, None when too large or binary."""
+    if not path.is_file():
+        return ""
+    if _size(path) > MAX_DIFF_FILE_BYTES:
+        return None
+    try:
+        with path.open("rb") as f:
+            data = f.read(MAX_DIFF_FILE_BYTES + 1)
+    except OSError:
+        return None
+    if len(data) > MAX_DIFF_FILE_BYTES or b"\0" in data:
+        return None
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError:
+        return None

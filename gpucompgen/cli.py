@@ -25,7 +25,8 @@ from .runtime import add_program_options
 
 EPILOG = """\
 exit codes: 0 ok; 1 problems in the model, stale output with --check, or a failed run;
-2 usage or internal error (and a missing Graphviz for graph).
+2 usage, output (a folder or file that cannot take the output) or internal error (and a
+missing Graphviz for graph).
 A run stopped by SIGINT or SIGTERM exits 130 or 143; a program killed by a signal
 exits 128 + its number (139 for SIGSEGV), and 'run' names the signal.
 

@@ -8,6 +8,7 @@ shows all problems at once.
 from __future__ import annotations
 
 import ast
+import hashlib
 import math
 import re
 from dataclasses import dataclass, field
@@ -142,6 +143,7 @@ class ComponentType:
     # by the generator: checked with ast)
     cpu_file: Path | None = None
     cpu_function: str = ""
+    cpu_text: str = ""
 
     @property
     def gpu_aware(self) -> bool:
@@ -225,6 +227,15 @@ class SystemModel:
     profile_pos: Pos | None = None
     # things check says that are no problem: a user's type shadowing a library type
     notes: list[Diagnostic] = field(default_factory=list)
+    # every file of the user's that feeds the build (resolved path -> sha256 of the text
+    # read): the model, its type files, their kernel, Python and CPU files, and the profile
+    # once read.  The generated program records them, so that 'build --check' is stale when
+    # any changes; build and tune never write over one.
+    inputs: dict[Path, str] = field(default_factory=dict)
+
+    def add_input(self, path: Path, text: str | bytes) -> None:
+        data = text.encode("utf-8", "surrogatepass") if isinstance(text, str) else text
+        self.inputs[path.resolve()] = hashlib.sha256(data).hexdigest()
 
 
 # --------------------------------------------------------------------------- helpers
@@ -907,6 +918,7 @@ def _load_cpu(doc, rep, base, ctype: ComponentType, spec) -> None:
     cpu_text = ""
     if found is not None:
         ctype.cpu_file, cpu_text = found
+        ctype.cpu_text = cpu_text
     function = cspec.get("function", ctype.snake)
     fpos = doc.pos(*path, "function") if "function" in cspec else doc.key_pos(*path)
     problem = name_problem(function, "function name")
@@ -999,7 +1011,7 @@ LIBRARY_PREFIX = "lib."
 
 
 def _load_user_types(doc: Document, rep: Reporter, path: Path, display: str, i: int,
-                     rel: Any, read: dict[Path, tuple[int, int]]
+                     rel: Any, read: dict[Path, tuple[int, int]], texts: dict[Path, str]
                      ) -> dict[str, ComponentType] | None:
     """The types of entry i of the model's 'types:' list, or None after reporting why not.
 
@@ -1046,6 +1058,7 @@ def _load_user_types(doc: Document, rep: Reporter, path: Path, display: str, i: 
                   f"{MAX_TYPE_BYTES:,} are allowed", "keep only the types the model uses")
         return None
     read[tpath.resolve()] = (i, size)
+    texts[tpath.resolve()] = text
     if not starts_with_key(text, "component_types"):
         rep.error(pos, f"{what} is not a component-type file",
                   "a component-type file starts with 'component_types:' (its content is "
@@ -1060,8 +1073,6 @@ def _load_user_types(doc: Document, rep: Reporter, path: Path, display: str, i: 
 
 def load_system(path: Path, display: str | None = None) -> SystemModel:
     """Load a system model and everything it refers to; raise GpucompgenError on problems."""
-    import hashlib
-
     display = display or str(path)
     doc = load_file(path, display)
     rep = Reporter()
@@ -1099,8 +1110,9 @@ def load_system(path: Path, display: str | None = None) -> SystemModel:
     folded_types = {fold(t): t for t in types}
     notes: list[Diagnostic] = []
     read: dict[Path, tuple[int, int]] = {}  # type file read -> (index in the list, bytes)
+    texts: dict[Path, str] = {}  # type file read -> its text
     for i, rel in enumerate(type_files):
-        user = _load_user_types(doc, rep, path, display, i, rel, read)
+        user = _load_user_types(doc, rep, path, display, i, rel, read, texts)
         types_failed |= user is None
         user = user or {}
         for tname, ctype in user.items():
@@ -1272,8 +1284,9 @@ def load_system(path: Path, display: str | None = None) -> SystemModel:
         if conn is not None:
             connections.append(conn)
     rep.raise_if_errors()
-    return SystemModel(name=name, description=description, file=path, display=display,
-                       text_sha256=hashlib.sha256(path.read_bytes()).hexdigest(),
+    model_bytes = path.read_bytes()
+    model = SystemModel(name=name, description=description, file=path, display=display,
+                       text_sha256=hashlib.sha256(model_bytes).hexdigest(),
                        components=components, connections=connections, device=device,
                        device_pos=doc.pos("platform", "device"), gpu_overrides=overrides,
                        thread_budget=budget,
@@ -1287,6 +1300,17 @@ def load_system(path: Path, display: str | None = None) -> SystemModel:
                                              doc.pos("platform", "device", k))
                                          for k in (device if isinstance(device, dict) else {})
                                          if isinstance(k, str)})
+    model.add_input(path, model_bytes)
+    for tpath, text in texts.items():
+        model.add_input(tpath, text)
+    for t in types.values():
+        if t.origin != "user":
+            continue
+        for source, text in ((t.kernel_file, t.kernel_text), (t.python_file, t.python_text),
+                             (t.cpu_file, t.cpu_text)):
+            if source is not None:
+                model.add_input(source, text)
+    return model
 
 
 def _check_class_names(doc: Document, rep: Reporter, components: dict[str, Instance]) -> None:
