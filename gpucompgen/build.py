@@ -22,7 +22,7 @@ from . import device as device_mod
 from .backend.opencl.render import HEADER_PREFIX, OutputFile, render, source_path
 from .errors import Diagnostic, OutputError, Reporter
 from .ir import MODES, System
-from .model import load_system
+from .model import SystemModel, load_system
 from .passes import run_passes
 from .passes.lower import lib_dir_name
 
@@ -154,10 +154,9 @@ def _running(pid: int) -> bool:
     return True
 
 
-def build_inputs(result: BuildResult) -> list[Path]:
+def build_inputs(model: SystemModel) -> list[Path]:
     """Every file the build reads (model.inputs: the model, type files, kernel, Python and
-    CPU files, the profile) and every path parameter, resolved."""
-    model = result.system.model
+    CPU files, the profile once read) and every path parameter, resolved."""
     paths = list(model.inputs)
     for inst in model.components.values():
         for pname, value in inst.params.items():
@@ -171,7 +170,7 @@ def refuse_replacing_inputs(result: BuildResult, out_dir: Path) -> None:
     """A build replaces <system>.py and the whole <system>_lib/: refuse (a usage error)
     when an input of the build is one of them or lies inside, whatever --overwrite says."""
     program, lib = (p.resolve() for p in owned_paths(result.system.name, out_dir))
-    for path in build_inputs(result):
+    for path in build_inputs(result.system.model):
         if path == program or path == lib or lib in path.parents:
             try:
                 shown = os.path.relpath(path)

@@ -504,19 +504,21 @@ def cmd_plan(args) -> int:
 def cmd_tune(args) -> int:
     from .model import load_system
     from .runtime import PipelineError
-    from .tune import default_profile_path, tune
+    from .tune import FunctionFailed, output_path, tune, write_profile
 
     if args.frames < 1:
         print("gpucompgen tune: error: --frames must be 1 or more", file=sys.stderr)
         return 2
+    out = output_path(args.model, load_system(args.model), args.output)  # before measuring
     try:
         text, rows = tune(args.model, args.frames, str(args.model))
+    except FunctionFailed as exc:  # the user's code failed, as in a failed run
+        print(f"gpucompgen tune: error: {exc}", file=sys.stderr)
+        return 1
     except PipelineError as exc:
         print(f"gpucompgen tune: error: {exc}", file=sys.stderr)
         return 2
-    out = args.output or default_profile_path(args.model, load_system(args.model))
-    out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(text, encoding="utf-8")
+    write_profile(out, text)
     width = max([len(r[0]) for r in rows] + [9])
     print(f"{'component':<{width}}  {'CPU us':>10}  {'GPU us':>10}")
     for name, _, _, cpu_us, gpu_us in rows:

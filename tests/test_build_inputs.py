@@ -173,3 +173,66 @@ def test_build_check_streams_a_huge_file_and_caps_the_diff(tmp_path):
     assert f"s_lib/a_huge.bin: {64 << 20:,} bytes, not shown" in text
     assert text.count("\n") <= build_mod.MAX_DIFF_LINES + 1
     assert "more lines of diff not shown" in text
+
+
+# --------------------------------------------------------------------------- tune
+
+
+@pytest.mark.parametrize("output", ["m.yaml", "t.yaml", "flip.cl", "cpu.py"])
+def test_tune_never_writes_over_an_input_of_the_build(tmp_path, output):
+    model = project(tmp_path)
+    before = {p: p.read_bytes() for p in tmp_path.rglob("*") if p.is_file()}
+    for how in (["-o", output], []):
+        if not how:  # the same through the model's own platform.profile
+            if not output.endswith(".yaml"):
+                continue  # check refuses a profile that is no .yaml file
+            model.write_text(model.read_text().replace("profile: prof.yaml",
+                                                       f"profile: {output}"))
+            before[model] = model.read_bytes()
+        proc = gpucompgen("tune", model, *how, cwd=tmp_path)
+        assert proc.returncode == 2, proc.stderr
+        assert f"{output} is an input of the build of" in proc.stderr, proc.stderr
+    assert {p: p.read_bytes() for p in tmp_path.rglob("*") if p.is_file()} == before
+
+
+@pytest.mark.parametrize("output, message", [
+    (".", ". is a folder"),
+    ("/dev/full", "/dev/full is not a regular file"),
+    ("prof.yaml/x.yaml", "prof.yaml is a file, where the profile's folder would go"),
+])
+def test_tune_checks_its_output_before_measuring(tmp_path, output, message):
+    model = project(tmp_path)
+    # no device is needed to find out: the output is checked first
+    env_device = {"PYOPENCL_CTX": "no-such-device"}
+    proc = subprocess.run([sys.executable, "-m", "gpucompgen", "tune", str(model), "-o",
+                           output], cwd=tmp_path, capture_output=True, text=True,
+                          check=False, env={**os.environ, **env_device,
+                                            "PYTHONPATH": str(ROOT)})
+    assert proc.returncode == 2, proc.stderr
+    assert f"gpucompgen tune: error: {message}" in proc.stderr
+    assert "internal error" not in proc.stderr
+
+
+def test_tune_write_failure_is_a_clear_error(tmp_path, monkeypatch):
+    from gpucompgen import tune as tune_mod
+    from gpucompgen.errors import OutputError
+
+    def full(*args, **kwargs):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(tune_mod.os, "replace", full)
+    with pytest.raises(OutputError, match="cannot write the profile .*No space left"):
+        tune_mod.write_profile(tmp_path / "p.yaml", "components: {}\n")
+    assert list(tmp_path.iterdir()) == [], "no temporary file left behind"
+
+
+def test_a_cpu_function_raising_under_tune_is_the_users_error(tmp_path):
+    require_opencl()
+    model = project(tmp_path)
+    (tmp_path / "cpu.py").write_text("def brighten(image):\n"
+                                     "    raise ValueError('boom')\n")
+    proc = gpucompgen("tune", model, "--frames", "1", cwd=tmp_path)
+    assert proc.returncode == 1, proc.stderr
+    assert "gpucompgen tune: error: b (Brighten): its CPU function 'brighten' raised " \
+        "ValueError: boom (at cpu.py:2)" in proc.stderr
+    assert "internal error" not in proc.stderr
