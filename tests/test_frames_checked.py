@@ -106,7 +106,8 @@ def test_check_frame_directly():
     from gpucompgen.runtime import PipelineError, check_frame
 
     good = np.zeros((4, 5), np.uint8)
-    assert check_frame("a.b", good, (4, 5), np.uint8) is good
+    checked = check_frame("a.b", good, (4, 5), np.uint8)
+    assert checked.base is good and not checked.flags.writeable  # a read-only view
     with pytest.raises(PipelineError, match=r"a\.b: execute\(\) returned a 4x5x1 uint8"):
         check_frame("a.b", good[..., None], (4, 5), np.uint8)
     with pytest.raises(PipelineError, match="returned int where a numpy array 4x5 uint8"):

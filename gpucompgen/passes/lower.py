@@ -140,8 +140,11 @@ def checked_kernel_types(system: System) -> list[ComponentType]:
     The program still builds their kernel files at start-up, so that every kernel a model
     names is compiled on the device wherever it runs (a typo in a fused type's .cl file
     would otherwise pass until --fusion off).  The library's kernels are the test suite's
-    to compile; they are left out.
+    to compile; they are left out.  A program with no part on the device (every flexible
+    component on the CPU) opens no OpenCL context and builds none: it runs without one.
     """
+    if not gpu_used_types(system) and not system.groups:
+        return []
     launched = {kernel_key(t) for t in gpu_used_types(system)}
     found: dict[str, ComponentType] = {}
     for inst in system.model.components.values():

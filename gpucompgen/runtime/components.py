@@ -12,6 +12,7 @@ from __future__ import annotations
 from typing import Any, ClassVar
 
 from .devices import check_work_group
+from .frames import read_only
 from .sizes import Size
 
 
@@ -228,7 +229,7 @@ class CpuFunctionComponent:
     def execute(self, *inputs):
         import numpy as np
 
-        results = self._call({port: x for (port, _), x in zip(self.inputs, inputs)})
+        results = self._call({port: read_only(x) for (port, _), x in zip(self.inputs, inputs)})
         checked = []
         for (port, dtype), result in zip(self.outputs, results):
             want = self.sizes[port].shape
@@ -239,7 +240,7 @@ class CpuFunctionComponent:
                 raise ValueError(f"{self.name}.{port}: the CPU function "
                                  f"{self.function.__name__}() returned {got}, not "
                                  f"{np.dtype(dtype)} {want}")
-            checked.append(np.ascontiguousarray(result))
+            checked.append(read_only(np.ascontiguousarray(result)))
         return checked[0] if len(checked) == 1 else tuple(checked)
 
     def free_memory(self):

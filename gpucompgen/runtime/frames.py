@@ -54,4 +54,21 @@ def check_frame(what: str, value: Any, shape: tuple[int, ...], dtype: Any) -> An
             hint = f" (convert with .astype(np.{np.dtype(dtype).name}))"
         raise FrameError(what, f"execute() returned a {got} frame where the system was "
                                f"built for {expected}{hint}")
-    return value
+    return read_only(value)
+
+
+def read_only(array: Any) -> Any:
+    """A view of array that cannot be written: what every component gets as an input.
+
+    Several readers of one producer get the same frame; one that wrote into it would
+    change what the others read.  A write raises ValueError ('assignment destination is
+    read-only'), reported as that component's failure with READ_ONLY_HINT.  The producer
+    keeps its own (writable) array; the view costs no copy."""
+    view = array.view()
+    view.flags.writeable = False
+    return view
+
+
+READ_ONLY_HINT = ("inputs are read-only to components (another reader gets the same "
+                  "frame): copy it first (image = image.copy()) or write into an array of "
+                  "your own")

@@ -10,6 +10,7 @@ from pathlib import Path
 from typing import Any, NamedTuple
 
 from .errors import PipelineError
+from .frames import READ_ONLY_HINT
 from .pipeline import FrameFailure
 from .profiling import Profile
 from .signals import freeing
@@ -163,7 +164,10 @@ def component_failure(exc: BaseException, frame: int | None,
         if who is None or text.startswith((f"{who}:", f"{who} ")):
             return exc
         return PipelineError(f"{who} failed {when}: {text}")
-    return PipelineError(f"{who or 'a component'} failed {when}: {type(exc).__name__}: {exc}")
+    hint = f"\n  hint: {READ_ONLY_HINT}" if isinstance(exc, ValueError) and \
+        "read-only" in str(exc) else ""
+    return PipelineError(f"{who or 'a component'} failed {when}: {type(exc).__name__}: "
+                         f"{exc}{hint}")
 
 
 def free_all(parts: dict[str, Any]) -> None:
