@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import errno
 import os
 import shutil
 import signal
@@ -230,7 +231,9 @@ def main(argv: list[str] | None = None) -> int:
                 "not a regular file" if model.exists() else "no such file"
             print(f"gpucompgen {args.command}: error: {model}: {what}", file=sys.stderr)
             return 2
-        return COMMANDS[args.command](args)
+        code = COMMANDS[args.command](args)
+        sys.stdout.flush()  # a full disk or closed pipe is found here, not at exit
+        return code
     except (OutputError, UsageError) as exc:
         print(f"gpucompgen {args.command}: error: {exc}", file=sys.stderr)
         return 2
@@ -250,12 +253,31 @@ def main(argv: list[str] | None = None) -> int:
         devnull = os.open(os.devnull, os.O_WRONLY)
         os.dup2(devnull, sys.stdout.fileno())  # so that exiting does not flush into it
         return 0
-    except Exception as exc:  # an internal error: a bug in gpucompgen
-        if args.debug:
-            traceback.print_exc()
-        print(f"gpucompgen: internal error: {type(exc).__name__}: {exc}\n"
-              "  rerun with --debug for the traceback and please report it", file=sys.stderr)
+    except OSError as exc:
+        if exc.errno not in OUTPUT_ERRNOS or exc.filename is not None:
+            return _internal_error(args, exc)
+        # `gpucompgen schema > /dev/full`: an output problem, like any other (exit 2); the
+        # writes that fail so are standard output's (files are written through OutputError)
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())  # so that exiting does not flush into it
+        print(f"gpucompgen {args.command}: error: cannot write the output: "
+              f"{exc.strerror or exc}", file=sys.stderr)
         return 2
+    except Exception as exc:  # an internal error: a bug in gpucompgen
+        return _internal_error(args, exc)
+
+
+# what writing to a full, over-quota or failing file or device raises
+OUTPUT_ERRNOS = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EIO)
+
+
+def _internal_error(args, exc: BaseException) -> int:
+    """An internal error: a bug in gpucompgen (the traceback with --debug)."""
+    if args.debug:
+        traceback.print_exc()
+    print(f"gpucompgen: internal error: {type(exc).__name__}: {exc}\n"
+          "  rerun with --debug for the traceback and please report it", file=sys.stderr)
+    return 2
 
 
 MAX_SHOWN = 200  # diagnostics printed at most (a file stops at 100); the count line counts all
