@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 from conftest import ROOT, require_opencl
 
-from gpucompgen.runtime.frames import check_frame, read_only
+from gpucompgen.runtime.frames import check_frame
 
 TYPES = textwrap.dedent("""\
     component_types:
