@@ -622,6 +622,9 @@ def cmd_types(args) -> int:
 
     library = library_types()
     types = load_system(args.model).types if args.model else library
+    # a library type the model's own shadows is listed as the model writes it: lib.Name
+    types = {**types, **{f"{LIBRARY_PREFIX}{n}": t for n, t in library.items()
+                         if types.get(n) is not t}}
     name = args.name
     if name is not None and name.startswith(LIBRARY_PREFIX) and \
             name[len(LIBRARY_PREFIX):] in library:

@@ -182,6 +182,9 @@ def test_the_library_type_stays_reachable_by_its_qualified_name(tmp_path):
     assert "my own AbsDiff" in proc.stdout
     proc = gpucompgen("types", "--model", "m.yaml", "lib.AbsDiff", cwd=tmp_path)
     assert proc.returncode == 0 and "my own AbsDiff" not in proc.stdout
+    listed = gpucompgen("types", "--model", "m.yaml", cwd=tmp_path).stdout.splitlines()
+    assert any(line.split()[:2] == ["lib.AbsDiff", "flexible"] for line in listed)
+    assert any(line.split()[:2] == ["AbsDiff", "standard"] for line in listed)
 
 
 def test_a_case_variant_of_a_library_name_shadows_it_too(tmp_path):
