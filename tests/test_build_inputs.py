@@ -236,3 +236,12 @@ def test_a_cpu_function_raising_under_tune_is_the_users_error(tmp_path):
     assert "gpucompgen tune: error: b (Brighten): its CPU function 'brighten' raised " \
         "ValueError: boom (at cpu.py:2)" in proc.stderr
     assert "internal error" not in proc.stderr
+
+
+def test_a_build_never_replaces_a_cpu_file_named_like_its_program(tmp_path):
+    model = project(tmp_path)
+    (tmp_path / "cpu.py").rename(tmp_path / "s.py")  # s.py: where system 's' goes
+    (tmp_path / "t.yaml").write_text(TYPES.replace("file: cpu.py", "file: s.py"))
+    proc = gpucompgen("build", model, "-o", ".", "--overwrite", cwd=tmp_path)
+    assert proc.returncode == 2 and "would replace s.py, an input of the build" in proc.stderr
+    assert (tmp_path / "s.py").read_text() == CPU
