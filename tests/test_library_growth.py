@@ -206,3 +206,16 @@ def test_two_own_types_of_one_name_are_still_refused(tmp_path):
     with pytest.raises(GpucompgenError, match="'Abs_Diff' is already defined elsewhere as "
                                               "'AbsDiff'"):
         model_mod.load_system(tmp_path / "m.yaml")
+
+
+def test_the_schema_accepts_the_qualified_name():
+    import json
+
+    jsonschema = pytest.importorskip("jsonschema")
+    schema = json.loads((ROOT / "gpucompgen" / "schema" / "model.schema.json").read_text())
+    for name, valid in (("lib.AbsDiff", True), ("AbsDiff", True), ("lib.", False),
+                        ("other.AbsDiff", False)):
+        for written in (name, {"type": name}):
+            errors = list(jsonschema.Draft202012Validator(schema).iter_errors(
+                {"system": "s", "components": {"d": written}}))
+            assert (not errors) == valid, (name, errors)
