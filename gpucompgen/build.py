@@ -156,9 +156,13 @@ def _running(pid: int) -> bool:
 
 def build_inputs(model: SystemModel) -> list[Path]:
     """Every file the build reads (model.inputs: the model, type files, kernel, Python and
-    CPU files, the profile once read) and every path parameter, resolved."""
+    CPU files, the profile once read; the library's files of the types it uses) and every
+    path parameter, resolved."""
     paths = list(model.inputs)
     for inst in model.components.values():
+        t = inst.type
+        paths += [f.resolve() for f in (t.decl_file, t.kernel_file, t.python_file, t.cpu_file)
+                  if f is not None]
         for pname, value in inst.params.items():
             decl = inst.type.params.get(pname)
             if decl is not None and decl.type == "path" and isinstance(value, str) and value:

@@ -245,3 +245,15 @@ def test_a_build_never_replaces_a_cpu_file_named_like_its_program(tmp_path):
     proc = gpucompgen("build", model, "-o", ".", "--overwrite", cwd=tmp_path)
     assert proc.returncode == 2 and "would replace s.py, an input of the build" in proc.stderr
     assert (tmp_path / "s.py").read_text() == CPU
+
+
+def test_neither_build_nor_tune_writes_over_the_librarys_files(tmp_path):
+    library = ROOT / "gpucompgen" / "library"
+    (tmp_path / "m.yaml").write_text(
+        "system: camera\ncomponents:\n  cam: {type: Camera}\n  sink: FrameSink\n"
+        "connections: [cam.image -> sink.image]\n")
+    proc = gpucompgen("build", "m.yaml", "-o", library, "--overwrite", cwd=tmp_path)
+    assert proc.returncode == 2 and "camera.py, an input of the build" in proc.stderr
+    proc = gpucompgen("tune", "m.yaml", "-o", library / "vision.yaml", cwd=tmp_path)
+    assert proc.returncode == 2 and "vision.yaml is an input of the build" in proc.stderr, \
+        proc.stderr
