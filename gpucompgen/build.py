@@ -39,7 +39,8 @@ def compile_model(model_path: Path, out_dir: Path, mode: str = "gpu-aware",
                   display: str | None = None, execution: str | None = None,
                   zero_copy: str | None = None, verify: bool | None = None,
                   places: dict[str, str] | None = None, frames_in_flight: int | None = None,
-                  staging: str | None = None, fusion: str | None = None) -> BuildResult:
+                  staging: str | None = None, fusion: str | None = None,
+                  compile_kernels: bool = False) -> BuildResult:
     """Everything but writing: raises GpucompgenError with all problems found.
 
     execution ("parallel" | "sequential") and zero_copy ("auto" | "on" | "off") override
@@ -47,6 +48,9 @@ def compile_model(model_path: Path, out_dir: Path, mode: str = "gpu-aware",
     platform.fusion, frames_in_flight (1 or more) and staging ("auto" | "pinned" |
     "pageable") its platform.frames_in_flight and platform.staging; None keeps the model's.
     places (--place COMPONENT=gpu|cpu|auto) overrides flexible components' placements.
+    compile_kernels (check, build, plan with --device auto): every kernel file of the user's
+    that the model names is built on that device, fused or not, and what its compiler says
+    is reported with the model's problems.
     verify: check the IR's invariants after every pass (--debug; the test suite sets
     GPUCOMPGEN_VERIFY=1 so that None verifies there too).
     """
@@ -57,6 +61,8 @@ def compile_model(model_path: Path, out_dir: Path, mode: str = "gpu-aware",
     spec = device if device is not None else model.device
     facts = device_mod.resolve(spec, model.device_pos, rep,
                                model.device_positions if device is None else None)
+    if compile_kernels and spec == "auto" and not rep.has_errors:
+        compile_on_device(model, rep)
     rep.raise_if_errors()
     system, warnings = run_passes(model, facts, mode, dump, execution, zero_copy, verify,
                                   places, frames_in_flight, staging, fusion)
@@ -64,6 +70,29 @@ def compile_model(model_path: Path, out_dir: Path, mode: str = "gpu-aware",
     files = render(system, source_path(model_path, out_dir), model_dir)
     _must_compile(files[0])
     return BuildResult(system, files, warnings)
+
+
+def compile_on_device(model: SystemModel, rep: Reporter) -> None:
+    """Build every kernel file of the user's that a component's type names on the device
+    programs use, as the program does at start-up (the library's are the test suite's)."""
+    from .runtime import PipelineError, build_program, create_context
+
+    try:
+        context = create_context()
+    except PipelineError as exc:
+        rep.error(model.device_pos, f"device 'auto': {exc}")
+        return
+    built: set[Path] = set()
+    for inst in model.components.values():
+        t = inst.type
+        if not t.gpu_aware or t.origin != "user" or t.kernel_file in built:
+            continue
+        built.add(t.kernel_file)
+        try:
+            build_program(context, t.kernel_file, f"{t.name}")
+        except PipelineError as exc:
+            rep.error(t.pos, str(exc), "every kernel a model names is built on the device, "
+                      "also that of a type whose components are fused or on the CPU")
 
 
 def _must_compile(program: OutputFile) -> None:

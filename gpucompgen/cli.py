@@ -308,7 +308,10 @@ def _compile(args, out_dir: Path):
                            execution=args.execution, zero_copy=args.zero_copy,
                            frames_in_flight=args.frames_in_flight, staging=args.staging,
                            verify=True if args.debug else None, places=places(args),
-                           fusion=getattr(args, "fusion", None))
+                           fusion=getattr(args, "fusion", None),
+                           # planned for the device at hand: its compiler checks every
+                           # kernel file (a run's program builds them itself)
+                           compile_kernels=args.command != "run")
     for w in result.warnings:
         print(w.format(), file=sys.stderr)
     return result

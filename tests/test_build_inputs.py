@@ -118,6 +118,21 @@ def test_a_typo_in_a_fused_types_kernel_fails_the_run(tmp_path):
     assert "flip.cl:5:14: error: use of undeclared identifier 'imgae'" in proc.stderr
 
 
+@pytest.mark.parametrize("command", ["check", "build", "plan"])
+def test_planned_for_the_device_every_kernel_is_built_at_check_time(tmp_path, command):
+    require_opencl()
+    model = project(tmp_path)
+    (tmp_path / "flip.cl").write_text(KERNEL.replace("out[i] = image[i];\n}\n\n__kernel "
+                                                     "void brighten",
+                                                     "out[i] = imgae[i];\n}\n\n__kernel "
+                                                     "void brighten"))
+    proc = gpucompgen(command, model, "--device", "auto", cwd=tmp_path)
+    assert proc.returncode == 1, proc.stderr
+    assert "t.yaml:2:3: error: Flip: kernel file flip.cl failed to build:\n" \
+        "  flip.cl:5:14: error: use of undeclared identifier 'imgae'" in proc.stderr
+    assert not (tmp_path / "generated").exists()
+
+
 @pytest.mark.parametrize("edited", ["flip.cl", "t.yaml", "cpu.py", "prof.yaml"])
 def test_build_check_is_stale_when_any_input_changes(tmp_path, edited):
     model = project(tmp_path, placement="auto")
