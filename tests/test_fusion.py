@@ -210,7 +210,7 @@ def test_platform_fusion_off_and_bad_values(tmp_path):
     ("index_map", "image(y, x)", "takes 3 arguments (y, x, c), not 2"),
     ("index_map", "imag(y, x, c)", "unknown name 'imag'"),
     ("pointwise", "image(y + 1, x, c)", "reads inputs at (y, x) only"),
-    ("index_map", "image(y, x, c) + ((1)", "unbalanced '('"),
+    ("index_map", "image(y, x, c) + ((1)", "'(' is never closed"),
     ("index_map", "barrier(CLK_LOCAL_MEM_FENCE)", "'barrier' is not allowed"),
     ("index_map", "((__global uchar *)0)[0]", "'__global' is not allowed"),
     ("index_map", "int a = image(y, x, c); a", "statements must end by returning"),
@@ -272,8 +272,8 @@ def test_library_snippets_pass_the_check_and_compile(cl_context):
                     Data(Size(7, 5, d.channels), d.dtype))
 
     for name, t in fusable_types.items():
-        assert not fusable.snippet_problems(t.fusable.value, t.fusable.form, list(t.inputs),
-                                            list(t.outputs), list(t.params))
+        assert not fusable.analyse(t.fusable.value, t.fusable.form, list(t.inputs),
+                                   list(t.outputs), list(t.params)).problems
         ports = {p: port(p, "in", d) for p, d in t.inputs.items()}
         outs = {p: port(p, "out", d) for p, d in t.outputs.items()}
         member = ComponentNode("member", None, ports, outs, type=t,
