@@ -208,7 +208,7 @@ def test_platform_fusion_off_and_bad_values(tmp_path):
 
 @pytest.mark.parametrize("form,value,message", [
     ("index_map", "image(y, x)", "takes 3 arguments (y, x, c), not 2"),
-    ("index_map", "imag(y, x, c)", "unknown name 'imag'"),
+    ("index_map", "imag(y, x, c)", "unknown function 'imag'"),
     ("pointwise", "image(y + 1, x, c)", "reads inputs at (y, x) only"),
     ("index_map", "image(y, x, c) + ((1)", "'(' is never closed"),
     ("index_map", "barrier(CLK_LOCAL_MEM_FENCE)", "'barrier' is not allowed"),

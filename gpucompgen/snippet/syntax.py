@@ -35,7 +35,8 @@ from dataclasses import dataclass, field
 from .lexer import Token, tokens
 from .problems import SnippetError
 
-MAX_NESTING = 32
+MAX_NESTING = 32  # brackets, prefix operators and statements inside each other
+MAX_DEPTH = 100  # levels of the tree (a chain 'a + b + c' is a level an operator)
 
 SCALARS = ("bool", "char", "uchar", "short", "ushort", "int", "uint", "long", "ulong",
            "float", "half", "double", "size_t")
@@ -247,7 +248,25 @@ class Snippet(Node):
 # -- the parser ------------------------------------------------------------------------
 def parse(text: str) -> Snippet:
     """The snippet's tree, or SnippetError at the first thing outside the language."""
-    return _Parser(tokens(text)).snippet()
+    tree = _Parser(tokens(text)).snippet()
+    _check_depth(tree)
+    return tree
+
+
+def _check_depth(tree: Snippet) -> None:
+    """Refuse a tree deeper than MAX_DEPTH (a long chain 'a + b + c + ...' or
+    'v[0][0]...' nests without brackets), measured without recursion: whatever reads
+    the tree afterwards (names, printing) may recurse."""
+    stack = [(tree, 1)]
+    while stack:
+        node, depth = stack.pop()
+        if depth > MAX_DEPTH:
+            raise SnippetError(node.at, f"the snippet nests deeper than {MAX_DEPTH} levels "
+                               "(a chain of operators counts a level each)",
+                               "split it into steps with locals")
+        for value in vars(node).values():
+            children = value if isinstance(value, tuple) else (value,)
+            stack += [(c, depth + 1) for c in children if isinstance(c, Node)]
 
 
 class _Parser:
@@ -312,14 +331,16 @@ class _Parser:
             body.append(self.statement(top=True))
         return Snippet(tuple(body), at=0)
 
-    def statement(self, top: bool = False) -> Node:
+    def statement(self, top: bool = False, block: bool = False) -> Node:
+        """A statement; a declaration only where block says one may be (in a block or at
+        the top, not as the body of if, else, for, while or do, where C refuses it)."""
         self.enter()
         try:
-            return self._statement(top)
+            return self._statement(top, block or top)
         finally:
             self.leave()
 
-    def _statement(self, top: bool) -> Node:
+    def _statement(self, top: bool, block: bool) -> Node:
         t = self.tok
         if t.kind == "end":
             raise self.error("expected a statement, found the end of the snippet",
@@ -330,10 +351,13 @@ class _Parser:
             while not self.at("}"):
                 if self.tok.kind == "end":
                     self.expect("}", opener=t)
-                body.append(self.statement())
+                body.append(self.statement(block=True))
             self.take()
             return Block(tuple(body), at=t.offset)
         if self.is_type_start():
+            if not block:
+                raise self.error("a declaration cannot be the body of if, else, for, while "
+                                 "or do", "put it in braces: { ... }")
             return self.declaration()
         if t.kind == "id" and t.text in ("if", "while", "do", "for", "return", "break",
                                          "continue"):
@@ -487,14 +511,14 @@ class _Parser:
         return expr
 
     def assignment(self) -> Node:
+        start = self.tok
+        left = self.conditional()
+        if not self.at(*ASSIGN_OPS):
+            return left
+        op = self.take()
         self.enter()
         try:
-            start = self.tok
-            left = self.conditional()
-            if self.at(*ASSIGN_OPS):
-                op = self.take()
-                return Assign(op.text, left, self.assignment(), at=start.offset)
-            return left
+            return Assign(op.text, left, self.assignment(), at=start.offset)
         finally:
             self.leave()
 
@@ -546,6 +570,11 @@ class _Parser:
             try:
                 if ty.name in VECTORS and self.at("("):
                     args = self.arguments(self.take())
+                    if self.at("(", "[", ".", "++", "--", "->"):
+                        raise self.error(f"'{self.tok.text}' after a vector literal: C "
+                                         "compilers read this differently",
+                                         f"put the literal in parentheses: (({ty.name})"
+                                         "(...))" + self.tok.text)
                     return VectorLiteral(ty, args, at=t.offset)
                 return Cast(ty, self.unary(), at=t.offset)
             finally:
@@ -616,8 +645,8 @@ class _Parser:
             self.take()
             return Name(t.text, at=t.offset)
         if self.at("("):
-            self.take()
             self.enter()
+            self.take()
             try:
                 inner = self.expression()
             finally:
