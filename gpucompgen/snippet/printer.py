@@ -12,12 +12,13 @@ from __future__ import annotations
 import re
 from collections.abc import Mapping
 
-from .syntax import (KEYWORDS, Assign, Binary, Block, Call, Cast, Conditional, Decl,
+from .syntax import (BINARY_PREC, KEYWORDS, Assign, Binary, Block, Call, Cast, Conditional, Decl,
                      Declarator, DoWhile, ExprStmt, For, If, Index, InitList, Jump, Member,
                      Name, Node, Number, Paren, Postfix, Return, Snippet, TypeName, Unary,
                      VectorLiteral, While)
 
 INDENT = "    "
+WIDTH = 88  # a statement longer than this is laid out on several lines
 _IDENT = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
 # precedence of what an expression node prints as (higher binds tighter)
 _ASSIGN, _COND, _UNARY, _POSTFIX, _PRIMARY = 1, 2, 13, 14, 15
@@ -101,9 +102,11 @@ class _Printer:
         if isinstance(s, Decl):
             return [pad + self.decl(s) + ";"]
         if isinstance(s, ExprStmt):
-            return [pad + (self.expr(s.expr, 0) if s.expr is not None else "") + ";"]
+            if s.expr is None:
+                return [pad + ";"]
+            return self.laid(pad, s.expr, ";")
         if isinstance(s, Return):
-            return [f"{pad}return {self.expr(s.value, 0)};"]
+            return self.laid(pad + "return ", s.value, ";")
         if isinstance(s, Jump):
             return [f"{pad}{s.word};"]
         if isinstance(s, If):
@@ -136,6 +139,58 @@ class _Printer:
                 lines.append(pad + tail)
             return lines
         raise TypeError(f"not a statement: {s!r}")
+
+    def laid(self, head: str, e: Node, tail: str) -> list[str]:
+        """head + e + tail, on several lines when one would be longer than WIDTH: a
+        long '?:' chain one alternative a line, a long && or || chain broken before its
+        operators, continuation lines aligned under the expression's start."""
+        lines = self.layout(e, 0, len(head))
+        return [head + lines[0], *lines[1:-1], lines[-1] + tail] if len(lines) > 1 \
+            else [head + lines[0] + tail]
+
+    def layout(self, e: Node, context: int, col: int) -> list[str]:
+        """e printed from column col: the first line without indentation, continuation
+        lines with theirs (whitespace only differs from expr(): the same tokens)."""
+        flat = self.expr(e, context)
+        if col + len(flat) + 1 <= WIDTH:
+            return [flat]
+        text, prec = self._expr(e)
+        if prec < context:  # the printer's own parentheses
+            return _join(["("], self.layout(e, 0, col + 1), [")"])
+        pad = " " * col
+        if isinstance(e, Paren):
+            return _join(["("], self.layout(e.inner, 0, col + 1), [")"])
+        if isinstance(e, Conditional):  # a chain 'a ? b : c ? d : e', an alternative a line
+            lines: list[str] = []
+            chained = False
+            while True:
+                cond = self.layout(e.cond, _COND + 1, col + 2 * bool(lines))
+                alt = _join(cond, [f" ? {self.expr(e.then, 0)}"])
+                lines += alt if not lines else [pad + ": " + alt[0], *alt[1:]]
+                e = e.other
+                if not isinstance(e, Conditional):
+                    last = self.layout(e, _COND, col + 2)
+                    used = (col if len(lines) == 1 else 0) + len(lines[-1])
+                    if len(last) == 1 and not chained and used + len(last[0]) + 4 <= WIDTH:
+                        return [*lines[:-1], f"{lines[-1]} : {last[0]}"]  # 'a ? b : c'
+                    return [*lines, pad + ": " + last[0], *last[1:]]
+                chained = True
+        if isinstance(e, Binary) and e.op in ("&&", "||"):  # broken before the operators
+            op, operands = e.op, []
+            while isinstance(e, Binary) and e.op == op:
+                operands.append(e.right)
+                e = e.left
+            p = BINARY_PREC[op]
+            parts = [self.expr(e, p)] + [self.expr(o, p + 1) for o in reversed(operands)]
+            lines = [parts[0]]
+            for part in parts[1:]:
+                used = (col if len(lines) == 1 else 0) + len(lines[-1])
+                if used + len(op) + len(part) + 2 <= WIDTH:
+                    lines[-1] += f" {op} {part}"
+                else:
+                    lines.append(f"{pad}{op} {part}")
+            return lines
+        return [flat]
 
     def headed(self, head: str, body: Node, level: int) -> list[str]:
         pad = INDENT * level
@@ -192,8 +247,6 @@ class _Printer:
         if isinstance(e, VectorLiteral):
             return f"({e.type.name})({self.args(e.args)})", _UNARY
         if isinstance(e, Binary):
-            from .syntax import BINARY_PREC
-
             p = BINARY_PREC[e.op]
             return f"{self.expr(e.left, p)} {e.op} {self.expr(e.right, p + 1)}", p
         if isinstance(e, Conditional):
@@ -205,6 +258,19 @@ class _Printer:
 
     def args(self, args) -> str:
         return ", ".join(self.expr(a, _ASSIGN) for a in args)
+
+
+def _join(*parts: list[str]) -> list[str]:
+    """Line lists written one after the other: each list's first line continues the
+    previous list's last line."""
+    lines: list[str] = []
+    for part in parts:
+        if lines:
+            lines[-1] += part[0]
+            lines += part[1:]
+        else:
+            lines = list(part)
+    return lines
 
 
 def _open_if(s: Node) -> bool:
