@@ -175,6 +175,27 @@ class _Printer:
                         return [*lines[:-1], f"{lines[-1]} : {last[0]}"]  # 'a ? b : c'
                     return [*lines, pad + ": " + last[0], *last[1:]]
                 chained = True
+        if isinstance(e, Assign):
+            head = f"{self.expr(e.target, _UNARY)} {e.op} "
+            return _join([head], self.layout(e.value, _ASSIGN, col + len(head)))
+        if isinstance(e, Cast):
+            head = f"({e.type.name})"
+            return _join([head], self.layout(e.operand, _UNARY, col + len(head)))
+        if isinstance(e, Call):  # arguments broken after a comma, aligned after '('
+            head = f"{self.n(e.func)}("
+            start = col + len(head)
+            lines = [""]
+            for i, a in enumerate(e.args):
+                sep = ", " if i else ""
+                used = (start if len(lines) == 1 else 0) + len(lines[-1])
+                arg = self.layout(a, _ASSIGN, used + len(sep))
+                if i and (len(arg) > 1 or used + len(sep) + len(arg[0]) + 2 > WIDTH):
+                    lines[-1] += ","
+                    arg = self.layout(a, _ASSIGN, start)
+                    lines += [" " * start + arg[0], *arg[1:]]
+                else:
+                    lines = _join(lines, [sep + arg[0], *arg[1:]])
+            return _join([head], lines, [")"])
         if isinstance(e, Binary) and e.op in ("&&", "||"):  # broken before the operators
             op, operands = e.op, []
             while isinstance(e, Binary) and e.op == op:
