@@ -239,6 +239,71 @@ def test_bad_snippets_are_positioned_errors(tmp_path, form, value, message):
     assert message in text, text
 
 
+COMMENTED_TYPE = """\
+component_types:
+  Brighten:
+    kind: gpu-aware
+    params:
+      gain: {type: int, default: 40, min: 0, max: 255}
+    inputs:
+      image: {memory: gpu, channels: 3}
+    outputs:
+      brighter: {memory: gpu, channels: 3}
+    kernel: {file: brighten.cl, function: brighten}
+    fusable:
+      form: pointwise
+      value: "min(image(y, x, c) + gain, 255)  // saturates at 255"
+  BrightenLocal:
+    kind: gpu-aware
+    params:
+      gain: {type: int, default: 40, min: 0, max: 255}
+    inputs:
+      image: {memory: gpu, channels: 3}
+    outputs:
+      brighter: {memory: gpu, channels: 3}
+    kernel: {file: brighten.cl, function: brighten}
+    fusable:
+      form: pointwise
+      value: |
+        /* the pixel */ const int p = image(y, x, c);  // read once
+        return min(p + gain, 255);  /* saturates */ // at 255
+"""
+BRIGHTEN_KERNEL = """\
+__kernel void brighten(__global const uchar *image, __global uchar *brighter,
+                       const int image_height, const int image_width,
+                       const int brighter_height, const int brighter_width,
+                       const int gain, const int tile)
+{
+    const size_t n = (size_t)image_height * image_width * 3;
+    for (size_t i = get_global_id(1) * get_global_size(0) + get_global_id(0); i < n;
+         i += get_global_size(0) * get_global_size(1))
+        brighter[i] = min(image[i] + gain, 255);
+}
+"""
+
+
+@pytest.mark.parametrize("type_name", ["Brighten", "BrightenLocal"])
+def test_snippet_comments_never_reach_the_kernel(tmp_path, type_name):
+    """A trailing '// comment' once commented out the generated 'return (...);': the
+    kernel gets the snippet printed from its tree, so comments stay behind."""
+    require_opencl()
+    (tmp_path / "t.yaml").write_text(COMMENTED_TYPE)
+    (tmp_path / "brighten.cl").write_text(BRIGHTEN_KERNEL)
+    model = tmp_path / "m.yaml"
+    model.write_text(
+        f"system: commented\ntypes: [t.yaml]\ncomponents:\n"
+        f"  src: {{type: StillImage, params: {{width: 24, height: 18}}}}\n"
+        f"  b: {{type: {type_name}}}\n  m: {{type: VerticalMirror}}\n"
+        f"  sink: {{type: FrameSink}}\n"
+        f"connections: [src.image -> b.image, b.brighter -> m.image, m.mirrored -> sink.image]\n")
+    result, fused = _module(model, tmp_path / "fused")
+    assert [m.name for m in result.system.groups[0].members] == ["b", "m"]
+    _, unfused = _module(model, tmp_path / "unfused", fusion="off")
+    expected = np.minimum(still_frame(24, 18).astype(int) + 40, 255).astype(np.uint8)[::-1]
+    for got in (_outputs(fused, 2), _outputs(unfused, 2)):
+        assert len(got) == 2 and all(np.array_equal(g, expected) for g in got)
+
+
 def test_only_single_output_types_are_fusable(tmp_path):
     (tmp_path / "k.cl").write_text("__kernel void k() {}\n")
     (tmp_path / "t.yaml").write_text(
