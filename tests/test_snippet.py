@@ -22,8 +22,15 @@ from hypothesis import strategies as st
 from gpucompgen.errors import Pos
 from gpucompgen.fusable import snippet_position
 from gpucompgen.model import library_types
-from gpucompgen.snippet import (MAX_NESTING, analyse, expression_text, is_builtin, parse,
-                                print_lines, print_text)
+from gpucompgen.snippet import (
+    MAX_NESTING,
+    analyse,
+    expression_text,
+    is_builtin,
+    parse,
+    print_lines,
+    print_text,
+)
 from gpucompgen.snippet import syntax as S
 
 
@@ -47,7 +54,7 @@ def expressions(draw, depth: int = 0):
         return draw(st.sampled_from(NAMES + NUMBERS))
     kind = draw(st.sampled_from(["binary", "unary", "paren", "cond", "call", "access",
                                  "cast", "vector"]))
-    e = lambda: draw(expressions(depth + 1))  # noqa: E731
+    e = lambda: draw(expressions(depth + 1))
     if kind == "binary":
         return f"{e()}{sp}{draw(st.sampled_from(BINARY))}{sp}{e()}"
     if kind == "unary":
@@ -69,7 +76,7 @@ def expressions(draw, depth: int = 0):
 @st.composite
 def statements(draw, depth: int = 0):
     sp = draw(SPACE)
-    e = lambda: draw(expressions(2))  # noqa: E731
+    e = lambda: draw(expressions(2))
     kind = draw(st.sampled_from(["decl", "assign", "if", "for", "while", "block", "return",
                                  "do", "array"] if depth < 2 else ["decl", "assign",
                                                                    "return"]))
@@ -136,7 +143,7 @@ def trees(draw, depth: int = 0):
         if draw(st.booleans()):
             return S.Name(draw(st.sampled_from(NAMES)))
         return S.Number(draw(st.sampled_from(NUMBERS)))
-    t = lambda: draw(trees(depth + 1))  # noqa: E731
+    t = lambda: draw(trees(depth + 1))
     kind = draw(st.sampled_from(["binary", "unary", "postfix", "cond", "assign", "cast",
                                  "call", "index", "member"]))
     if kind == "binary":
@@ -371,7 +378,7 @@ def test_every_library_snippet_compiles_printed_with_every_name_renamed(cl_conte
         lines += ["}"] + [f"#undef {name}_{p}" for p in t.inputs]
         functions.append("\n".join(lines))
         printed = "\n".join(f.lines(rename))
-        for old, new in rename.items():  # nothing of the old names is left
+        for old in rename:  # nothing of the old names is left
             assert not any(tok == old for tok in _identifiers(printed)), (name, old)
     calls = " + ".join(f"{n}(src, 1, 1, 0)" for n in _library_snippets())
     source = "\n\n".join(functions) + (

@@ -17,9 +17,35 @@ from dataclasses import dataclass, field
 from ..errors import did_you_mean
 from .lexer import tokens
 from .problems import Problem, SnippetError
-from .syntax import (VECTORS, Assign, Binary, Block, Call, Cast, Conditional, Decl, DoWhile,
-                     ExprStmt, For, If, Index, InitList, Jump, Member, Name, Node, Number,
-                     Paren, Postfix, Return, Snippet, Unary, VectorLiteral, While, parse)
+from .syntax import (
+    VECTORS,
+    Assign,
+    Binary,
+    Block,
+    Call,
+    Cast,
+    Conditional,
+    Decl,
+    DoWhile,
+    ExprStmt,
+    For,
+    If,
+    Index,
+    InitList,
+    Jump,
+    Member,
+    Name,
+    Node,
+    Number,
+    Paren,
+    Postfix,
+    Return,
+    Snippet,
+    Unary,
+    VectorLiteral,
+    While,
+    parse,
+)
 
 MAX_SNIPPET = 4000  # characters: a snippet is a few lines, not a program
 MAX_ARRAY = 256  # elements of a local array (private memory of every work-item)
@@ -52,9 +78,9 @@ CONSTANTS = frozenset({
     "SHRT_MIN", "USHRT_MAX", "INT_MAX", "INT_MIN", "UINT_MAX", "LONG_MAX", "LONG_MIN",
     "ULONG_MAX", "FLT_MAX", "FLT_MIN", "FLT_EPSILON", "MAXFLOAT", "HUGE_VALF", "INFINITY",
     "NAN", "M_PI_F", "M_E_F", "M_SQRT2_F", "M_LN2_F", "M_PI", "M_E"})
-_CONVERT = re.compile(r"(convert|as)_(%s)(_sat)?(_rte|_rtz|_rtp|_rtn)?" % "|".join(
-    ("char", "uchar", "short", "ushort", "int", "uint", "long", "ulong", "float", "half",
-     "double") + VECTORS))
+_TYPES = "|".join(("char", "uchar", "short", "ushort", "int", "uint", "long", "ulong",
+                   "float", "half", "double", *VECTORS))
+_CONVERT = re.compile(rf"(convert|as)_({_TYPES})(_sat)?(_rte|_rtz|_rtp|_rtn)?")
 
 
 def is_builtin(name: str) -> bool:
@@ -175,7 +201,7 @@ class _Resolver:
             if not self.loops:
                 self.problem(s, f"'{s.word}' outside a loop", "use it inside for/while/do")
         else:  # pragma: no cover - the parser makes no other statement
-            raise AssertionError(s)
+            raise TypeError(f"not a statement: {s!r}")
 
     def loop(self, body: Node) -> None:
         self.loops += 1
@@ -267,8 +293,8 @@ class _Resolver:
         elif isinstance(e, VectorLiteral):
             for a in e.args:
                 self.expr(a)
-        else:  # pragma: no cover
-            raise AssertionError(e)
+        else:  # pragma: no cover - the parser makes no other expression
+            raise TypeError(f"not an expression: {e!r}")
 
     def name(self, e: Name) -> None:
         n = e.name

@@ -12,10 +12,37 @@ from __future__ import annotations
 import re
 from collections.abc import Mapping
 
-from .syntax import (BINARY_PREC, KEYWORDS, Assign, Binary, Block, Call, Cast, Conditional, Decl,
-                     Declarator, DoWhile, ExprStmt, For, If, Index, InitList, Jump, Member,
-                     Name, Node, Number, Paren, Postfix, Return, Snippet, TypeName, Unary,
-                     VectorLiteral, While)
+from .syntax import (
+    BINARY_PREC,
+    KEYWORDS,
+    Assign,
+    Binary,
+    Block,
+    Call,
+    Cast,
+    Conditional,
+    Decl,
+    Declarator,
+    DoWhile,
+    ExprStmt,
+    For,
+    If,
+    Index,
+    InitList,
+    Jump,
+    Member,
+    Name,
+    Node,
+    Number,
+    Paren,
+    Postfix,
+    Return,
+    Snippet,
+    TypeName,
+    Unary,
+    VectorLiteral,
+    While,
+)
 
 INDENT = "    "
 WIDTH = 88  # a statement longer than this is laid out on several lines
@@ -154,8 +181,7 @@ class _Printer:
         flat = self.expr(e, context)
         if col + len(flat) + 1 <= WIDTH:
             return [flat]
-        text, prec = self._expr(e)
-        if prec < context:  # the printer's own parentheses
+        if self._expr(e)[1] < context:  # the printer's own parentheses
             return _join(["("], self.layout(e, 0, col + 1), [")"])
         pad = " " * col
         if isinstance(e, Paren):
