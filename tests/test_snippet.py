@@ -232,6 +232,15 @@ def test_finding_classes_are_positioned_problems(text, message, at):
     assert found[0].offset == at, found
 
 
+def test_comments_may_hold_any_text_but_what_changes_lines():
+    """Comments are removed by the lexer, so what C would never read is no problem there
+    ('#define', printf, digraphs, non-ASCII); what changes where lines end is."""
+    text = ("/* #define min(a, b) 0  <% %> %: printf(\"x\") \u00e9 */\n"
+            "return image(y, x, c);  // barrier(0); 'quoted' ??? \u00a0")
+    assert problems(text) == []
+    assert print_lines(parse(text)) == ["return image(y, x, c);"]
+
+
 def test_a_trailing_comment_stays_out_of_the_kernel():
     tree = analyse("image(y, x, c) // the mirror", "pointwise", ["image"], ["out"], []).tree
     assert print_lines(tree) == ["return image(y, x, c);"]
