@@ -768,12 +768,16 @@ def _load_fusable(doc, rep, base, ctype: ComponentType, fspec) -> None:
                   "statements ending in 'return ...;') for output element (y, x, c)",
                   "e.g. value: \"image(image_height - 1 - y, x, c)\"")
         return
-    problems = fusable_forms.snippet_problems(value, form, list(ctype.inputs),
-                                              list(ctype.outputs), list(ctype.params))
-    for p in problems:
-        rep.error(doc.pos(*path, "value"), f"fusable snippet of '{ctype.name}': {p}",
-                  "a snippet uses y, x, c, its ports as <port>(y, x, c), <port>_height, "
-                  "<port>_width, its parameters and its own locals")
+    analysis = fusable_forms.analyse(value, form, list(ctype.inputs), list(ctype.outputs),
+                                     list(ctype.params))
+    start = doc.pos(*path, "value")
+    raw, style = doc.sources.get(path + ("value",), (None, None))
+    for p in analysis.problems:
+        at = fusable_forms.snippet_position(start, raw, style, value, p.offset)
+        where = "" if at is not None else f" (at character {p.offset + 1} of the snippet)"
+        rep.error(at or start, f"fusable snippet of '{ctype.name}': {p.message}{where}",
+                  p.hint or "a snippet uses y, x, c, its ports as <port>(y, x, c), "
+                  "<port>_height, <port>_width, its parameters and its own locals")
     radius: int | str = 0
     border = fspec.get("border", "clamp")
     if form == "stencil":
@@ -797,9 +801,9 @@ def _load_fusable(doc, rep, base, ctype: ComponentType, fspec) -> None:
             if key in fspec:
                 rep.error(doc.key_pos(*path, key), f"'{key}' is only for the stencil form",
                           f"remove '{key}' or use 'form: stencil'")
-    if problems:
+    if analysis.problems:
         return
-    ctype.fusable = fusable_forms.FusableDecl(form, value, fusable_forms.as_body(value),
+    ctype.fusable = fusable_forms.FusableDecl(form, value, analysis.tree, analysis.names,
                                               radius, border)
 
 

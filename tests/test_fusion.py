@@ -208,9 +208,9 @@ def test_platform_fusion_off_and_bad_values(tmp_path):
 
 @pytest.mark.parametrize("form,value,message", [
     ("index_map", "image(y, x)", "takes 3 arguments (y, x, c), not 2"),
-    ("index_map", "imag(y, x, c)", "unknown name 'imag'"),
+    ("index_map", "imag(y, x, c)", "unknown function 'imag'"),
     ("pointwise", "image(y + 1, x, c)", "reads inputs at (y, x) only"),
-    ("index_map", "image(y, x, c) + ((1)", "unbalanced '('"),
+    ("index_map", "image(y, x, c) + ((1)", "'(' is never closed"),
     ("index_map", "barrier(CLK_LOCAL_MEM_FENCE)", "'barrier' is not allowed"),
     ("index_map", "((__global uchar *)0)[0]", "'__global' is not allowed"),
     ("index_map", "int a = image(y, x, c); a", "statements must end by returning"),
@@ -237,6 +237,71 @@ def test_bad_snippets_are_positioned_errors(tmp_path, form, value, message):
     text = str(info.value)
     assert re.search(r"t\.yaml:\d+:\d+: error: fusable snippet of 'K': ", text), text
     assert message in text, text
+
+
+COMMENTED_TYPE = """\
+component_types:
+  Brighten:
+    kind: gpu-aware
+    params:
+      gain: {type: int, default: 40, min: 0, max: 255}
+    inputs:
+      image: {memory: gpu, channels: 3}
+    outputs:
+      brighter: {memory: gpu, channels: 3}
+    kernel: {file: brighten.cl, function: brighten}
+    fusable:
+      form: pointwise
+      value: "min(image(y, x, c) + gain, 255)  // saturates at 255"
+  BrightenLocal:
+    kind: gpu-aware
+    params:
+      gain: {type: int, default: 40, min: 0, max: 255}
+    inputs:
+      image: {memory: gpu, channels: 3}
+    outputs:
+      brighter: {memory: gpu, channels: 3}
+    kernel: {file: brighten.cl, function: brighten}
+    fusable:
+      form: pointwise
+      value: |
+        /* the pixel */ const int p = image(y, x, c);  // read once
+        return min(p + gain, 255);  /* saturates */ // at 255
+"""
+BRIGHTEN_KERNEL = """\
+__kernel void brighten(__global const uchar *image, __global uchar *brighter,
+                       const int image_height, const int image_width,
+                       const int brighter_height, const int brighter_width,
+                       const int gain, const int tile)
+{
+    const size_t n = (size_t)image_height * image_width * 3;
+    for (size_t i = get_global_id(1) * get_global_size(0) + get_global_id(0); i < n;
+         i += get_global_size(0) * get_global_size(1))
+        brighter[i] = min(image[i] + gain, 255);
+}
+"""
+
+
+@pytest.mark.parametrize("type_name", ["Brighten", "BrightenLocal"])
+def test_snippet_comments_never_reach_the_kernel(tmp_path, type_name):
+    """A trailing '// comment' once commented out the generated 'return (...);': the
+    kernel gets the snippet printed from its tree, so comments stay behind."""
+    require_opencl()
+    (tmp_path / "t.yaml").write_text(COMMENTED_TYPE)
+    (tmp_path / "brighten.cl").write_text(BRIGHTEN_KERNEL)
+    model = tmp_path / "m.yaml"
+    model.write_text(
+        f"system: commented\ntypes: [t.yaml]\ncomponents:\n"
+        f"  src: {{type: StillImage, params: {{width: 24, height: 18}}}}\n"
+        f"  b: {{type: {type_name}}}\n  m: {{type: VerticalMirror}}\n"
+        f"  sink: {{type: FrameSink}}\n"
+        f"connections: [src.image -> b.image, b.brighter -> m.image, m.mirrored -> sink.image]\n")
+    result, fused = _module(model, tmp_path / "fused")
+    assert [m.name for m in result.system.groups[0].members] == ["b", "m"]
+    _, unfused = _module(model, tmp_path / "unfused", fusion="off")
+    expected = np.minimum(still_frame(24, 18).astype(int) + 40, 255).astype(np.uint8)[::-1]
+    for got in (_outputs(fused, 2), _outputs(unfused, 2)):
+        assert len(got) == 2 and all(np.array_equal(g, expected) for g in got)
 
 
 def test_only_single_output_types_are_fusable(tmp_path):
@@ -272,8 +337,8 @@ def test_library_snippets_pass_the_check_and_compile(cl_context):
                     Data(Size(7, 5, d.channels), d.dtype))
 
     for name, t in fusable_types.items():
-        assert not fusable.snippet_problems(t.fusable.value, t.fusable.form, list(t.inputs),
-                                            list(t.outputs), list(t.params))
+        assert not fusable.analyse(t.fusable.value, t.fusable.form, list(t.inputs),
+                                   list(t.outputs), list(t.params)).problems
         ports = {p: port(p, "in", d) for p, d in t.inputs.items()}
         outs = {p: port(p, "out", d) for p, d in t.outputs.items()}
         member = ComponentNode("member", None, ports, outs, type=t,

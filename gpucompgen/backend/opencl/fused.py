@@ -96,8 +96,7 @@ def _member(m, feeds: dict[Endpoint, str], producer: dict[Endpoint, Endpoint]) -
     for pname, pdecl in m.type.params.items():
         c = "float" if pdecl.type == "float" else "int"
         lines.append(f"    const {c} {pname} = {m.name}_{pname};")
-    for line in decl.body.splitlines():
-        lines.append(f"    {line}".rstrip())
+    lines += [f"    {line}" for line in decl.lines()]  # printed from the parsed snippet
     lines.append("}")
     lines += [f"#undef {p}" for p in macros]
     lines.append("")

@@ -19,7 +19,7 @@ static inline uchar mirror1(GROUP_PARAMS, const int y, const int x, const int c)
 {
     const int image_height = 864, image_width = 1152;
     const int mirrored_height = 864, mirrored_width = 1152;
-    return (image(image_height - 1 - y, x, c));
+    return image(image_height - 1 - y, x, c);
 }
 #undef image
 
@@ -29,7 +29,7 @@ static inline uchar mirror2(GROUP_PARAMS, const int y, const int x, const int c)
 {
     const int image_height = 864, image_width = 1152;
     const int mirrored_height = 864, mirrored_width = 1152;
-    return (image(image_height - 1 - y, x, c));
+    return image(image_height - 1 - y, x, c);
 }
 #undef image
 
@@ -39,7 +39,7 @@ static inline uchar mirror3(GROUP_PARAMS, const int y, const int x, const int c)
 {
     const int image_height = 864, image_width = 1152;
     const int mirrored_height = 864, mirrored_width = 1152;
-    return (image(image_height - 1 - y, x, c));
+    return image(image_height - 1 - y, x, c);
 }
 #undef image
 
@@ -49,7 +49,7 @@ static inline uchar mirror4(GROUP_PARAMS, const int y, const int x, const int c)
 {
     const int image_height = 864, image_width = 1152;
     const int mirrored_height = 864, mirrored_width = 1152;
-    return (image(image_height - 1 - y, x, c));
+    return image(image_height - 1 - y, x, c);
 }
 #undef image
 
@@ -59,7 +59,7 @@ static inline uchar mirror5(GROUP_PARAMS, const int y, const int x, const int c)
 {
     const int image_height = 864, image_width = 1152;
     const int mirrored_height = 864, mirrored_width = 1152;
-    return (image(image_height - 1 - y, x, c));
+    return image(image_height - 1 - y, x, c);
 }
 #undef image
 

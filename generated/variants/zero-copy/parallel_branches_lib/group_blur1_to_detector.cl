@@ -63,7 +63,7 @@ static inline uchar merger(GROUP_PARAMS, const int y, const int x, const int c)
     const int left_height = 480, left_width = 640;
     const int right_height = 480, right_width = 640;
     const int merged_height = 480, merged_width = 1280;
-    return (x < left_width ? left(y, x, c) : right(y, x - left_width, c));
+    return x < left_width ? left(y, x, c) : right(y, x - left_width, c);
 }
 #undef left
 #undef right

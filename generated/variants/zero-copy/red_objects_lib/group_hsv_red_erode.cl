@@ -72,8 +72,9 @@ static inline uchar erode(GROUP_PARAMS, const int y, const int x, const int c)
     int m = 255;
     for (int j = -1; j <= 1; j++)
         for (int i = -1; i <= 1; i++)
-            m = min(m, (int)image(clamp(y + j, 0, image_height - 1),
-                                  clamp(x + i, 0, image_width - 1), c));
+            m = min(m,
+                    (int)image(clamp(y + j, 0, image_height - 1),
+                               clamp(x + i, 0, image_width - 1), c));
     return m;
 }
 #undef image
