@@ -163,7 +163,23 @@ def component_failure(exc: BaseException, frame: int | None,
         if who is None or text.startswith((f"{who}:", f"{who} ")):
             return exc
         return PipelineError(f"{who} failed {when}: {text}")
-    return PipelineError(f"{who or 'a component'} failed {when}: {type(exc).__name__}: {exc}")
+    return PipelineError(f"{who or 'a component'} failed {when}: {type(exc).__name__}: {exc}"
+                         + _device_fault_hint(exc))
+
+
+# OpenCL errors a GPU gives at the command after a kernel that faulted (NVIDIA:
+# OUT_OF_RESOURCES at the next read; a lost queue; events of a wait list that failed).
+_DEVICE_FAULT_CODES = {-5: "OUT_OF_RESOURCES", -36: "INVALID_COMMAND_QUEUE",
+                       -14: "EXEC_STATUS_ERROR_FOR_EVENTS_IN_WAIT_LIST", -9999: "-9999"}
+
+
+def _device_fault_hint(exc: BaseException) -> str:
+    code = getattr(exc, "code", None)
+    if not isinstance(code, int) or code not in _DEVICE_FAULT_CODES:
+        return ""
+    return ("\nhint: a GPU reports a kernel that failed (most often one that read or wrote out "
+            "of bounds) at the next command on its queue, so the command named here may not be "
+            "the culprit: check the index computations of the kernels launched before it")
 
 
 def free_all(parts: dict[str, Any]) -> None:
