@@ -31,7 +31,7 @@ import re
 from dataclasses import dataclass
 
 FORMS = ("pointwise", "index_map", "stencil")
-BORDERS = ("clamp",)
+BORDERS = ("clamp", "reflect101")  # the nearest edge pixel; OpenCV's BORDER_REFLECT_101
 MAX_SNIPPET = 4000  # characters: a snippet is a few lines, not a program
 
 _TOKEN = re.compile(r"\s+|//[^\n]*|/\*.*?\*/|(?P<id>[A-Za-z_][A-Za-z0-9_]*)"

@@ -32,6 +32,7 @@ says what, in the model's names.
 
 from __future__ import annotations
 
+import re
 from dataclasses import replace
 
 from ..ir import AdapterNode, ComponentNode, Edge, GroupNode, Port, System
@@ -42,6 +43,78 @@ FUSE_COST_CAP = 64
 # the generated kernel's settings: tile rows a work-group, 64 threads splitting them
 # (measured on PoCL, as for VerticalMirror: long runs of pixels per work-item)
 GROUP_GPU = GpuDecl((1, 2, 4, 8, 16, 32, 64, 128), (1,), (32, 8, 8, 1))
+# on a GPU: a work-group of 128 threads along a row, 4 rows at a time, adjacent threads
+# adjacent elements (backend/opencl/fused.py, schedule 'strided')
+GROUP_GPU_STRIDED = GpuDecl((1, 2, 4, 8, 16, 32, 64, 128), (1,), (4, 128, 1, 1))
+
+
+def group_gpu_decl(device) -> GpuDecl:
+    """The generated kernel's settings for the device: fused.schedule() decides."""
+    from ..backend.opencl.fused import schedule
+
+    return GROUP_GPU if schedule(device) == "runs" else GROUP_GPU_STRIDED
+
+
+# -- reading snippets (a small scanner; fusable.py's parser replaces it) ----------------
+_SCAN = re.compile(r"\s+|//[^\n]*|/\*.*?\*/|(?P<id>[A-Za-z_][A-Za-z0-9_]*)|(?P<other>\S)",
+                   re.DOTALL)
+
+
+def _words(body: str) -> list[str]:
+    return [m.group("id") or m.group("other") for m in _SCAN.finditer(body)
+            if m.lastgroup]
+
+
+def accessor_calls(body: str, ports: list[str]) -> dict[str, list[tuple[str, ...]]]:
+    """Every accessor call port(a, b, c) in the snippet, its arguments as text (tokens
+    joined by nothing), per port."""
+    toks = _words(body)
+    found: dict[str, list[tuple[str, ...]]] = {p: [] for p in ports}
+    for i, t in enumerate(toks):
+        if t in found and i + 1 < len(toks) and toks[i + 1] == "(":
+            args, cur, depth = [], [], 0
+            for u in toks[i + 2:]:
+                if u in "([{":
+                    depth += 1
+                elif u in ")]}":
+                    if depth == 0:
+                        break
+                    depth -= 1
+                if u == "," and depth == 0:
+                    args.append("".join(cur))
+                    cur = []
+                    continue
+                cur.append(u)
+            args.append("".join(cur))
+            found[t].append(tuple(args))
+    return found
+
+
+def uses_outside_accessors(body: str, ports: list[str], names: set[str]) -> bool:
+    """Whether the snippet uses any of names other than as an accessor's argument."""
+    toks = _words(body)
+    depth, inside = 0, []
+    for i, t in enumerate(toks):
+        if t in ports and i + 1 < len(toks) and toks[i + 1] == "(":
+            inside.append(depth)
+        elif t == "(":
+            depth += 1
+        elif t == ")":
+            depth -= 1
+            if inside and inside[-1] == depth:
+                inside.pop()
+        elif t in names and not inside:
+            return True
+    return False
+
+
+def snippet_reads(node) -> int:
+    """Input elements one evaluation of a member's snippet reads: its accessor calls
+    (a call inside a loop counts once per iteration the radius allows: a stencil reads at
+    least its window)."""
+    decl = node.type.fusable
+    calls = sum(len(v) for v in accessor_calls(decl.body, list(node.inputs)).values())
+    return max(calls, decl.taps(node.params))
 
 
 class Fuse(Pass):
