@@ -25,10 +25,11 @@ OpenCL devices):
   border rule, and the kernel runs it on the output elements whose every read is inside
   the frame (``margin``: the radii summed along the deepest path), the border version on
   the rest of the row.
-- Channel-flat groups.  Where every member is pointwise over the channels (it reads each
-  input only as ``port(y, x, c)`` and uses x and c nowhere else) a frame of C channels is
-  a row of W x C elements computed alike: the kernel stores one element at a time, a
-  loop the compiler turns into vector loads and stores.  Otherwise a work-item computes
+- Channel-flat groups.  Where every member computes each channel alike (it reads inputs
+  only as ``port(..., x + k, c)`` and uses x and c nowhere else) a frame of C channels
+  is a row of W x C elements computed alike: the kernel stores one element at a time, a
+  loop the compiler turns into vector loads and stores (a read k pixels away is k x C
+  elements away).  Otherwise a work-item computes
   a pixel's channels together and stores them as one vector (vstore3 for three).
 - Work split from device facts (schedule()): on a CPU device a work-item takes a
   contiguous run of the row (the compiler vectorizes the straight-line loop over it);
@@ -147,7 +148,10 @@ def launch_geometry(group: GroupNode, tile: int, bx: int, by: int):
 
 
 def channel_flat(group: GroupNode) -> bool:
-    """Every member pointwise over channels: one element computed like any other."""
+    """Every member computes each channel alike, from the same channel of its inputs: a
+    row of W pixels of C channels is W x C elements computed alike.  True where every
+    member is pointwise or a stencil, all ports have the same size and channels, every
+    read is port(..., ..., c) and the snippet uses x and c nowhere but in its reads."""
     channels = {p.channels for m in group.members for p in (*m.inputs.values(),
                                                               *m.outputs.values())}
     sizes = {(p.data.height, p.data.width) for m in group.members
@@ -156,14 +160,20 @@ def channel_flat(group: GroupNode) -> bool:
         return False
     for m in group.members:
         decl = m.type.fusable
-        if decl.form != "pointwise":
-            return False
         calls = accessor_calls(decl.body, list(m.inputs))
-        if any(args[1:] != ("x", "c") for found in calls.values() for args in found):
+        if any(len(args) != 3 or args[2] != "c" or not _shifted_x(args[1])
+               for found in calls.values() for args in found):
             return False
         if uses_outside_accessors(decl.body, list(m.inputs), {"x", "c"}):
             return False
     return True
+
+
+def _shifted_x(arg: str) -> bool:
+    """x, or x plus or minus something without x (the accessor's argument as text)."""
+    if arg == "x":
+        return True
+    return arg[:2] in ("x+", "x-") and re.search(r"\bx\b", arg[2:]) is None
 
 
 def margin(group: GroupNode) -> int | None:
@@ -204,8 +214,10 @@ def group_kernel(group: GroupNode, header: str, device=None) -> str:
     args = [names[p.name] for p in params if p.role != "tile"]
     root = group.root
     (out_name, out_port), = group.outputs.items()
-    flat = channel_flat(group)
     edge = margin(group)
+    stencils = any(m.type.fusable.form == "stencil" for m in group.members)
+    # flat stencils need the interior path: border rules apply to pixel positions
+    flat = channel_flat(group) and (edge is not None or not stencils)
     lines = [f"// {header}",
              f"// Group {group.name}: one kernel for "
              + ", ".join(f"{m.name} ({m.type.name}, {m.type.fusable.form})"
@@ -228,12 +240,15 @@ def group_kernel(group: GroupNode, header: str, device=None) -> str:
              ""]
     feeds = {end: port for port, end in group.feeds.items()}
     producer = {e.target: e.source for e in group.internal}
-    versions = [False] if edge is None else [False, True]
+    # (interior, channel-flat) versions of every member: without stencils one version,
+    # with them a border version in pixel coordinates and an interior one
+    versions = [(False, flat)] if edge is None else [(False, False), (True, flat)]
     used: set[str] = set()
     members = []
-    for interior in versions:
+    for interior, flat_version in versions:
         for m in group.members:
-            members += _member(m, feeds, producer, index, names, flat, interior, used)
+            members += _member(m, feeds, producer, index, names, flat_version, interior,
+                               used)
     helpers = [line for name in HELPERS if name in used for line in HELPERS[name]]
     if helpers:
         lines += ["// built-ins the snippets call, inline (see fused.py: HELPERS)", *helpers, ""]
@@ -288,6 +303,10 @@ def _member(m, feeds: dict[Endpoint, str], producer: dict[Endpoint, Endpoint], i
         if decl.form == "stencil" and not interior:
             rule = "_reflect101" if decl.border == "reflect101" else "_clamp"
             yy, xx = f"{rule}((y_), {h})", f"{rule}((x_), {w})"
+        if flat and port.channels > 1:
+            # x is the element's place in the row of W x C: a read dx pixels away is
+            # dx x C elements away, the same channel
+            xx = f"(x + ((x_) - x) * {port.channels})"
         if src is not None:
             body = f"{_function(src.component, index, interior)}(_ARGS, {yy}, {xx}, (c_))"
         else:
@@ -327,8 +346,10 @@ def _kernel(group: GroupNode, out_name: str, out_port, names, flat: bool,
     per_row = w * channels if flat else w
     stride = w * channels
 
-    def store(fn: str, indent: str) -> list[str]:
+    def store(fn: str, indent: str, pixel: bool = False) -> list[str]:
         call = f"{fn}(_ARGS, _y, _x, {{c}})"
+        if flat and pixel and channels > 1:  # an element of the flat row, by pixel
+            return [f"{indent}_row[_x] = {fn}(_ARGS, _y, _x / {channels}, _x % {channels});"]
         if flat or channels == 1:
             return [f"{indent}_row[_x] = " + call.format(c=0) + ";"]
         if channels in VECTOR_WIDTHS:
@@ -375,29 +396,32 @@ def _kernel(group: GroupNode, out_name: str, out_port, names, flat: bool,
         if edge is None:
             lines += ["        " + loop.format(a="_x0", b="_x1"), *store(border, " " * 12)]
         else:
-            lo, hi = edge, max(edge, w - edge)
+            k = channels if flat else 1  # elements a pixel
+            lo, hi = edge * k, max(edge, w - edge) * k
             lines += [f"        if (_y >= {edge} && _y < {h - edge}) {{",
                       "            " + loop.format(a="_x0", b=f"min(_x1, {lo})"),
-                      *store(border, " " * 16),
-                      "            " + loop.format(a=f"max(_x0, {lo})", b=f"min(_x1, {w - edge})"),
+                      *store(border, " " * 16, True),
+                      "            " + loop.format(a=f"max(_x0, {lo})",
+                                                   b=f"min(_x1, {(w - edge) * k})"),
                       *store(inner, " " * 16),
                       "            " + loop.format(a=f"max(_x0, {hi})", b="_x1"),
-                      *store(border, " " * 16),
+                      *store(border, " " * 16, True),
                       "        } else {",
                       "            " + loop.format(a="_x0", b="_x1"),
-                      *store(border, " " * 16),
+                      *store(border, " " * 16, True),
                       "        }"]
     else:
         loop = f"for (int _x = get_local_id(0); _x < {per_row}; _x += _nx)"
         if edge is None:
             lines += ["        " + loop, *store(border, " " * 12)]
         else:
+            k = channels if flat else 1
             lines += [f"        const bool _inside = _y >= {edge} && _y < {h - edge};",
                       "        " + loop + " {",
-                      f"            if (_inside && _x >= {edge} && _x < {w - edge})",
+                      f"            if (_inside && _x >= {edge * k} && _x < {(w - edge) * k})",
                       *store(inner, " " * 16),
                       "            else",
-                      *store(border, " " * 16),
+                      *store(border, " " * 16, True),
                       "        }"]
     lines += ["    }", "}", ""]
     return lines
