@@ -308,8 +308,13 @@ def estimate_text(system: System, members: set[str]) -> str:
 
 
 def group_name(system: System, names: list[str]) -> str:
+    """Named after its members, never like a component of the model (one fused earlier
+    has left the nodes, but users know it by that name: stats, profiles, plan)."""
     wanted = "_".join(names) if len(names) <= 3 else f"{names[0]}_to_{names[-1]}"
-    return system.unique_name(wanted)
+    name = system.unique_name(wanted)
+    while name in system.model.components:
+        name = system.unique_name(name + "_")
+    return name
 
 
 def make_group(system: System, names: list[str]) -> GroupNode:
@@ -375,4 +380,4 @@ def group_type(system: System, name: str, members: list[ComponentNode],
         + " into one kernel.",
         params={}, inputs=ports, outputs={out_name: out_decl}, requires=[],
         decl_file=rt.decl_file, origin="group", pos=root.pos, kernel_function=name,
-        grid=out_name, cover="rows", gpu=GROUP_GPU)
+        grid=out_name, cover="rows", gpu=group_gpu_decl(system.device))

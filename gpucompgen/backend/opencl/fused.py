@@ -115,10 +115,13 @@ def inline_builtins(body: str, used: set[str]) -> str:
 
 
 def is_cpu(device) -> bool:
-    """A CPU OpenCL device (PoCL, Intel's runtime) from its facts: it keeps resident as
-    many threads as one work-group holds (runtime/facts.py), where a GPU keeps thousands.
-    No facts: the CPU schedule, which is also correct on a GPU."""
-    if device is None:
+    """Whether to schedule for a CPU OpenCL device (PoCL, Intel's runtime), from its facts:
+    a CPU keeps resident as many threads as one work-group holds (runtime/facts.py), a GPU
+    thousands.  No facts, or the 'portable' profile (any OpenCL 1.2 device, which the
+    default build runs on PoCL as often as on a GPU): the CPU schedule, correct on both."""
+    from ...device import PROFILES
+
+    if device is None or device == PROFILES["portable"]:
         return True
     return device.threads_per_compute_unit <= device.max_work_group_size
 
