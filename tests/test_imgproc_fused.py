@@ -9,8 +9,9 @@
    OpenCV.
 2. In generated programs: one model of chains over models/photos/ in which every fusable
    imgproc type sits inside a fused group (pointwise and index-map members recomputed by
-   a stencil root, two-input joins reading a shared producer), built with fusion on, with
-   fusion off and placed on the CPU: the three give the same bytes, and those equal the
+   a stencil root, two-input joins reading a shared producer; launches made so dear that
+   the cost model fuses wherever fusion is legal), built with fusion on, with fusion off
+   and placed on the CPU: the three give the same bytes, and those equal the
    same chains composed from OpenCV's functions.
 """
 
@@ -238,7 +239,11 @@ def programs(tmp_path_factory, cl_context):
         model = folder / f"imgproc_{variant}.yaml"
         model.write_text(model_text(placement))
         out = folder / f"out_{variant}"
-        built = compile_model(model, out, fusion=fusion)
+        with pytest.MonkeyPatch.context() as patch:
+            # every legal group, whatever the cost model says: this test is about the
+            # bytes of every type inside a group (launches made very dear: fusing wins)
+            patch.setattr("gpucompgen.passes.fuse.LAUNCH", 10**15)
+            built = compile_model(model, out, fusion=fusion)
         write(built, out)
         program = load_generated(out / "imgproc_fused.py", f"imgproc_fused_{variant}")
         result = program.run(frames=FRAMES, context=cl_context)
