@@ -14,7 +14,13 @@ interleaved (so that a noisy machine slows every variant alike):
 - ``cv2``: the same OpenCV call on the same cores (cv2.setNumThreads(0) means all).
 
 Kernel time is the OpenCL profiling events' start-to-end; OpenCV's is wall time around
-the call.  Every variant's output is checked equal to OpenCV's (bilinear Resize within 1)
+the call.
+
+With --pipelines, the issue's pipelines instead (lanes, colour, edges up to Sobel, motion,
+the pointwise chain), each built with fusion auto and off: the device time of all its
+kernels a frame (OpenCL profiling events, median over frames), and the groups the cost
+model chose.  A group is a decision of the system: it must not be slower than its
+members apart.  Every variant's output is checked equal to OpenCV's (bilinear Resize within 1)
 before timing.  Prints ms per call (median over rounds x reps, with the interquartile
 range) and the ratio to OpenCV.  The figures live in docs/benchmarks.md.
 """
@@ -22,6 +28,7 @@ range) and the ratio to OpenCV.  The figures live in docs/benchmarks.md.
 from __future__ import annotations
 
 import argparse
+import itertools
 import sys
 import time
 from pathlib import Path
@@ -236,6 +243,128 @@ def gen_variant(ctx, queue, t, arrays, params, device):
     return Variant(queue, kernel, gsize, lsize, out, result, bufs)
 
 
+SINKS = "component_types:\n" + "".join(f"""
+  {name}:
+    kind: standard
+    inputs:
+      image: {{memory: cpu, dtype: {dtype}, channels: {channels}}}
+    python: {{file: sink.py, class: Sink}}
+""" for name, dtype, channels in (("Sink3", "uint8", 3), ("Sink1", "uint8", 1),
+                                  ("SinkS1", "int16", 1)))
+SINK_PY = """class Sink:
+    def initialize(self, image):
+        pass
+
+    def execute(self, image):
+        pass
+
+    def free_memory(self):
+        pass
+"""
+# name -> [(component, type, params, inputs)], the last one read by the sink
+PIPELINES = {
+    "lanes": [("gray", "RgbToGray", {}, ["src"]),
+              ("blur", "GaussianBlurGray", {"ksize": 5}, ["gray"]),
+              ("dil", "DilateGray", {}, ["blur"]), ("ero", "ErodeGray", {}, ["blur"]),
+              ("grad", "AbsDiffGray", {}, ["dil", "ero"]),
+              ("binary", "ThresholdGray", {"thresh": 40, "maxval": 255, "thresh_type": 0},
+               ["grad"]),
+              ("close1", "DilateGray", {}, ["binary"]), ("close2", "ErodeGray", {}, ["close1"])],
+    "colour": [("hsv", "RgbToHsv", {}, ["src"]),
+               ("mask", "InRange", {"lowerb_0": 0, "lowerb_1": 80, "lowerb_2": 80,
+                                    "upperb_0": 20, "upperb_1": 255, "upperb_2": 255},
+                ["hsv"]),
+               ("ero", "ErodeGray", {}, ["mask"]), ("dil", "DilateGray", {}, ["ero"])],
+    "edges": [("gray", "RgbToGray", {}, ["src"]),
+              ("blur", "GaussianBlurGray", {"ksize": 3}, ["gray"]),
+              ("sobel", "SobelGray", {"dx": 1, "dy": 0}, ["blur"])],
+    "motion": [("prev", "Rotate180", {}, ["src"]),
+               ("diff", "AbsDiff", {}, ["src", "prev"]),
+               ("gray", "RgbToGray", {}, ["diff"]),
+               ("binary", "ThresholdGray", {"thresh": 30, "maxval": 255, "thresh_type": 0},
+                ["gray"]),
+               ("median", "MedianBlurGray", {}, ["binary"])],
+    "pointwise": [("gray", "RgbToGray", {}, ["src"]),
+                  ("s1", "ConvertScaleGray", {"alpha": 1.2, "beta": 5.0}, ["gray"]),
+                  ("t1", "ThresholdGray", {"thresh": 200, "maxval": 255, "thresh_type": 2},
+                   ["s1"]),
+                  ("s2", "ConvertScaleGray", {"alpha": 0.8, "beta": -3.0}, ["t1"]),
+                  ("t2", "ThresholdGray", {"thresh": 100, "maxval": 255, "thresh_type": 0},
+                   ["s2"])],
+}
+
+
+def pipeline_model(name: str, w: int, h: int) -> str:
+    from gpucompgen.model import library_types
+
+    types = library_types()
+    steps = PIPELINES[name]
+    lines = [f"system: {name}", "types: [sinks.yaml]", "platform: {placement: gpu}",
+             "components:", f"  src: {{type: StillImage, params: {{width: {w}, height: {h}}}}}"]
+    conns = []
+    outs = {"src": "image"}
+    for comp, tname, params, inputs in steps:
+        t = types[tname]
+        written = ", ".join(f"{k}: {v}" for k, v in params.items())
+        lines.append(f"  {comp}: {{type: {tname}, params: {{{written}}}}}")
+        for port, source in zip(t.inputs, inputs):
+            conns.append(f"  - {source}.{outs[source]} -> {comp}.{port}")
+        outs[comp] = next(iter(t.outputs))
+    last, tname = steps[-1][0], steps[-1][1]
+    port = next(iter(types[tname].outputs.values()))
+    sink = ("SinkS" if port.dtype == "int16" else "Sink") + str(port.channels)
+    lines.append(f"  sink: {{type: {sink}}}")
+    conns.append(f"  - {last}.{outs[last]} -> sink.image")
+    return "\n".join(lines + ["connections:"] + conns) + "\n"
+
+
+def pipelines(sizes: list[str], rounds: int, frames: int) -> int:
+    import tempfile
+
+    from gpucompgen.build import compile_model, write
+    from gpucompgen.runtime import load_module
+
+    folder = Path(tempfile.mkdtemp(prefix="kernels_pipelines_"))
+    (folder / "sinks.yaml").write_text(SINKS)
+    (folder / "sink.py").write_text(SINK_PY)
+    print(f"device time of all kernels a frame (ms, median over {rounds} rounds of "
+          f"{frames} frames [IQR]); groups the cost model chose")
+    print("| pipeline | size | fusion off | fusion auto | auto / off | groups |")
+    print("|---|---|---:|---:|---:|---|")
+    count = itertools.count()
+    for size in sizes:
+        w, h = map(int, size.split("x"))
+        for name in PIPELINES:
+            model = folder / f"{name}_{size}.yaml"
+            model.write_text(pipeline_model(name, w, h))
+            programs, groups = {}, ""
+            for fusion in ("off", "auto"):
+                out = folder / f"{name}_{size}_{fusion}"
+                result = compile_model(model, out, fusion=fusion)
+                write(result, out)
+                programs[fusion] = load_module(out / f"{name}.py",
+                                               f"bench_kernels_{name}_{next(count)}")
+                if fusion == "auto":
+                    groups = "; ".join("+".join(m for m, _, _ in g.members)
+                                       for g in result.system.plan.groups) or "none"
+            times = {k: [] for k in programs}
+            for _ in range(rounds):
+                for k, program in programs.items():
+                    prof = program.run(frames=frames, profile=True).profile
+                    prof.collect()
+                    per = {}
+                    for (_, what), secs in prof.seconds.items():
+                        if what == "kernel":
+                            for i, t in enumerate(secs):
+                                per[i] = per.get(i, 0.0) + t
+                    times[k] += list(per.values())[1:]  # the first frame builds caches
+            off, auto = _stats(times["off"]), _stats(times["auto"])
+            print(f"| {name} | {size} | {off[0]:.3f} [{off[1]:.3f}-{off[2]:.3f}] | "
+                  f"{auto[0]:.3f} [{auto[1]:.3f}-{auto[2]:.3f}] | {auto[0] / off[0]:.2f}x | "
+                  f"{groups} |")
+    return 0
+
+
 def _stats(samples):
     q1, med, q3 = (float(np.percentile(samples, p)) * 1e3 for p in (25, 50, 75))
     return med, q1, q3
@@ -253,7 +382,12 @@ def main(argv=None) -> int:
     ap.add_argument("--reps", type=int, default=5)
     ap.add_argument("--only", default="", help="comma-separated case names")
     ap.add_argument("--no-hand", action="store_true", help="skip the hand-written kernels")
+    ap.add_argument("--pipelines", action="store_true",
+                    help="the issue's pipelines fused and unfused instead")
+    ap.add_argument("--frames", type=int, default=10, help="frames a round (--pipelines)")
     a = ap.parse_args(argv)
+    if a.pipelines:
+        return pipelines(a.sizes.split(","), a.rounds, a.frames)
     ctx = cl.create_some_context(interactive=False)
     queue = cl.CommandQueue(ctx, properties=cl.command_queue_properties.PROFILING_ENABLE)
     device = ctx.devices[0]
