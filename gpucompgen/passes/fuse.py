@@ -334,6 +334,8 @@ def make_group(system: System, names: list[str]) -> GroupNode:
             internal.append(e)
         elif b:
             port_name = f"{e.target.component}_{e.target.port}"
+            while port_name in inputs:  # member a_b's port c and member a's port b_c
+                port_name += "_"
             inputs[port_name] = replace(system.nodes[e.target.component].inputs[e.target.port],
                                         name=port_name)
             feeds[port_name] = e.target
