@@ -175,3 +175,51 @@ def test_the_schedule_follows_the_device(device, expected):
     from gpucompgen.device import PROFILES
 
     assert schedule(PROFILES.get(device)) == expected
+
+
+STENCIL_CHAIN = """\
+system: hostile
+platform: {{device: {device}}}
+components:
+  src: {{type: StillImage, params: {{width: 23, height: 11}}}}
+  t: {{type: Threshold, params: {{thresh: 120, maxval: 255, thresh_type: 2}}}}
+  e: {{type: Erode}}
+  g: {{type: GaussianBlur, params: {{ksize: 5}}}}
+  sink: {{type: FrameSink}}
+connections:
+  - src.image -> t.image
+  - t.thresholded -> e.image
+  - e.eroded -> g.image
+  - g.blurred -> sink.image
+"""
+
+
+@pytest.mark.parametrize("device", ["portable", "nvidia-hopper"])
+def test_stencil_groups_interior_and_border_paths_give_the_same_bytes(tmp_path, device):
+    """A small frame: launches dominate, so the pointwise step and the stencils fuse, and
+    the group kernel has channel-flat interior and border versions, on both schedules."""
+    require_opencl()
+    model = tmp_path / "m.yaml"
+    model.write_text(STENCIL_CHAIN.format(device=device))
+    fused, got = _frames(model, tmp_path / "fused", "auto")
+    kernels = [p.read_text() for p in (tmp_path / "fused").rglob("group_*.cl")]
+    assert kernels and all("_in(_ARGS" in k for k in kernels)
+    _, expected = _frames(model, tmp_path / "off", "off")
+    np.testing.assert_array_equal(got[0], expected[0])
+
+
+def test_the_gpu_schedule_gives_the_same_bytes(tmp_path):
+    """The strided schedule (adjacent work-items, adjacent elements), built for a GPU's
+    facts, run here on whatever OpenCL device there is: the bytes of the unfused program.
+    The chain has a channel-flat stencil group (interior and border paths)."""
+    require_opencl()
+    names = dict(src="src", n1="n1", n2="n2", n3="n3", n4="n4", n5="n5", sink="sink")
+    text = CHAIN.format(**names).replace(
+        "components:", "platform: {device: nvidia-hopper}\ncomponents:", 1)
+    model = tmp_path / "m.yaml"
+    model.write_text(text)
+    fused, got = _frames(model, tmp_path / "gpu", "auto")
+    kernels = [p.read_text() for p in (tmp_path / "gpu").rglob("group_*.cl")]
+    assert kernels and all("_x += _nx" in k for k in kernels)
+    _, expected = _frames(model, tmp_path / "off", "off")
+    np.testing.assert_array_equal(got[0], expected[0])
