@@ -200,25 +200,12 @@ def gen_variant(ctx, queue, t, arrays, params, device):
 
     from gpucompgen.backend.opencl import fused
     from gpucompgen.backend.opencl.convention import group_parameters
-    from gpucompgen.ir import ComponentNode, Data, GroupNode, Port
-    from gpucompgen.model import Endpoint
-    from gpucompgen.runtime.sizes import Size
 
     if t.fusable is None:
         return None
     oname, shape, dtype = _out_shape(t, arrays, params)
     shapes = {**{k: v.shape[:2] for k, v in zip(t.inputs, arrays)}, oname: shape[:2]}
-
-    def port(p, direction, d):
-        h, w = shapes[p]
-        return Port(p, direction, "gpu", d.dtype, d.channels,
-                    Data(Size(h, w, d.channels), d.dtype))
-
-    ins = {p: port(p, "in", d) for p, d in t.inputs.items()}
-    outs = {p: port(p, "out", d) for p, d in t.outputs.items()}
-    member = ComponentNode("op", None, ins, outs, type=t, params=params, placement="gpu")
-    group = GroupNode("op_alone", None, {f"op_{p}": q for p, q in ins.items()}, outs,
-                      members=[member], feeds={f"op_{p}": Endpoint("op", p) for p in ins})
+    group = fused.group_of_one(t, params, shapes, "op", "op_alone")
     source = fused.group_kernel(group, f"benchmark of {t.name}")
     program = cl.Program(ctx, source).build()
     kernel = cl.Kernel(program, fused.kernel_name(group))

@@ -46,23 +46,9 @@ def one_member_group(type_name: str, params: dict, shapes: dict[str, tuple]):
     """The group kernel's source and its parameter list for one member named 'm', for
     ports of the given (height, width) shapes: sizes are constants of a group kernel."""
     from gpucompgen.backend.opencl.convention import group_parameters
-    from gpucompgen.backend.opencl.fused import group_kernel
-    from gpucompgen.ir import ComponentNode, Data, GroupNode, Port
-    from gpucompgen.model import Endpoint
-    from gpucompgen.runtime.sizes import Size
+    from gpucompgen.backend.opencl.fused import group_kernel, group_of_one
 
-    t = imgproc_types()[type_name]
-
-    def port(p, direction, d):
-        h, w = shapes[p]
-        return Port(p, direction, "gpu", d.dtype, d.channels,
-                    Data(Size(h, w, d.channels), d.dtype))
-
-    ins = {p: port(p, "in", d) for p, d in t.inputs.items()}
-    outs = {p: port(p, "out", d) for p, d in t.outputs.items()}
-    member = ComponentNode("m", None, ins, outs, type=t, params=params, placement="gpu")
-    group = GroupNode("only", None, {f"m_{p}": port for p, port in ins.items()}, outs,
-                      members=[member], feeds={f"m_{p}": Endpoint("m", p) for p in ins})
+    group = group_of_one(imgproc_types()[type_name], params, shapes)
     return group_kernel(group, f"test of {type_name}"), group_parameters(group)
 
 

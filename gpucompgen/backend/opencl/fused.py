@@ -47,23 +47,26 @@ from ...passes.fuse import accessor_calls, uses_outside_accessors
 
 VECTOR_WIDTHS = (2, 3, 4, 8, 16)  # OpenCL C vector types: a pixel stored at once
 
-PRELUDE = [
-    "// OpenCV's BORDER_REFLECT_101 (gfedcb|abcdefgh|gfedcba) of position p in 0..n-1",
-    "static inline int _reflect101(int p, const int n)",
-    "{",
-    "    if (n == 1)",
-    "        return 0;",
-    "    const int period = 2 * (n - 1);",
-    "    p = (p < 0 ? -p : p) % period;",
-    "    return p < n ? p : period - p;",
-    "}",
-    "",
-    "// the nearest position in 0..n-1 (BORDER_REPLICATE)",
-    "static inline int _clamp(const int p, const int n)",
-    "{",
-    "    return p < 0 ? 0 : p >= n ? n - 1 : p;",
-    "}",
-    ""]
+BORDER_RULES = {
+    "reflect101": [
+        "// OpenCV's BORDER_REFLECT_101 (gfedcb|abcdefgh|gfedcba) of position p in 0..n-1",
+        "static inline int _reflect101(int p, const int n)",
+        "{",
+        "    if (n == 1)",
+        "        return 0;",
+        "    const int period = 2 * (n - 1);",
+        "    p = (p < 0 ? -p : p) % period;",
+        "    return p < n ? p : period - p;",
+        "}",
+        ""],
+    "clamp": [
+        "// the nearest position in 0..n-1 (BORDER_REPLICATE)",
+        "static inline int _clamp(const int p, const int n)",
+        "{",
+        "    return p < 0 ? 0 : p >= n ? n - 1 : p;",
+        "}",
+        ""],
+}
 
 # Built-in functions a snippet calls, as inline code the compiler sees through.  On a CPU
 # device (PoCL) a call to the library's min(), max(), fabs(), fma() or convert_*_sat_rte()
@@ -150,6 +153,26 @@ def launch_geometry(group: GroupNode, tile: int, bx: int, by: int):
     return (bx, -(-out.data.height // tile) * by, 1), (bx, by, 1)
 
 
+def group_of_one(ctype, params: dict, shapes: dict[str, tuple[int, int]], member: str = "m",
+                 name: str = "only") -> GroupNode:
+    """The group of one component (named member) of a fusable type, for ports of the
+    given (height, width) sizes: what the generator writes for the operation alone (the
+    tests and benchmarks/kernels.py run it)."""
+    from ...ir import ComponentNode, Data, Port
+    from ...runtime.sizes import Size
+
+    def port(p, direction, d):
+        h, w = shapes[p]
+        return Port(p, direction, "gpu", d.dtype, d.channels,
+                    Data(Size(h, w, d.channels), d.dtype))
+
+    ins = {p: port(p, "in", d) for p, d in ctype.inputs.items()}
+    outs = {p: port(p, "out", d) for p, d in ctype.outputs.items()}
+    node = ComponentNode(member, None, ins, outs, type=ctype, params=params, placement="gpu")
+    return GroupNode(name, None, {f"{member}_{p}": q for p, q in ins.items()}, outs,
+                     members=[node], feeds={f"{member}_{p}": Endpoint(member, p) for p in ins})
+
+
 def channel_flat(group: GroupNode) -> bool:
     """Every member computes each channel alike, from the same channel of its inputs: a
     row of W pixels of C channels is W x C elements computed alike.  True where every
@@ -222,19 +245,21 @@ def group_kernel(group: GroupNode, header: str, device=None) -> str:
     # flat stencils need the interior path: border rules apply to pixel positions
     flat = channel_flat(group) and (edge is not None or not stencils)
     lines = [f"// {header}",
-             f"// Group {group.name}: one kernel for "
-             + ", ".join(f"{m.name} ({m.type.name}, {m.type.fusable.form})"
-                         for m in group.members) + ".",
+             *_comment(f"Group {group.name}: one kernel for "
+                       + ", ".join(f"{m.name} ({m.type.name}, {m.type.fusable.form})"
+                                   for m in group.members) + "."),
              (f"// It computes {root.name}.{out_name} from the group's inputs directly: no "
               "buffers between members."),
              "// Each member's snippet is a function of the element (y, x, c) it computes;",
              "// an input read <port>(y, x, c) calls the producing member, or loads from a",
              "// group input.  Sizes are constants: the system fixed them at build time.",
-             "// Kernel arguments, in the calling convention's order: "
-             + ", ".join(f"{names[p.name]} = {p.name}" for p in params if p.role != "tile")
-             + ".",
+             *_comment("Kernel arguments, in the calling convention's order: "
+                       + ", ".join(f"{names[p.name]} = {p.name}" for p in params
+                                   if p.role != "tile") + "."),
              "",
-             *PRELUDE,
+             *[line for rule, text in BORDER_RULES.items()
+               if any(m.type.fusable.form == "stencil" and m.type.fusable.border == rule
+                      for m in group.members) for line in text],
              "#define _PARAMS \\",
              *(f"    {d}, \\" if i < len(decls) - 1 else f"    {d}" for i, d in enumerate(decls)),
              "",
@@ -374,14 +399,12 @@ def _kernel(group: GroupNode, out_name: str, out_port, names, flat: bool,
         what = f"{channels} channels"
     split = ("its block_x threads each a contiguous run of the row" if how == "runs" else
              "its block_x threads adjacent elements of the row, in turn")
-    lines = [
-        f"// {h} rows of {w} pixels, {what}.  Work-group g computes the rows",
-        "// [g * tile, g * tile + tile); its block_y threads take them in turn, " + split
-        + ".",
-    ]
+    lines = _comment(f"{h} rows of {w} pixels, {what}.  Work-group g computes the rows "
+                     "[g * tile, g * tile + tile); its block_y threads take them in turn, "
+                     f"{split}.")
     if edge is not None:
-        lines.append(f"// Elements {edge} or more from every edge read inside the frame: the "
-                     "interior version, without border rules, computes them.")
+        lines += _comment(f"Elements {edge} or more from every edge read inside the frame: "
+                          "the interior version, without border rules, computes them.")
     lines += [
         f"__kernel void {group.name}(_PARAMS, const int _tile)",
         "{",
@@ -428,6 +451,13 @@ def _kernel(group: GroupNode, out_name: str, out_port, names, flat: bool,
                       "        }"]
     lines += ["    }", "}", ""]
     return lines
+
+
+def _comment(text: str, width: int = 92) -> list[str]:
+    """A '//' comment over lines of at most width characters."""
+    import textwrap
+
+    return ["// " + line for line in textwrap.wrap(text, width - 3, break_on_hyphens=False)]
 
 
 def _wrap(text: str, indent: str, width: int = 92) -> list[str]:
