@@ -46,6 +46,8 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 #       -> mirror3 (VerticalMirror, index_map)
 #       -> mirror4 (VerticalMirror, index_map)
 #       -> mirror5 (VerticalMirror, index_map)
+#       estimate: 5,991,968 element operations a frame as one kernel, 53,847,712 element
+#       operations apart (9.0x)
 
 from __future__ import annotations
 

@@ -31,7 +31,7 @@ from .errors import Pos
 from .snippet import MAX_SNIPPET, Snippet, analyse, print_lines
 
 FORMS = ("pointwise", "index_map", "stencil")
-BORDERS = ("clamp",)
+BORDERS = ("clamp", "reflect101")  # the nearest edge pixel; OpenCV's BORDER_REFLECT_101
 __all__ = ["BORDERS", "FORMS", "MAX_SNIPPET", "FusableDecl", "analyse", "snippet_position"]
 
 

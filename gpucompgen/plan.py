@@ -186,6 +186,7 @@ class GroupPlan:
     # and every member's output -> its size ("" for the group's output: a buffer)
     feeds: tuple[tuple[str, str], ...] = ()
     outputs: tuple[tuple[str, str, bool], ...] = ()  # ("member.port", data, fused away)
+    estimate: str = ""  # the fuse pass's estimate: fused against apart
 
 
 @dataclass
@@ -351,6 +352,9 @@ def fusion_lines(plan: ProgramPlan) -> list[str]:
         lines.append(f"  {g.part}: one kernel ({g.file}) for")
         lines += [f"    {'-> ' if i else ''}{m} ({t}, {form})"
                   for i, (m, t, form) in enumerate(g.members)]
+        if g.estimate:
+            lines += textwrap.wrap(g.estimate, 88, initial_indent="    ",
+                                   subsequent_indent="    ")
     for edge, why in plan.unfused:
         lines.append(f"  not fused: {edge}:")
         # wrapped: the generated program's header quotes these lines (100 columns)

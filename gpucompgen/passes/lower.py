@@ -412,7 +412,8 @@ def lower(system: System) -> ProgramPlan:
                                              for m in g.members), files[lib_key(g.type)],
                                tuple((p, str(end)) for p, end in g.feeds.items()),
                                tuple((f"{m.name}.{p}", str(port.data), m is not g.root)
-                                     for m in g.members for p, port in m.outputs.items()))
+                                     for m in g.members for p, port in m.outputs.items()),
+                               g.estimate)
                      for g in system.groups),
         unfused=tuple(system.unfused.items()), fusion=system.fusion,
         parts=tuple(parts), buffers=tuple(buffers), launches=tuple(launches),

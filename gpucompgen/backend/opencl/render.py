@@ -247,7 +247,7 @@ def render(system: System, source: str, model_dir: str = ".") -> list[OutputFile
                                 f"{', '.join(users)}.\n\n{text}"))
     for g in system.groups:
         name = plan.lib_files_of(lib_key(g.type))
-        files.append(OutputFile(PurePosixPath(lib, name), group_kernel(g, header)))
+        files.append(OutputFile(PurePosixPath(lib, name), group_kernel(g, header, system.device)))
     from ...plan import plan_lines
 
     program = env.get_template("program.py.j2").render(
