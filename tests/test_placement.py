@@ -322,13 +322,40 @@ def test_every_placement_of_the_two_branch_model_gives_identical_output(tmp_path
 def test_a_cpu_function_returning_the_wrong_shape_is_named(tmp_path):
     from gpucompgen.runtime import CpuFunctionComponent, Size
 
-    comp = CpuFunctionComponent(lambda image: image[:, :-1], "mirror",
+    # right on initialize()'s zero frame, one column short on a real one
+    comp = CpuFunctionComponent(lambda image: image[:, :-1] if image.any() else image, "mirror",
                                 inputs=(("image", np.uint8),), outputs=(("mirrored", np.uint8),))
-    assert comp.initialize(Size(4, 6, 3)) == Size(4, 5, 3)
-    comp.sizes["mirrored"] = Size(4, 6, 3)  # as the plan says
+    assert comp.initialize(Size(4, 6, 3)) == Size(4, 6, 3)
     with pytest.raises(ValueError, match=r"mirror\.mirrored: the CPU function <lambda>\(\) "
                                          r"returned uint8 \(4, 5, 3\), not uint8 \(4, 6, 3\)"):
-        comp.execute(np.zeros((4, 6, 3), np.uint8))
+        comp.execute(np.ones((4, 6, 3), np.uint8))
+
+
+def test_a_cpu_function_may_return_one_channel_as_height_width_1():
+    """(issue 22) a one-channel output as height x width x 1 goes on as height x width,
+    a view of the same memory; two channels are still refused."""
+    from gpucompgen.runtime import CpuFunctionComponent, Size
+
+    comp = CpuFunctionComponent(lambda image: image.sum(axis=2, keepdims=True, dtype=np.uint8),
+                                "gray", inputs=(("image", np.uint8),),
+                                outputs=(("gray", np.uint8),))
+    assert comp.initialize(Size(4, 6, 3)) == Size(4, 6, 1)
+    frame = np.arange(72, dtype=np.uint8).reshape(4, 6, 3)
+    result = comp.execute(frame)
+    assert result.shape == (4, 6)
+    np.testing.assert_array_equal(result, frame.sum(axis=2, dtype=np.uint8))
+    kept = np.zeros((4, 6, 1), np.uint8)
+    comp = CpuFunctionComponent(lambda image: kept, "keep", inputs=(("image", np.uint8),),
+                                outputs=(("mask", np.uint8),))
+    comp.initialize(Size(4, 6, 3))
+    assert np.shares_memory(comp.execute(frame), kept)  # no copy
+    comp = CpuFunctionComponent(lambda image: image[..., :2] if image.any() else image[..., :1],
+                                "two", inputs=(("image", np.uint8),),
+                                outputs=(("mask", np.uint8),))
+    comp.initialize(Size(4, 6, 3))
+    with pytest.raises(ValueError, match=r"two\.mask: .* returned uint8 \(4, 6, 2\), not "
+                                         r"uint8 \(4, 6\) \(or \(4, 6, 1\)\)"):
+        comp.execute(frame)
 
 
 def test_tune_writes_the_profile_that_auto_reads(tmp_path, capsys):
