@@ -18,8 +18,8 @@ cv2 calls:
 
 The frames are a pan across a photograph (scikit-image's astronaut, resized; 2 pixels a
 frame, 16 frames replayed), not noise. Variants: the default build, --fusion off, every
-component on the CPU (placement: cpu: the library's CPU forms, OpenCV) and placement:
-auto. All run in ONE process, rounds interleaved (each round runs every variant of every
+component on the CPU (placement: cpu: the library's CPU forms, OpenCV), placement: auto
+(the static estimate) and placement: auto after `gpucompgen tune` (its profile). All run in ONE process, rounds interleaved (each round runs every variant of every
 pipeline and size, then cv2), so load from other programs falls on all of them. A
 variant's time of a frame is the time between two frames reaching the end of its loop
 (building and initializing are not counted); cv2's the time of one frame's calls. Every
@@ -94,6 +94,7 @@ VARIANTS = {  # name -> (platform lines, fusion)
     "fusion off": ("", "off"),
     "all CPU": ("placement: cpu", None),
     "placement auto": ("placement: auto", None),
+    "auto after tune": ("placement: auto", None),  # `gpucompgen tune MODEL` first
 }
 
 
@@ -182,6 +183,17 @@ class Variant:
         return deltas, result.components["sink"].kept
 
 
+def tuned(model: Path, frames: int) -> None:
+    """What `gpucompgen tune MODEL` does: measure, write tune/<system>.yaml beside it."""
+    from gpucompgen.model import load_system
+    from gpucompgen.tune import default_profile_path, tune
+
+    text, _ = tune(model, frames=frames)
+    path = default_profile_path(model, load_system(model))
+    path.parent.mkdir(exist_ok=True)
+    path.write_text(text)
+
+
 def halide_note() -> str:
     try:
         import halide  # noqa: F401
@@ -219,6 +231,8 @@ def main(argv=None) -> int:
     parser.add_argument("--frames", type=int, default=12, help="timed frames a round")
     parser.add_argument("--pipelines", default=",".join(PIPELINES))
     parser.add_argument("--variants", default=",".join(VARIANTS))
+    parser.add_argument("--tune-frames", type=int, default=5,
+                        help="frames tune times each component for 'auto after tune'")
     args = parser.parse_args(argv)
     sizes = [tuple(int(v) for v in s.split("x")) for s in args.sizes.split(",")]
     names = args.pipelines.split(",")
@@ -231,7 +245,7 @@ def main(argv=None) -> int:
           f"{device.platform.version.strip()}); cv2 {cv2.__version__}, "
           f"{cv2.getNumThreads()} threads; {halide_note()}")
     print(f"load average before: {load()}")
-    programs, frames_of = {}, {}
+    programs, frames_of, placed = {}, {}, []
     with tempfile.TemporaryDirectory() as temporary:
         tmp = Path(temporary)
         for width, height in sizes:
@@ -245,7 +259,16 @@ def main(argv=None) -> int:
                     folder.mkdir()
                     model = folder / "model.yaml"
                     model.write_text(model_text(name, width, height, path, line))
-                    write(compile_model(model, folder / "out", fusion=fusion), folder / "out")
+                    if variant == "auto after tune":  # the profile auto then reads
+                        tuned(model, args.tune_frames)
+                    result = compile_model(model, folder / "out", fusion=fusion)
+                    write(result, folder / "out")
+                    if variant.startswith(("placement auto", "auto after")):
+                        on_gpu = [n for n in PIPELINES[name][1]
+                                  if result.system.component(n).placement == "gpu"]
+                        placed.append(f"{variant}, {name} {width}x{height}: "
+                                      f"{len(on_gpu)} of {len(PIPELINES[name][1])} on the "
+                                      f"device{' (' + ', '.join(on_gpu) + ')' if on_gpu else ''}")
                     module = runtime.load_module(folder / "out" / f"{name}_{width}x{height}.py",
                                                  f"bench_{folder.name}")
                     programs[name, (width, height), variant] = Variant(module, context)
@@ -285,6 +308,9 @@ def main(argv=None) -> int:
             ratio = "" if variant == "cv2" else f" {med / (1e3 * base):.1f}x"
             cells.append(f"{med:.2f} ({q[0]:.2f}-{q[2]:.2f}){ratio}")
         print(f"| {name} | {size[0]}x{size[1]} | " + " | ".join(cells) + " |")
+    print()
+    for line in placed:
+        print(line)
     for variant in variants:
         ratios = [statistics.median(samples[n, s, variant])
                   / statistics.median(samples[n, s, "cv2"]) for n, s in
