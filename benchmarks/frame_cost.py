@@ -31,14 +31,11 @@ SIZE = 8
 
 
 def model_text(n: int, placement: str) -> str:
-    lines = [f"system: cost_{placement}_{n}", "platform:", f"  placement: {placement}",
-             "components:",
-             f"  source: {{type: StillImage, params: {{width: {SIZE}, height: {SIZE}, seed: 1}}}}"]
-    lines += [f"  m{i}: {{type: VerticalMirror}}" for i in range(1, n + 1)]
-    lines += ["  sink: {type: FrameSink}", "connections:", "  - source.image -> m1.image"]
-    lines += [f"  - m{i}.mirrored -> m{i + 1}.image" for i in range(1, n)]
-    lines += [f"  - m{n}.mirrored -> sink.image"]
-    return "\n".join(lines) + "\n"
+    """gpucompgen bench's chain of n mirrors on SIZE x SIZE frames, placed as asked."""
+    from gpucompgen.bench import chain_model
+
+    return chain_model(n, SIZE, SIZE).replace(
+        "components:", f"platform:\n  placement: {placement}\ncomponents:", 1)
 
 
 def build(tmp: Path, n: int, placement: str, fusion: str):
@@ -50,7 +47,7 @@ def build(tmp: Path, n: int, placement: str, fusion: str):
     path.write_text(model_text(n, placement))
     out = tmp / name
     write(compile_model(path, out, fusion=fusion), out)
-    return runtime.load_module(out / f"cost_{placement}_{n}.py", name)
+    return runtime.load_module(out / f"mirror_chain_{n}.py", name)
 
 
 def per_frame(module, context, frames: int) -> list[float]:
