@@ -303,7 +303,7 @@ def main(argv=None) -> int:
         cells = []
         for variant in ["cv2", *variants]:
             values = [1e3 * v for v in samples[name, size, variant]]
-            q = statistics.quantiles(values, n=4)
+            q = statistics.quantiles(values, n=4) if len(values) > 1 else values * 3
             med = statistics.median(values)
             ratio = "" if variant == "cv2" else f" {med / (1e3 * base):.1f}x"
             cells.append(f"{med:.2f} ({q[0]:.2f}-{q[2]:.2f}){ratio}")
