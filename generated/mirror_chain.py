@@ -159,7 +159,8 @@ def run(frames=None, context=None, monitor=None, profile=False):
             source_image = source.execute()
             if source_image is None:
                 break  # end of stream
-            runtime.check_frame('source.image', source_image, (864, 1152, 3), np.uint8)
+            source_image = runtime.check_frame(
+                'source.image', source_image, (864, 1152, 3), np.uint8)
             source_image_gpu = adapter1_cpu2gpu.transfer(source_image)
             mirror1_to_mirror5_mirrored = mirror1_to_mirror5.execute(source_image_gpu)
             mirror5_mirrored_cpu = adapter2_gpu2cpu.transfer(mirror1_to_mirror5_mirrored)

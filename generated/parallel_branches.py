@@ -239,8 +239,10 @@ def run(frames=None, context=None, monitor=None, profile=False):
             camera2_image = camera2.execute()
             if camera1_image is None or camera2_image is None:
                 break  # end of stream
-            runtime.check_frame('camera1.image', camera1_image, (480, 640, 3), np.uint8)
-            runtime.check_frame('camera2.image', camera2_image, (480, 640, 3), np.uint8)
+            camera1_image = runtime.check_frame(
+                'camera1.image', camera1_image, (480, 640, 3), np.uint8)
+            camera2_image = runtime.check_frame(
+                'camera2.image', camera2_image, (480, 640, 3), np.uint8)
             camera1_image_gpu = adapter1_cpu2gpu.transfer(camera1_image)
             blur1_smooth = blur1.execute(camera1_image_gpu)
             camera2_image_gpu = adapter2_cpu2gpu.transfer(camera2_image)

@@ -36,7 +36,7 @@ CLASS_RESERVED = frozenset({
     # runtime.KernelComponent's members
     "function", "inputs", "outputs", "output_sizes", "sizes", "buffers", "hosts",
     "arguments", "copies_own_data", "host_visible", "settings_source", "_inputs",
-    "_outputs", "_slots",
+    "_outputs", "_slots", "_enqueue", "_results", "_copy_and_run",
 })
 
 # A system's name becomes <system>.py, whose folder comes first on sys.path when it runs:

@@ -234,7 +234,8 @@ def run(frames=None, context=None, monitor=None, profile=False):
             source_image = source.execute()
             if source_image is None:
                 break  # end of stream
-            runtime.check_frame('source.image', source_image, (864, 1152, 3), np.uint8)
+            source_image = runtime.check_frame(
+                'source.image', source_image, (864, 1152, 3), np.uint8)
             mirror1_mirrored = mirror1.execute(source_image)
             mirror2_mirrored = mirror2.execute(mirror1_mirrored)
             mirror3_mirrored = mirror3.execute(mirror2_mirrored)

@@ -277,7 +277,8 @@ def run(frames=None, context=None, monitor=None, profile=False):
             camera_image = camera.execute()
             if camera_image is None:
                 break  # end of stream
-            runtime.check_frame('camera.image', camera_image, (200, 301, 3), np.uint8)
+            camera_image = runtime.check_frame(
+                'camera.image', camera_image, (200, 301, 3), np.uint8)
             hsv_hsv = hsv.execute(camera_image)
             red_mask = red.execute(hsv_hsv)
             erode_eroded = erode.execute(red_mask)

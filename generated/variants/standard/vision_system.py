@@ -188,8 +188,10 @@ def run(frames=None, context=None, monitor=None, profile=False):
             camera2_image = camera2.execute()
             if camera1_image is None or camera2_image is None:
                 break  # end of stream
-            runtime.check_frame('camera1.image', camera1_image, (480, 640, 3), np.uint8)
-            runtime.check_frame('camera2.image', camera2_image, (480, 640, 3), np.uint8)
+            camera1_image = runtime.check_frame(
+                'camera1.image', camera1_image, (480, 640, 3), np.uint8)
+            camera2_image = runtime.check_frame(
+                'camera2.image', camera2_image, (480, 640, 3), np.uint8)
             merger_merged = merger.execute(camera1_image, camera2_image)
             detector_mask = detector.execute(merger_merged)
             manager.execute(detector_mask)

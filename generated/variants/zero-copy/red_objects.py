@@ -245,7 +245,8 @@ def run(frames=None, context=None, monitor=None, profile=False):
             camera_image = camera.execute()
             if camera_image is None:
                 break  # end of stream
-            runtime.check_frame('camera.image', camera_image, (200, 301, 3), np.uint8)
+            camera_image = runtime.check_frame(
+                'camera.image', camera_image, (200, 301, 3), np.uint8)
             camera_image_gpu = adapter1_cpu2gpu.transfer(camera_image)
             hsv_red_mask = hsv_red.execute(camera_image_gpu)
             erode_eroded = erode.execute(hsv_red_mask)
