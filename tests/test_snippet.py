@@ -400,3 +400,22 @@ def _identifiers(text: str) -> list[str]:
     import re
 
     return re.findall(r"[A-Za-z_][A-Za-z0-9_]*", text)
+
+
+# -- queries the fusion pass and the kernel generator make ------------------------------------
+
+def test_accessor_calls_and_shifted_arguments_are_read_from_the_tree():
+    from gpucompgen.snippet import (accessor_calls, is_name, is_shifted, parse,
+                                    uses_outside_calls)
+
+    tree = parse("// image(0, 0, 0) in a comment is no call\n"
+                 "const int a = image(y, (x + w), c), b = image(y, x - 2 * k, c);\n"
+                 "return a + b + other(y, x * 2, 0);")
+    calls = accessor_calls(tree, ["image", "other"])
+    assert len(calls["image"]) == 2 and len(calls["other"]) == 1
+    assert all(is_name(args[2], "c") for args in calls["image"])
+    assert [is_shifted(args[1], "x") for args in calls["image"]] == [True, True]
+    assert not is_shifted(calls["other"][0][1], "x")  # x * 2 moves the row
+    assert not is_shifted(parse("return image(y, x + x, c);").body[0].value.args[1], "x")
+    assert not uses_outside_calls(tree, ["image", "other"], {"x", "c"})
+    assert uses_outside_calls(parse("return image(y, x, c) + x;"), ["image"], {"x"})

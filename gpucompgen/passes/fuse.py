@@ -37,11 +37,11 @@ says what, in the model's names.
 
 from __future__ import annotations
 
-import re
 from dataclasses import replace
 
 from ..ir import AdapterNode, ComponentNode, Edge, GroupNode, Port, System
 from ..model import ComponentType, Endpoint, GpuDecl
+from ..snippet import accessor_calls
 from .base import Pass
 
 # the generated kernel's settings: tile rows a work-group, 64 threads splitting them
@@ -57,59 +57,6 @@ def group_gpu_decl(device) -> GpuDecl:
     from ..backend.opencl.fused import schedule
 
     return GROUP_GPU if schedule(device) == "runs" else GROUP_GPU_STRIDED
-
-
-# -- reading snippets (a small scanner; fusable.py's parser replaces it) ----------------
-_SCAN = re.compile(r"\s+|//[^\n]*|/\*.*?\*/|(?P<id>[A-Za-z_][A-Za-z0-9_]*)|(?P<other>\S)",
-                   re.DOTALL)
-
-
-def _words(body: str) -> list[str]:
-    return [m.group("id") or m.group("other") for m in _SCAN.finditer(body)
-            if m.lastgroup]
-
-
-def accessor_calls(body: str, ports: list[str]) -> dict[str, list[tuple[str, ...]]]:
-    """Every accessor call port(a, b, c) in the snippet, its arguments as text (tokens
-    joined by nothing), per port."""
-    toks = _words(body)
-    found: dict[str, list[tuple[str, ...]]] = {p: [] for p in ports}
-    for i, t in enumerate(toks):
-        if t in found and i + 1 < len(toks) and toks[i + 1] == "(":
-            args, cur, depth = [], [], 0
-            for u in toks[i + 2:]:
-                if u in "([{":
-                    depth += 1
-                elif u in ")]}":
-                    if depth == 0:
-                        break
-                    depth -= 1
-                if u == "," and depth == 0:
-                    args.append("".join(cur))
-                    cur = []
-                    continue
-                cur.append(u)
-            args.append("".join(cur))
-            found[t].append(tuple(args))
-    return found
-
-
-def uses_outside_accessors(body: str, ports: list[str], names: set[str]) -> bool:
-    """Whether the snippet uses any of names other than as an accessor's argument."""
-    toks = _words(body)
-    depth, inside = 0, []
-    for i, t in enumerate(toks):
-        if t in ports and i + 1 < len(toks) and toks[i + 1] == "(":
-            inside.append(depth)
-        elif t == "(":
-            depth += 1
-        elif t == ")":
-            depth -= 1
-            if inside and inside[-1] == depth:
-                inside.pop()
-        elif t in names and not inside:
-            return True
-    return False
 
 
 class Fuse(Pass):
@@ -241,7 +188,7 @@ def reads(node, port: str) -> int:
     """Elements of input port one evaluation of node's snippet reads: its accessor calls
     on the port, at least the window for a stencil (whose reads may be in a loop)."""
     decl = node.type.fusable
-    calls = len(accessor_calls(decl.body, [port])[port])
+    calls = len(accessor_calls(decl.tree, [port])[port])
     return max(calls, decl.taps(node.params) if decl.form == "stencil" else 1)
 
 

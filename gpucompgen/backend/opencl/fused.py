@@ -43,7 +43,7 @@ import re
 
 from ...ir import GroupNode
 from ...model import DTYPES, Endpoint
-from ...passes.fuse import accessor_calls, uses_outside_accessors
+from ...snippet import accessor_calls, is_name, is_shifted, uses_outside_calls
 
 VECTOR_WIDTHS = (2, 3, 4, 8, 16)  # OpenCL C vector types: a pixel stored at once
 
@@ -186,20 +186,13 @@ def channel_flat(group: GroupNode) -> bool:
         return False
     for m in group.members:
         decl = m.type.fusable
-        calls = accessor_calls(decl.body, list(m.inputs))
-        if any(len(args) != 3 or args[2] != "c" or not _shifted_x(args[1])
+        calls = accessor_calls(decl.tree, list(m.inputs))
+        if any(len(args) != 3 or not is_name(args[2], "c") or not is_shifted(args[1], "x")
                for found in calls.values() for args in found):
             return False
-        if uses_outside_accessors(decl.body, list(m.inputs), {"x", "c"}):
+        if uses_outside_calls(decl.tree, list(m.inputs), {"x", "c"}):
             return False
     return True
-
-
-def _shifted_x(arg: str) -> bool:
-    """x, or x plus or minus something without x (the accessor's argument as text)."""
-    if arg == "x":
-        return True
-    return arg[:2] in ("x+", "x-") and re.search(r"\bx\b", arg[2:]) is None
 
 
 def margin(group: GroupNode) -> int | None:
