@@ -106,7 +106,7 @@ class Recording(Source):
     def open(self) -> tuple[int, int] | None:
         path = Path(self.uri.path)
         if not path.exists():
-            raise self.fail("does not exist")
+            raise self.fail(f"{path.resolve()} does not exist")
         topics = self.topics()
         self.topic = choose_topic(self.uri, topics)
         self.msgtype = topics[self.topic]

@@ -15,6 +15,7 @@ from pathlib import Path
 from .errors import PipelineError, Stopped
 from .lifecycle import Result
 from .monitor import Monitor
+from .overrides import OverrideError, Param, parse_overrides
 from .signals import GRACE_SECONDS, StopOnSignals, running_kernels
 
 
@@ -35,6 +36,17 @@ def add_program_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--profile", action="store_true",
                         help="time every kernel and copy with OpenCL profiling events and "
                              "count the bytes moved between CPU and GPU (printed at the end)")
+    parser.add_argument("--input", action="append", default=[], metavar="NAME=URI",
+                        help="read source NAME from URI: a folder or glob of images, a video "
+                             "file, v4l2:///dev/videoN, csi://N, device:N, rtsp://..., "
+                             "mcap://FILE?topic=T or a ROS 2 bag folder; repeatable")
+    parser.add_argument("--output", action="append", default=[], metavar="NAME=URI",
+                        help="write sink NAME's frames to URI: display://, a video file "
+                             "(out.mp4), a folder (out/) or mcap://FILE; repeatable")
+    parser.add_argument("--set", action="append", default=[], metavar="NAME.PARAM=VALUE",
+                        dest="set_params",
+                        help="change a parameter that no size depends on (a threshold) "
+                             "without a rebuild, checked against its type; repeatable")
 
 
 def output_file_problem(path: Path) -> str:
@@ -49,11 +61,13 @@ def output_file_problem(path: Path) -> str:
     return ""
 
 
-def main(run: Callable[..., Result], description: str, argv: list[str] | None = None) -> int:
+def main(run: Callable[..., Result], description: str, argv: list[str] | None = None,
+         params: dict[str, Param] | None = None) -> int:
     """Command line of a generated program: run it, print errors without tracebacks.
 
     Exit codes: 0 done, 1 a component or the device failed, 2 usage, 130 SIGINT,
-    143 SIGTERM (128 + the signal's number).
+    143 SIGTERM (128 + the signal's number).  params: the program's PARAMS table, which
+    --set, --input and --output are checked against.
     """
     parser = argparse.ArgumentParser(
         description=description,
@@ -70,12 +84,17 @@ def main(run: Callable[..., Result], description: str, argv: list[str] | None = 
         problem = output_file_problem(Path(args.stats_json))
         if problem:
             parser.error(f"--stats-json {args.stats_json}: {problem}")
+    try:
+        overrides = parse_overrides(params or {}, args.set_params, args.input, args.output)
+    except OverrideError as exc:
+        parser.error(str(exc))
     monitor = Monitor(progress=False if args.quiet else None, stats_path=args.stats_json,
                       options={"decisions": args.decisions, "save_images": args.save_images,
                                "quiet": args.quiet})
     if args.debug:
         faulthandler.enable()  # a crash (SIGSEGV in a kernel) prints where the host was
-    call = functools.partial(run, frames=args.frames, monitor=monitor, profile=args.profile)
+    call = functools.partial(run, frames=args.frames, monitor=monitor, profile=args.profile,
+                             **({"params": overrides} if overrides else {}))
     try:
         if threading.current_thread() is threading.main_thread():
             stopper = StopOnSignals(monitor)

@@ -121,8 +121,14 @@ class ModelPath(str):
     printed as a call that resolves it when the program runs, wherever it is started."""
 
 
+class ParamRef(str):
+    """A parameter --set may change: printed as its entry of run()'s `params`."""
+
+
 def py_literal(value) -> str:
     """A Python literal for a model value (escaped: no model text becomes code)."""
+    if isinstance(value, ParamRef):
+        return f"params[{str(value)!r}]"
     if isinstance(value, ModelPath):
         return f"runtime.model_path(__file__, {str(value)!r})"
     if isinstance(value, (bool, int, float, str)) or value is None:
@@ -198,11 +204,77 @@ def with_model_paths(system: System, plan: ProgramPlan, model_dir: str) -> Progr
     return dataclasses.replace(plan, parts=parts)
 
 
+@dataclass(frozen=True)
+class Settable:
+    """A parameter the program's --set may change when it starts: one that no size,
+    requirement or compiled kernel depends on."""
+
+    key: str  # 'component.param'
+    type: str  # the declaration's type
+    value: object  # the model's value (a literal, or a ModelPath)
+    minimum: float | None = None
+    maximum: float | None = None
+
+    def arguments(self) -> list[str]:
+        """runtime.Param's arguments: type, value, and the bounds the declaration has."""
+        return [repr(self.type), py_literal(self.value)] + [
+            f"{k}={v!r}" for k, v in (("minimum", self.minimum), ("maximum", self.maximum))
+            if v is not None]
+
+
+def size_names(t) -> set[str]:
+    """The parameters a type's output sizes or requirements name: fixed at build time."""
+    import ast
+
+    exprs = [e for d in t.outputs.values() for e in (d.height, d.width) if e is not None]
+    exprs += [check for check, _ in t.requires]
+    return {n.id for e in exprs for n in ast.walk(e) if isinstance(n, ast.Name)}
+
+
+def with_settable_params(system: System, plan: ProgramPlan) -> tuple[ProgramPlan, list]:
+    """The plan with every settable parameter printed as params['component.param'], and
+    the declarations of those parameters (the program's PARAMS table)."""
+    settable: dict[str, Settable] = {}
+
+    def declare(key: str, t, pname: str, value) -> bool:
+        decl = t.params.get(pname)
+        if decl is None or pname in size_names(t):
+            return False
+        settable[key] = Settable(key, decl.type, value, decl.minimum, decl.maximum)
+        return True
+
+    parts = []
+    for part in plan.parts:
+        t = getattr(system.nodes.get(part.name), "type", None)
+        if t is None:
+            parts.append(part)
+            continue
+        params = tuple((k, ParamRef(f"{part.name}.{k}"))
+                       if declare(f"{part.name}.{k}", t, k, v) else (k, v)
+                       for k, v in part.params)
+        parts.append(dataclasses.replace(part, params=params))
+    launches = []
+    for la in plan.launches:
+        node = system.nodes[la.part]
+        args = []
+        for a in la.arguments:
+            if a.param:
+                owner, pname = a.param.split(".", 1)
+                member = node if owner == la.part else node.member(owner)
+                if declare(a.param, member.type, pname, a.value):
+                    a = dataclasses.replace(a, value=ParamRef(a.param))  # noqa: PLW2901
+            args.append(a)
+        launches.append(dataclasses.replace(la, arguments=tuple(args)))
+    plan = dataclasses.replace(plan, parts=parts, launches=launches)
+    return plan, sorted(settable.values(), key=lambda s: s.key)
+
+
 def render(system: System, source: str, model_dir: str = ".") -> list[OutputFile]:
     """All files of one system, in a stable order: the program, then its lib folder (each
     kernel and user Python file once, whatever number of types use it).  model_dir: the
     model's folder relative to the output folder ('path' parameters start there)."""
     plan: ProgramPlan = with_model_paths(system, system.plan, model_dir)
+    plan, settable = with_settable_params(system, plan)
     env = environment()
     model = system.model
     lib = lib_dir_name(system.name)
@@ -252,7 +324,7 @@ def render(system: System, source: str, model_dir: str = ".") -> list[OutputFile
 
     program = env.get_template("program.py.j2").render(
         header=header, sha256=model.text_sha256, description=model.description, lib=lib,
-        plan=plan, plan_lines=plan_lines(plan),
+        plan=plan, plan_lines=plan_lines(plan), settable=settable,
         sources=[n for n in system.order if isinstance(system.nodes[n], ComponentNode)])
     files.insert(0, OutputFile(PurePosixPath(f"{system.name}.py"), program))
     return files
