@@ -440,3 +440,71 @@ def test_video_codecs_are_named_and_display_needs_one(tmp_path, monkeypatch):
         io.open_sink("display://").open()
     with pytest.raises(PipelineError, match=r"folder .*missing does not exist"):
         io.open_sink(str(tmp_path / "missing" / "out.mp4")).open()
+
+
+# -- sizes from the input, when the model is checked --------------------------------------
+
+SIZED = """\
+system: sized
+platform: {{device: portable}}
+components:
+  camera: {{type: Camera, params: {{{params}}}}}
+  detector: {{type: ObjectDetector}}
+  manager: {{type: VisionManager}}
+connections:
+  - camera.image -> detector.frame
+  - detector.mask -> manager.mask
+"""
+
+
+def check(tmp_path, params, *extra):
+    import subprocess
+    import sys
+
+    (tmp_path / "m.yaml").write_text(SIZED.format(params=params))
+    return subprocess.run([sys.executable, "-m", "gpucompgen", "check", *extra,
+                           str(tmp_path / "m.yaml")], capture_output=True, text=True,
+                          timeout=120, check=False)
+
+
+def test_a_source_without_width_and_height_takes_them_from_its_input(tmp_path):
+    shots_dir = tmp_path / "shots"
+    shots_dir.mkdir()
+    Image.fromarray(frames(1, 20, 36)[0]).save(shots_dir / "a.png")
+    proc = check(tmp_path, "folder: shots")  # relative to the model
+    assert proc.returncode == 0, proc.stderr
+    assert "camera.image: 20x36x3 uint8" in proc.stdout
+    write_mcap(tmp_path / "drive.mcap", frames(2), extra_topics=False)
+    proc = check(tmp_path, "source: 'mcap://drive.mcap?topic=/cam/rgb'")
+    assert proc.returncode == 0, proc.stderr
+    assert f"camera.image: {H}x{W}x3 uint8" in proc.stdout
+    write_video(tmp_path / "clip.avi", flat_frames(2))
+    proc = check(tmp_path, "video: clip.avi")
+    assert "camera.image: 32x48x3 uint8" in proc.stdout
+    proc = check(tmp_path, "folder: shots, width: 40")
+    assert proc.returncode == 1
+    assert "m.yaml:4:57: error: 'width' of 'camera' is 40, but 'shots' has frames of 36x20" \
+        in proc.stderr
+    assert "hint: set 'width: 36', or leave it out: it is read from the input" in proc.stderr
+
+
+def test_check_reports_a_missing_or_empty_input_at_its_position(tmp_path):
+    proc = check(tmp_path, "folder: nowhere")
+    assert proc.returncode == 1
+    assert (f"m.yaml:4:43: error: input of 'camera': image folder '{tmp_path}/nowhere' does "
+            "not exist") in proc.stderr
+    (tmp_path / "empty").mkdir()
+    proc = check(tmp_path, "folder: empty")
+    assert "error: input of 'camera': image folder" in proc.stderr
+    assert "has no images" in proc.stderr
+    proc = check(tmp_path, "source: device:0")
+    assert "the frame size of 'device:0' (a live camera or stream) is not known before it " \
+           "runs" in proc.stderr and "hint: give height and width" in proc.stderr
+    # with the size given, a missing input is a warning: the program may get --input
+    proc = check(tmp_path, "folder: nowhere, width: 32, height: 16")
+    assert proc.returncode == 0
+    assert "warning: input of 'camera'" in proc.stderr
+    assert "hint: the program will need --input camera=URI" in proc.stderr
+    assert check(tmp_path, "folder: nowhere, width: 32, height: 16", "--strict").returncode == 1
+    proc = check(tmp_path, "folder: a, video: b.avi")
+    assert "'camera' sets 'folder' and 'video': one input only" in proc.stderr

@@ -70,5 +70,5 @@ def test_absolute_paths_and_devices_are_left_as_written(tmp_path):
         _, program = build(sub, value if value != "''" else "''")
         text = program.read_text(encoding="utf-8")
         # the model's value sits in the PARAMS table --set may override
-        assert f"runtime.Param('path', {shown})" in text.replace("(\n        'path'", "('path'")
+        assert f"runtime.Param('input', {shown})" in text.replace("(\n        'input'", "('input'")
         assert "folder=params['camera.folder']" in text

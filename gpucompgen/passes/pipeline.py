@@ -150,9 +150,10 @@ def run_pipeline(system: System, passes: tuple[Pass, ...] = PIPELINE,
             system.verify()
         if dump is not None:
             dump(f"// after {p.name}\n{system.dump()}\n")
+    loaded = list(getattr(system.model, "load_warnings", None) or [])
     if rep.has_errors:
-        raise GpucompgenError(sorted(set(rep.diagnostics)))
-    return system, rep.warnings
+        raise GpucompgenError(sorted(set(rep.diagnostics + loaded)))
+    return system, sorted(rep.warnings + loaded)
 
 
 def run_passes(model: SystemModel, device: DeviceFacts, mode: str = "gpu-aware",

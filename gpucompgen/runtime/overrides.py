@@ -83,7 +83,8 @@ def convert(key: str, text: str, p: Param) -> object:
         if p.maximum is not None and value > p.maximum:
             raise OverrideError(f"{where}: {value} is above the maximum {_num(p.maximum)}")
         return value
-    if p.type == "path" and text and "://" not in text and not text.startswith("device:"):
+    if p.type in ("path", "input") and text and "://" not in text \
+            and not text.startswith("device:"):
         return os.path.abspath(os.path.expanduser(text))  # from the working folder
     return text
 

@@ -187,6 +187,21 @@ def source_path(model_file: Path, out_dir: Path) -> str:
 URI = re.compile(r"[A-Za-z][A-Za-z0-9+.-]*:")  # e.g. a camera's device:0, not a path
 
 
+FILE_URI = re.compile(r"(file|mcap|rosbag)://(?!/)")  # a file URI with a relative path
+
+
+def relative_to_program(value: str, model_dir: str):
+    """A path (or a file URI's path) relative to the model, as seen from the program."""
+    m = FILE_URI.match(value)
+    if m:
+        path, q, query = value[m.end():].partition("?")
+        return ModelPath(f"{m.group(0)}{posixpath.normpath(posixpath.join(model_dir, path))}"
+                         f"{q}{query}")
+    if posixpath.isabs(value) or URI.match(value):
+        return value
+    return ModelPath(posixpath.normpath(posixpath.join(model_dir, value)))
+
+
 def with_model_paths(system: System, plan: ProgramPlan, model_dir: str) -> ProgramPlan:
     """The plan with every relative 'path' parameter made relative to the program's folder
     (model_dir: the model's folder as seen from there), so that it names the same file
@@ -195,11 +210,10 @@ def with_model_paths(system: System, plan: ProgramPlan, model_dir: str) -> Progr
     for part in plan.parts:
         node = system.nodes.get(part.name)
         decls = getattr(getattr(node, "type", None), "params", {})
-        params = tuple(
-            (k, ModelPath(posixpath.normpath(posixpath.join(model_dir, v))))
-            if decls.get(k) is not None and decls[k].type == "path" and isinstance(v, str)
-            and v and not posixpath.isabs(v) and not URI.match(v) else (k, v)
-            for k, v in part.params)
+        params = tuple((k, relative_to_program(v, model_dir))
+                       if decls.get(k) is not None and decls[k].type in ("path", "input")
+                       and isinstance(v, str) and v else (k, v)
+                       for k, v in part.params)
         parts.append(dataclasses.replace(part, params=params))
     return dataclasses.replace(plan, parts=parts)
 
