@@ -363,6 +363,7 @@ def _build_and_run(args, out: Path) -> int:
     program = out / f"{result.system.name}.py"
     cmd = [sys.executable, str(program)]
     for flag, value in (("--frames", args.frames), ("--stats-json", args.stats_json),
+                        ("--trace", args.trace),
                         ("--decisions", args.decisions),
                         ("--save-images", args.save_images)):
         if value is not None:

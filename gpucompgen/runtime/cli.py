@@ -36,6 +36,10 @@ def add_program_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--profile", action="store_true",
                         help="time every kernel and copy with OpenCL profiling events and "
                              "count the bytes moved between CPU and GPU (printed at the end)")
+    parser.add_argument("--trace", metavar="FILE",
+                        help="write a Chrome trace-event JSON of the run to FILE (open it in "
+                             "ui.perfetto.dev or chrome://tracing): a track per component "
+                             "and per device queue, each frame followable")
     parser.add_argument("--input", action="append", default=[], metavar="NAME=URI",
                         help="read source NAME from URI: a folder or glob of images, a video "
                              "file, v4l2:///dev/videoN, csi://N, device:N, rtsp://..., "
@@ -80,20 +84,23 @@ def main(run: Callable[..., Result], description: str, argv: list[str] | None = 
     args = parser.parse_args(argv)
     if args.frames is not None and args.frames < 0:
         parser.error("--frames must be 0 or more")
-    if args.stats_json is not None:  # found out before the run, not after it
-        problem = output_file_problem(Path(args.stats_json))
-        if problem:
-            parser.error(f"--stats-json {args.stats_json}: {problem}")
+    for flag, value in (("--stats-json", args.stats_json), ("--trace", args.trace)):
+        if value is not None:  # found out before the run, not after it
+            problem = output_file_problem(Path(value))
+            if problem:
+                parser.error(f"{flag} {value}: {problem}")
     try:
         overrides = parse_overrides(params or {}, args.set_params, args.input, args.output)
     except OverrideError as exc:
         parser.error(str(exc))
     monitor = Monitor(progress=False if args.quiet else None, stats_path=args.stats_json,
                       options={"decisions": args.decisions, "save_images": args.save_images,
-                               "quiet": args.quiet})
+                               "quiet": args.quiet}, trace_path=args.trace)
     if args.debug:
         faulthandler.enable()  # a crash (SIGSEGV in a kernel) prints where the host was
-    call = functools.partial(run, frames=args.frames, monitor=monitor, profile=args.profile,
+    # a trace needs the device's profiling events
+    call = functools.partial(run, frames=args.frames, monitor=monitor,
+                             profile=args.profile or bool(args.trace),
                              **({"params": overrides} if overrides else {}))
     try:
         if threading.current_thread() is threading.main_thread():
@@ -125,7 +132,7 @@ def main(run: Callable[..., Result], description: str, argv: list[str] | None = 
         print(f"error: {type(exc).__name__}: {exc}", file=sys.stderr)
         print("  (run with --debug for the traceback)", file=sys.stderr)
         return 1
-    if result.profile is not None:
+    if args.profile and result.profile is not None:
         print(result.profile.report(result.frames), file=sys.stderr)
     if not args.quiet:
         print(f"processed {result.frames} frame(s)", file=sys.stderr)
