@@ -378,6 +378,8 @@ def _build_and_run(args, out: Path) -> int:
         cmd.append("--debug")
     if args.profile:
         cmd.append("--profile")
+    if args.drop:
+        cmd.append("--drop")
     return run_program(cmd)
 
 

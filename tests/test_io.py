@@ -508,3 +508,67 @@ def test_check_reports_a_missing_or_empty_input_at_its_position(tmp_path):
     assert check(tmp_path, "folder: nowhere, width: 32, height: 16", "--strict").returncode == 1
     proc = check(tmp_path, "folder: a, video: b.avi")
     assert "'camera' sets 'folder' and 'video': one input only" in proc.stderr
+
+
+# -- --drop: live behaviour -----------------------------------------------------------------
+
+class Ticker(io.Source):
+    """A live source: frame i is full of i, one every `period` seconds, `count` frames."""
+
+    def __init__(self, count, period=0.002, fail_at=None):
+        super().__init__(io.parse_source("device:0"))
+        self.count, self.period, self.fail_at, self.i = count, period, fail_at, 0
+
+    def open(self):
+        return (2, 2)
+
+    def read(self):
+        import time
+
+        time.sleep(self.period)
+        if self.i == self.fail_at:
+            raise PipelineError("camera unplugged")
+        if self.i >= self.count:
+            return None
+        self.i += 1
+        return np.full((2, 2, 3), self.i - 1, np.uint8)
+
+
+def test_drop_keeps_the_newest_frame_and_counts_the_rest():
+    import time
+
+    from gpucompgen.io.live import DropFrames
+
+    source = DropFrames(Ticker(60))
+    source.open()
+    got = []
+    while (f := source.read()) is not None:
+        got.append(int(f[0, 0, 0]))
+        time.sleep(0.01)  # a pipeline five times slower than the camera
+    source.close()
+    assert got == sorted(set(got)) and got[-1] == 59  # newer and newer, up to the last
+    assert source.dropped > 0 and source.dropped + len(got) == 60
+    failing = DropFrames(Ticker(60, fail_at=5))
+    failing.open()
+    with pytest.raises(PipelineError, match="camera unplugged"):
+        while failing.read() is not None:
+            pass
+    failing.close()
+
+
+def test_drop_on_the_camera_and_in_the_statistics(tmp_path):
+    for i, f in enumerate(frames(5)):
+        Image.fromarray(f).save(tmp_path / f"{i}.png")
+    cam = Camera(width=W, height=H, source=str(tmp_path))
+    cam.runtime_options({"drop": True})
+    cam.initialize()
+    got = []
+    while (f := cam.execute()) is not None:
+        got.append(f)
+    cam.free_memory()
+    assert cam.dropped_frames + len(got) == 5 and len(got) >= 1
+    from gpucompgen.runtime import Monitor
+
+    monitor = Monitor(progress=False)
+    monitor.attach({"camera": cam})
+    assert monitor.stats()["dropped_frames"] == {"camera": cam.dropped_frames}

@@ -191,3 +191,17 @@ def test_generated_programs_declare_what_set_may_change():
     assert "'detector.red_min': runtime.Param('int', 150, minimum=0, maximum=255)" in text
     assert "'camera1.width'" not in text  # a size: fixed at build time
     assert "np.int32(params['detector.red_min'])" in text
+
+
+def test_drop_counts_what_the_pipeline_did_not_take(program, tmp_path):
+    import json
+
+    folder = shots(tmp_path / "mine")
+    proc = run(program, "--input", f"camera={folder}", "--drop", "--stats-json",
+               str(tmp_path / "s.json"))
+    assert proc.returncode == 0, proc.stderr
+    stats = json.loads((tmp_path / "s.json").read_text())
+    dropped = stats["dropped_frames"]["camera"]
+    assert stats["frames"] + dropped == 3 and stats["frames"] >= 1
+    assert f"processed {stats['frames']} frame(s); dropped {dropped} (camera {dropped})" \
+        in proc.stderr

@@ -33,6 +33,8 @@ class Buoy:
 
 
 class Camera:
+    RUNTIME_OPTIONS = ("drop",)
+
     def __init__(self, *, width: int = 640, height: int = 480, seed: int = 1, buoys: int = 2,
                  frames: int = 0, folder: str = "", video: str = "", source: str = ""):
         self.width, self.height, self.seed = width, height, seed
@@ -40,11 +42,23 @@ class Camera:
         self.source = source
         self.frame = 0
         self.reader = None  # a gpucompgen.io Source, for real inputs
+        self.drop = False  # --drop: read in a thread, keep only the newest frame
+        self._dropped = 0
         self.background = None
         self.noise: list[np.ndarray] = []
         self.water: list[np.ndarray] = []
 
     # -- the component interface ------------------------------------------------------
+    def runtime_options(self, options: dict) -> None:
+        """--drop: when the pipeline falls behind a live input, frames are dropped (and
+        counted) instead of queued."""
+        self.drop = bool(options.get("drop"))
+
+    @property
+    def dropped_frames(self) -> int:
+        """Frames --drop dropped (kept after free_memory, for the run's summary)."""
+        return getattr(self.reader, "dropped", self._dropped)
+
     def initialize(self) -> Size:
         given = [k for k in ("source", "folder", "video") if getattr(self, k)]
         if len(given) > 1:
@@ -92,6 +106,7 @@ class Camera:
         if self.reader is not None:
             reader, self.reader = self.reader, None
             reader.close()
+            self._dropped = getattr(reader, "dropped", 0)
 
     # -- synthetic scene ----------------------------------------------------------------
     def ground_truth(self, frame: int) -> list[Buoy]:
@@ -161,6 +176,10 @@ class Camera:
         else:
             uri = io.parse_source(spec)
         reader = io.open_source(uri)
+        if self.drop:
+            from gpucompgen.io.live import DropFrames
+
+            reader = DropFrames(reader)
         size = reader.open()
         if size is not None and size != (self.height, self.width):
             reader.close()

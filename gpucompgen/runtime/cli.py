@@ -36,6 +36,10 @@ def add_program_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--profile", action="store_true",
                         help="time every kernel and copy with OpenCL profiling events and "
                              "count the bytes moved between CPU and GPU (printed at the end)")
+    parser.add_argument("--drop", action="store_true",
+                        help="sources read in their own thread and keep only the newest "
+                             "frame: frames the pipeline cannot keep up with are dropped "
+                             "(counted in the summary and --stats-json), as live cameras do")
     parser.add_argument("--trace", metavar="FILE",
                         help="write a Chrome trace-event JSON of the run to FILE (open it in "
                              "ui.perfetto.dev or chrome://tracing): a track per component "
@@ -95,7 +99,8 @@ def main(run: Callable[..., Result], description: str, argv: list[str] | None = 
         parser.error(str(exc))
     monitor = Monitor(progress=False if args.quiet else None, stats_path=args.stats_json,
                       options={"decisions": args.decisions, "save_images": args.save_images,
-                               "quiet": args.quiet}, trace_path=args.trace)
+                               "quiet": args.quiet, "drop": args.drop},
+                      trace_path=args.trace)
     if args.debug:
         faulthandler.enable()  # a crash (SIGSEGV in a kernel) prints where the host was
     # a trace needs the device's profiling events
@@ -135,7 +140,11 @@ def main(run: Callable[..., Result], description: str, argv: list[str] | None = 
     if args.profile and result.profile is not None:
         print(result.profile.report(result.frames), file=sys.stderr)
     if not args.quiet:
-        print(f"processed {result.frames} frame(s)", file=sys.stderr)
+        dropped = monitor.dropped_frames()
+        print(f"processed {result.frames} frame(s)"
+              + (f"; dropped {sum(dropped.values())} ("
+                 + ", ".join(f"{k} {v}" for k, v in dropped.items()) + ")" if args.drop else ""),
+              file=sys.stderr)
     return 1 if monitor.stats_failed else 0
 
 

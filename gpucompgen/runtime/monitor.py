@@ -203,7 +203,13 @@ class Monitor:
             "latency_seconds": latency_summary(self.frame_seconds),
             "frame_seconds": list(self.frame_seconds),
             "components": components,
+            "dropped_frames": self.dropped_frames(),
         }
+
+    def dropped_frames(self) -> dict[str, int]:
+        """Frames each source dropped because the pipeline fell behind (--drop)."""
+        return {name: obj.dropped_frames for name, obj in self.parts.items()
+                if isinstance(getattr(obj, "dropped_frames", None), int)}
 
     def write_stats(self, path: Path) -> None:
         try:
