@@ -179,6 +179,12 @@ def test_param_values_and_input_clears_the_older_input_params():
     assert got == {"cam.source": "mcap://a.mcap", "cam.folder": "", "cam.seed": 16,
                    "det.gain": 2.5, "w.output": "display://"}
     assert param_values(table, got)["cam.folder"] == ""
+    for bad, message in (({"cam.seed": -1}, "below the minimum 0"),
+                         ({"cam.seed": True}, "expected int, not bool"),
+                         ({"det.gain": "2"}, "expected float, not str"),
+                         ({"cam.sed": 1}, "did you mean 'cam.seed'")):
+        with pytest.raises(OverrideError, match=message):
+            param_values(table, bad)
     assert parse_overrides(table, [], ["cam=shots"], [])["cam.source"] == \
         os.path.abspath("shots")
     for bad in (["cam.seed=-1"], ["det.gain=nan"], ["cam.seed=1.5"]):

@@ -43,8 +43,25 @@ def param_values(table: dict[str, Param], overrides: dict | None) -> dict[str, o
     for key, value in (overrides or {}).items():
         if key not in table:
             raise OverrideError(unknown(key, table))
-        values[key] = value
+        values[key] = checked(key, value, table[key])
     return values
+
+
+def checked(key: str, value: object, p: Param) -> object:
+    """A value given from Python (run(params=...)): of the declared type, within bounds."""
+    kinds = {"int": int, "float": (int, float), "bool": bool}
+    kind = kinds.get(p.type, str)
+    if isinstance(value, bool) != (p.type == "bool") or not isinstance(value, kind):
+        raise OverrideError(f"{key}: expected {p.type}, not {type(value).__name__} "
+                            f"{value!r}")
+    if p.type in ("int", "float"):
+        if p.type == "float" and not math.isfinite(value):
+            raise OverrideError(f"{key}: expected a finite number, not {value!r}")
+        if p.minimum is not None and value < p.minimum:
+            raise OverrideError(f"{key}: {value} is below the minimum {_num(p.minimum)}")
+        if p.maximum is not None and value > p.maximum:
+            raise OverrideError(f"{key}: {value} is above the maximum {_num(p.maximum)}")
+    return float(value) if p.type == "float" else value
 
 
 def unknown(key: str, table: dict[str, Param]) -> str:
