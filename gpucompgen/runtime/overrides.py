@@ -54,14 +54,23 @@ def checked(key: str, value: object, p: Param) -> object:
     if isinstance(value, bool) != (p.type == "bool") or not isinstance(value, kind):
         raise OverrideError(f"{key}: expected {p.type}, not {type(value).__name__} "
                             f"{value!r}")
-    if p.type in ("int", "float"):
-        if p.type == "float" and not math.isfinite(value):
-            raise OverrideError(f"{key}: expected a finite number, not {value!r}")
-        if p.minimum is not None and value < p.minimum:
-            raise OverrideError(f"{key}: {value} is below the minimum {_num(p.minimum)}")
-        if p.maximum is not None and value > p.maximum:
-            raise OverrideError(f"{key}: {value} is above the maximum {_num(p.maximum)}")
+    problem = range_problem(value, p)
+    if problem:
+        raise OverrideError(f"{key}: {problem}")
     return float(value) if p.type == "float" else value
+
+
+def range_problem(value: object, p: Param) -> str:
+    """Why a number does not fit the declaration (finite, within its bounds), or ''."""
+    if p.type not in ("int", "float"):
+        return ""
+    if p.type == "float" and not math.isfinite(value):
+        return f"expected a finite number, not {value!r}"
+    if p.minimum is not None and value < p.minimum:
+        return f"{value} is below the minimum {_num(p.minimum)}"
+    if p.maximum is not None and value > p.maximum:
+        return f"{value} is above the maximum {_num(p.maximum)}"
+    return ""
 
 
 def unknown(key: str, table: dict[str, Param]) -> str:
@@ -93,12 +102,9 @@ def convert(key: str, text: str, p: Param) -> object:
         except ValueError:
             kind = "a whole number" if p.type == "int" else "a number"
             raise OverrideError(f"{where}: expected {kind}, e.g. {key}={p.value}") from None
-        if p.type == "float" and not math.isfinite(value):
-            raise OverrideError(f"{where}: expected a finite number")
-        if p.minimum is not None and value < p.minimum:
-            raise OverrideError(f"{where}: {value} is below the minimum {_num(p.minimum)}")
-        if p.maximum is not None and value > p.maximum:
-            raise OverrideError(f"{where}: {value} is above the maximum {_num(p.maximum)}")
+        problem = range_problem(value, p)
+        if problem:
+            raise OverrideError(f"{where}: {problem}")
         return value
     if p.type in ("path", "input") and text and "://" not in text \
             and not text.startswith("device:"):
