@@ -243,6 +243,27 @@ def test_mcap_every_image_message_kind(tmp_path):
         io.open_source(f"mcap://{tmp_path}/drive.mcap?topic=/nope").open()
 
 
+def test_mcap_foxglove_compressed_image(tmp_path):
+    from mcap_ros2.writer import Writer
+
+    msgdef = ("builtin_interfaces/Time timestamp\nstring frame_id\nuint8[] data\n"
+              "string format\n" + "=" * 80 + "\nMSG: builtin_interfaces/Time\n"
+              "int32 sec\nuint32 nanosec\n")
+    shots = frames(2)
+    with open(tmp_path / "fox.mcap", "wb") as f:
+        w = Writer(f)
+        schema = w.register_msgdef("foxglove_msgs/msg/CompressedImage", msgdef)
+        for i, f_ in enumerate(shots):
+            ok, png = cv2.imencode(".png", cv2.cvtColor(f_, cv2.COLOR_RGB2BGR))
+            w.write_message("/front", schema, {"timestamp": {"sec": i, "nanosec": 0},
+                                               "frame_id": "cam", "data": png.tobytes(),
+                                               "format": "png"}, log_time=i + 1)
+        w.finish()
+    size, got = read_all(io.open_source(f"mcap://{tmp_path}/fox.mcap"))
+    assert size == (H, W) and len(got) == 2
+    np.testing.assert_array_equal(got[1], shots[1])
+
+
 def test_mcap_only_image_topic_and_foxglove_json(tmp_path):
     from mcap.writer import Writer
 
