@@ -76,6 +76,26 @@ DESCRIPTION = (
     'annotated images'
 )
 LIB_DIR = Path(__file__).resolve().with_name('red_objects_lib')
+# The parameters --set NAME.PARAM=VALUE (and --input, --output) may change when the program
+# starts: those no size or requirement depends on. Their declarations and model values.
+PARAMS = {
+    'camera.buoys': runtime.Param('int', 2, minimum=0, maximum=8),
+    'camera.folder': runtime.Param('input', runtime.model_path(__file__, '../models/photos')),
+    'camera.frames': runtime.Param('int', 0, minimum=0),
+    'camera.seed': runtime.Param('int', 1, minimum=0),
+    'camera.source': runtime.Param('input', ''),
+    'camera.video': runtime.Param('input', ''),
+    'red.lowerb_0': runtime.Param('int', 0, minimum=0, maximum=255),
+    'red.lowerb_1': runtime.Param('int', 140, minimum=0, maximum=255),
+    'red.lowerb_2': runtime.Param('int', 60, minimum=0, maximum=255),
+    'red.upperb_0': runtime.Param('int', 6, minimum=0, maximum=255),
+    'red.upperb_1': runtime.Param('int', 255, minimum=0, maximum=255),
+    'red.upperb_2': runtime.Param('int', 255, minimum=0, maximum=255),
+    'writer.folder': runtime.Param('str', ''),
+    'writer.min_area': runtime.Param('int', 150, minimum=1),
+    'writer.output': runtime.Param('str', ''),
+    'writer.print_objects': runtime.Param('bool', True),
+}
 
 
 class DilateGray(runtime.KernelComponent):
@@ -139,15 +159,17 @@ class FusedHsvRed(runtime.KernelComponent):
         ]
 
 
-def run(frames=None, context=None, monitor=None, profile=False):
+def run(frames=None, context=None, monitor=None, profile=False, params=None):
     """Build the system, stream up to `frames` frames (default: until a source ends).
 
     A runtime.Monitor shows progress, times the components when asked and hands them
     runtime options such as --decisions; main() makes one from the command line.
     With profile=True, OpenCL profiling events time every kernel and copy (see
-    runtime.Profile); the result's profile holds them.
+    runtime.Profile); the result's profile holds them. params: {'component.param': value}
+    for entries of PARAMS, checked against their declarations.
     """
     monitor = monitor or runtime.Monitor(progress=False)
+    params = runtime.param_values(PARAMS, params)
     context = context or runtime.create_context()
     # Parallel execution: 1 in-order queue (lanes). Commands are enqueued
     # without waiting; a command waits for another queue's event (wait_for=[...]) only
@@ -178,8 +200,9 @@ def run(frames=None, context=None, monitor=None, profile=False):
     frame = None  # while constructing and initializing
     try:
         camera = parts['camera'] = Camera(
-            width=301, height=200, seed=1, buoys=2, frames=0,
-            folder=runtime.model_path(__file__, '../models/photos'), video='')
+            width=301, height=200, seed=params['camera.seed'], buoys=params['camera.buoys'],
+            frames=params['camera.frames'], folder=params['camera.folder'],
+            video=params['camera.video'], source=params['camera.source'])
         # camera.image -> hsv_red.hsv_image
         adapter1_cpu2gpu = parts['adapter1_cpu2gpu'] = runtime.CpuToGpuAdapter(
             context, queue, nbytes=180_600, blocking=False, staging='pinned')
@@ -189,7 +212,9 @@ def run(frames=None, context=None, monitor=None, profile=False):
         # dilate.dilated -> writer.mask
         adapter2_gpu2cpu = parts['adapter2_gpu2cpu'] = runtime.GpuToCpuAdapter(
             context, queue, nbytes=60_200, staging='pinned')
-        writer = parts['writer'] = MaskWriter(min_area=150, folder='', print_objects=True)
+        writer = parts['writer'] = MaskWriter(
+            min_area=params['writer.min_area'], folder=params['writer.folder'],
+            print_objects=params['writer.print_objects'], output=params['writer.output'])
         monitor.attach(parts)
         profiler = runtime.Profile(parts) if profile else None
 
@@ -211,12 +236,12 @@ def run(frames=None, context=None, monitor=None, profile=False):
             tile=32, local_size=(8, 8, 1), global_size=(8, 56, 1),
             settings_source='preferred', arguments=[
                 'hsv_image', 'mask',  # buffers: inputs, then outputs
-                np.int32(0),  # red_lowerb_0
-                np.int32(140),  # red_lowerb_1
-                np.int32(60),  # red_lowerb_2
-                np.int32(6),  # red_upperb_0
-                np.int32(255),  # red_upperb_1
-                np.int32(255),  # red_upperb_2
+                np.int32(params['red.lowerb_0']),  # red_lowerb_0
+                np.int32(params['red.lowerb_1']),  # red_lowerb_1
+                np.int32(params['red.lowerb_2']),  # red_lowerb_2
+                np.int32(params['red.upperb_0']),  # red_upperb_0
+                np.int32(params['red.upperb_1']),  # red_upperb_1
+                np.int32(params['red.upperb_2']),  # red_upperb_2
                 np.int32(32),  # tile
             ])
 
@@ -267,7 +292,7 @@ def run(frames=None, context=None, monitor=None, profile=False):
 
 
 def main(argv=None):
-    return runtime.main(run, DESCRIPTION, argv)
+    return runtime.main(run, DESCRIPTION, argv, PARAMS)
 
 
 if __name__ == "__main__":

@@ -41,7 +41,9 @@ DTYPES = {  # element type → (numpy name, OpenCL C type, bytes)
 }
 MEMORIES = ("gpu", "cpu")
 # "path": a string naming a file or folder; a relative one is relative to the model file
-PARAM_TYPES = {"int": int, "float": float, "bool": bool, "str": str, "path": str}
+# "input": a source URI (gpucompgen.io: images, video, camera, stream, recording); a plain
+# path in it is relative to the model file, and the frame size is read from its header
+PARAM_TYPES = {"int": int, "float": float, "bool": bool, "str": str, "path": str, "input": str}
 KINDS = ("standard", "gpu-aware", "flexible")
 # where a component runs: "auto" lets the place pass choose (flexible types only)
 PLACEMENTS = ("gpu", "cpu", "auto")
@@ -223,6 +225,8 @@ class SystemModel:
     placement_pos: Pos | None = None
     profile: Path | None = None
     profile_pos: Pos | None = None
+    # warnings found while loading (an input that is missing but not needed for sizes)
+    load_warnings: list = field(default_factory=list)
 
 
 # --------------------------------------------------------------------------- helpers
@@ -506,7 +510,7 @@ def _check_class_members(doc: Document, rep: Reporter, base: tuple,
 
 
 def gpu_kernel_param_problem(kind: str, ptype: str) -> bool:
-    return kind in ("gpu-aware", "flexible") and ptype in ("str", "path")
+    return kind in ("gpu-aware", "flexible") and ptype in ("str", "path", "input")
 
 
 def _int_params(ctype: ComponentType) -> list[str]:
@@ -1234,6 +1238,7 @@ def load_system(path: Path, display: str | None = None) -> SystemModel:
                       f"component after its role, e.g. '{snake(clash)}1'")
             continue
         params = _instance_params(doc, rep, cpath, ctype, cspec.get("params"))
+        _sizes_from_input(doc, rep, cpath, ctype, params, cspec.get("params"), path.parent)
         fuse = cspec.get("fuse", True)
         if not isinstance(fuse, bool):
             rep.error(doc.pos(*cpath, "fuse"), f"fuse of '{cname}' must be true or false, "
@@ -1281,6 +1286,7 @@ def load_system(path: Path, display: str | None = None) -> SystemModel:
                        staging=staging, platform_pos=doc.pos("platform"), fusion=fusion,
                        placement=placement, placement_pos=doc.pos("platform", "placement"),
                        profile=profile, profile_pos=doc.pos("platform", "profile"),
+                       load_warnings=rep.warnings,
                        device_positions={k: (doc.key_pos("platform", "device", k),
                                              doc.pos("platform", "device", k))
                                          for k in (device if isinstance(device, dict) else {})
@@ -1318,16 +1324,18 @@ def _instance_params(doc, rep, cpath, ctype: ComponentType, given) -> dict[str, 
         problem = _param_value_problem(value, decl, ctype.gpu_aware)
         if problem:
             hint = ""
-            if isinstance(value, bool) and decl.type in ("str", "path"):
+            if isinstance(value, bool) and decl.type in ("str", "path", "input"):
                 hint = "YAML 1.1 reads yes/no/on/off as booleans: quote the value"
             elif decl.type in ("int", "float") and _value_fits(value, decl.type):
                 hint = "give a value within the parameter's range"
             else:
                 example = decl.default if decl.default not in (None, "") else \
-                    {"int": 1, "float": 1.0, "bool": True, "str": "text", "path": "images"}[decl.type]
+                    {"int": 1, "float": 1.0, "bool": True, "str": "text", "path": "images",
+                     "input": "shots/"}[decl.type]
                 wanted = {"int": "an integer", "float": "a number", "bool": "true or false",
                           "str": "a string (quoted if it looks like a number or boolean)",
-                          "path": "a path, relative to the model file or absolute"}
+                          "path": "a path, relative to the model file or absolute",
+                          "input": "an input URI or a path relative to the model file"}
                 hint = f"give {wanted[decl.type]}, e.g. '{pname}: {py_yaml(example)}'"
             rep.error(doc.pos(*cpath, "params", pname),
                       f"parameter '{pname}' of '{ctype.name}' {problem}", hint)
@@ -1342,6 +1350,66 @@ def _instance_params(doc, rep, cpath, ctype: ComponentType, given) -> dict[str, 
             else:
                 params[pname] = decl.default
     return params
+
+
+def _sizes_from_input(doc, rep, cpath, ctype: ComponentType, params: dict, given,
+                      model_dir: Path) -> None:
+    """A source's 'input' parameter names images, a video or a recording: its frame size is
+    read from the header (never user code) into the size parameters the model left out,
+    and checked against those it gave.  A missing or empty input is an error where the
+    size depends on it, else a warning (the program may be run with --input elsewhere)."""
+    given = given if isinstance(given, dict) else {}
+    inputs = [p for p, d in ctype.params.items() if d.type == "input" and params.get(p)]
+    if len(inputs) > 1:
+        rep.error(doc.pos(*cpath, "params", inputs[1]),
+                  f"'{cpath[-1]}' sets {' and '.join(repr(p) for p in inputs)}: one input only",
+                  f"keep one of them ('{inputs[0]}' or '{inputs[1]}')")
+        return
+    if not inputs or not isinstance(params[inputs[0]], str):
+        return
+    pname = inputs[0]
+    dims = {}  # 'height'/'width' -> the parameter an output's size is
+    for port in ctype.outputs.values():
+        for dim in ("height", "width"):
+            expr = getattr(port, dim)
+            if expr is not None and isinstance(expr.body, ast.Name) \
+                    and expr.body.id in ctype.params:
+                dims[dim] = expr.body.id
+    if not dims:
+        return
+    from .io.probe import probe_size
+    from .runtime.errors import PipelineError
+
+    missing = [p for p in dims.values() if p not in given]
+    where = doc.pos(*cpath, "params", pname)
+    try:
+        size = probe_size(params[pname], model_dir)
+    except PipelineError as exc:
+        if missing:
+            rep.error(where, f"input of '{cpath[-1]}': {exc}",
+                      f"fix '{pname}', or give {' and '.join(missing)} (then the program "
+                      "can be run with --input)")
+        else:
+            rep.warning(where, f"input of '{cpath[-1]}': {exc}",
+                        f"the program will need --input {cpath[-1]}=URI")
+        return
+    if size is None:
+        if missing:
+            rep.error(where, f"the frame size of '{params[pname]}' (a live camera or stream) "
+                      "is not known before it runs",
+                      f"give {' and '.join(missing)} in 'params'")
+        return
+    for dim, value in zip(("height", "width"), size):
+        p = dims.get(dim)
+        if p is None:
+            continue
+        if p not in given:
+            params[p] = value
+        elif given[p] != value:
+            rep.error(doc.pos(*cpath, "params", p),
+                      f"'{p}' of '{cpath[-1]}' is {given[p]}, but '{params[pname]}' has frames "
+                      f"of {size[1]}x{size[0]} (width x height)",
+                      f"set '{p}: {value}', or leave it out: it is read from the input")
 
 
 def _parse_connection(doc, rep, path, text, comps, components) -> Connection | None:

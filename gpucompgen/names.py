@@ -20,7 +20,7 @@ GENERATED_RESERVED = frozenset({
     "profiler",
     # module level of the generated program (a local of the same name would shadow them)
     "LIB_DIR", "DESCRIPTION", "CpuToGpuAdapter", "GpuToCpuAdapter", "ZeroCopyCpuToGpuAdapter",
-    "ZeroCopyGpuToCpuAdapter", "parts", "exc", "annotations",
+    "ZeroCopyGpuToCpuAdapter", "parts", "exc", "annotations", "PARAMS", "params",
 })
 # Families of names run() makes: its queues, built programs and adapters.
 GENERATED_PATTERN = re.compile(r"(queue[0-9]+|[A-Za-z0-9_]+_program|"

@@ -46,6 +46,7 @@ class Argument:
     port: str = ""  # a buffer: the port it belongs to
     host_type: str = ""  # a scalar: the numpy type it is passed as
     value: Any = None  # a scalar's value, decided at build time
+    param: str = ""  # a parameter's scalar: the model's 'component.param' it passes
 
 
 @dataclass(frozen=True)

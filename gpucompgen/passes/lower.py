@@ -198,7 +198,8 @@ def launch(system: System, node: ComponentNode, program: str) -> Launch:
             host = PARAM_C_TYPES[owner.type.params[pname].type][1].removeprefix("np.")
             value = owner.params[pname]
             value = float(value) if host == "float32" else int(value)
-            args.append(Argument(p.name, "scalar", host_type=host, value=value))
+            args.append(Argument(p.name, "scalar", host_type=host, value=value,
+                                 param=f"{owner.name}.{pname}"))
         else:  # the tile
             args.append(Argument(p.name, "scalar", host_type="int32", value=s.tile))
     grid = system.data(Endpoint(node.name, t.grid))

@@ -217,5 +217,10 @@ def free_all(parts: dict[str, Any]) -> None:
 def model_path(program_file: str, relative: str) -> str:
     """A 'path' parameter of the model: written relative to the model's folder, stored in
     the program relative to the program's folder, resolved here to an absolute path (so
-    errors name the path that was looked at, whatever the working directory)."""
+    errors name the path that was looked at, whatever the working directory).  An input
+    URI's path is resolved the same way: 'mcap://../drive.mcap?topic=/cam'."""
+    scheme, sep, rest = relative.partition("://")
+    if sep and scheme.isalpha():
+        path, q, query = rest.partition("?")
+        return f"{scheme}://{model_path(program_file, path)}{q}{query}"
     return str((Path(program_file).resolve().parent / relative).resolve())
