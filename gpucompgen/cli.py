@@ -72,7 +72,8 @@ def _common(p: argparse.ArgumentParser,
                         "kernel per component (default: the model's platform.fusion, else auto)")
     p.add_argument("--place", action="append", type=_place, default=[], metavar="NAME=SIDE",
                    help="run flexible component NAME on SIDE: gpu, cpu or auto (chosen with "
-                        "the others by the cost model); repeatable; overrides the model")
+                        "the others by the cost model); NAME may be a glob ('*=cpu'); "
+                        "repeatable, a later option wins; overrides the model")
 
 
 def _frames_in_flight(text: str) -> int:
@@ -94,8 +95,13 @@ def _place(text: str) -> tuple[str, str]:
 
 
 def places(args) -> dict[str, str]:
-    """--place options as {component: side}; the last one for a component wins."""
-    return dict(getattr(args, "place", None) or [])
+    """--place options as {component or glob: side}, in the order of their last
+    occurrence (a later option wins over an earlier glob: '*=cpu' then 'a=gpu')."""
+    result: dict[str, str] = {}
+    for name, side in getattr(args, "place", None) or []:
+        result.pop(name, None)
+        result[name] = side
+    return result
 
 
 def _sub(sub, name: str, summary: str, description: str) -> argparse.ArgumentParser:
@@ -383,16 +389,23 @@ def _build_and_run(args, out: Path) -> int:
     program = out / f"{result.system.name}.py"
     cmd = [sys.executable, str(program)]
     for flag, value in (("--frames", args.frames), ("--stats-json", args.stats_json),
+                        ("--trace", args.trace),
                         ("--decisions", args.decisions),
                         ("--save-images", args.save_images)):
         if value is not None:
             cmd += [flag, str(value)]
+    for flag, values in (("--input", args.input), ("--output", args.output),
+                         ("--set", args.set_params)):
+        for value in values:
+            cmd += [flag, value]
     if args.quiet:
         cmd.append("--quiet")
     if args.debug:
         cmd.append("--debug")
     if args.profile:
         cmd.append("--profile")
+    if args.drop:
+        cmd.append("--drop")
     return run_program(cmd)
 
 

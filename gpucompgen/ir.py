@@ -147,6 +147,7 @@ class GroupNode(Node):
     type: ComponentType = None  # type: ignore[assignment]
     params: dict[str, Any] = field(default_factory=dict)  # none: members keep theirs
     fuse: bool = False
+    estimate: str = ""  # the fuse pass's cost estimate, fused against apart
     kind: ClassVar[str] = "group"
 
     @property

@@ -35,6 +35,9 @@ class Document:
     data: Any
     positions: dict[PathKey, Pos] = field(default_factory=dict)
     key_positions: dict[PathKey, Pos] = field(default_factory=dict)
+    # each string value as written (quotes, escapes, indentation) and its style (None:
+    # plain, '"', "'", '|', '>'), to point inside a string (fusable.snippet_position)
+    sources: dict[PathKey, tuple[str, str | None]] = field(default_factory=dict)
 
     def pos(self, *path: Any) -> Pos:
         """Position of the value at path, or of its nearest ancestor that has one."""
@@ -274,7 +277,11 @@ def _convert(node: yaml.Node, path: PathKey, doc: Document,
              problems: list[Diagnostic]) -> Any:
     doc.positions[path] = Pos(doc.file, node.start_mark.line + 1, node.start_mark.column + 1)
     if isinstance(node, yaml.ScalarNode):
-        return _scalar(node, doc, problems)
+        value = _scalar(node, doc, problems)
+        if isinstance(value, str) and node.start_mark.buffer is not None:
+            doc.sources[path] = (node.start_mark.buffer[node.start_mark.pointer:
+                                                        node.end_mark.pointer], node.style)
+        return value
     if isinstance(node, yaml.SequenceNode):
         return [_convert(item, path + (i,), doc, problems) for i, item in enumerate(node.value)]
     if isinstance(node, yaml.MappingNode):

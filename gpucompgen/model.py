@@ -42,7 +42,9 @@ DTYPES = {  # element type → (numpy name, OpenCL C type, bytes)
 }
 MEMORIES = ("gpu", "cpu")
 # "path": a string naming a file or folder; a relative one is relative to the model file
-PARAM_TYPES = {"int": int, "float": float, "bool": bool, "str": str, "path": str}
+# "input": a source URI (gpucompgen.io: images, video, camera, stream, recording); a plain
+# path in it is relative to the model file, and the frame size is read from its header
+PARAM_TYPES = {"int": int, "float": float, "bool": bool, "str": str, "path": str, "input": str}
 KINDS = ("standard", "gpu-aware", "flexible")
 # where a component runs: "auto" lets the place pass choose (flexible types only)
 PLACEMENTS = ("gpu", "cpu", "auto")
@@ -236,6 +238,8 @@ class SystemModel:
     def add_input(self, path: Path, text: str | bytes) -> None:
         data = text.encode("utf-8", "surrogatepass") if isinstance(text, str) else text
         self.inputs[path.resolve()] = hashlib.sha256(data).hexdigest()
+    # warnings found while loading (an input that is missing but not needed for sizes)
+    load_warnings: list = field(default_factory=list)
 
 
 # --------------------------------------------------------------------------- helpers
@@ -519,7 +523,7 @@ def _check_class_members(doc: Document, rep: Reporter, base: tuple,
 
 
 def gpu_kernel_param_problem(kind: str, ptype: str) -> bool:
-    return kind in ("gpu-aware", "flexible") and ptype in ("str", "path")
+    return kind in ("gpu-aware", "flexible") and ptype in ("str", "path", "input")
 
 
 def _int_params(ctype: ComponentType) -> list[str]:
@@ -781,12 +785,16 @@ def _load_fusable(doc, rep, base, ctype: ComponentType, fspec) -> None:
                   "statements ending in 'return ...;') for output element (y, x, c)",
                   "e.g. value: \"image(image_height - 1 - y, x, c)\"")
         return
-    problems = fusable_forms.snippet_problems(value, form, list(ctype.inputs),
-                                              list(ctype.outputs), list(ctype.params))
-    for p in problems:
-        rep.error(doc.pos(*path, "value"), f"fusable snippet of '{ctype.name}': {p}",
-                  "a snippet uses y, x, c, its ports as <port>(y, x, c), <port>_height, "
-                  "<port>_width, its parameters and its own locals")
+    analysis = fusable_forms.analyse(value, form, list(ctype.inputs), list(ctype.outputs),
+                                     list(ctype.params))
+    start = doc.pos(*path, "value")
+    raw, style = doc.sources.get(path + ("value",), (None, None))
+    for p in analysis.problems:
+        at = fusable_forms.snippet_position(start, raw, style, value, p.offset)
+        where = "" if at is not None else f" (at character {p.offset + 1} of the snippet)"
+        rep.error(at or start, f"fusable snippet of '{ctype.name}': {p.message}{where}",
+                  p.hint or "a snippet uses y, x, c, its ports as <port>(y, x, c), "
+                  "<port>_height, <port>_width, its parameters and its own locals")
     radius: int | str = 0
     border = fspec.get("border", "clamp")
     if form == "stencil":
@@ -810,9 +818,9 @@ def _load_fusable(doc, rep, base, ctype: ComponentType, fspec) -> None:
             if key in fspec:
                 rep.error(doc.key_pos(*path, key), f"'{key}' is only for the stencil form",
                           f"remove '{key}' or use 'form: stencil'")
-    if problems:
+    if analysis.problems:
         return
-    ctype.fusable = fusable_forms.FusableDecl(form, value, fusable_forms.as_body(value),
+    ctype.fusable = fusable_forms.FusableDecl(form, value, analysis.tree, analysis.names,
                                               radius, border)
 
 
@@ -1246,6 +1254,7 @@ def load_system(path: Path, display: str | None = None) -> SystemModel:
         else:
             ctype = types[tname]
         params = _instance_params(doc, rep, cpath, ctype, cspec.get("params"))
+        _sizes_from_input(doc, rep, cpath, ctype, params, cspec.get("params"), path.parent)
         fuse = cspec.get("fuse", True)
         if not isinstance(fuse, bool):
             rep.error(doc.pos(*cpath, "fuse"), f"fuse of '{cname}' must be true or false, "
@@ -1296,6 +1305,7 @@ def load_system(path: Path, display: str | None = None) -> SystemModel:
                        placement=placement, placement_pos=doc.pos("platform", "placement"),
                        profile=profile, profile_pos=doc.pos("platform", "profile"),
                        notes=notes,
+                       load_warnings=rep.warnings,
                        device_positions={k: (doc.key_pos("platform", "device", k),
                                              doc.pos("platform", "device", k))
                                          for k in (device if isinstance(device, dict) else {})
@@ -1377,16 +1387,18 @@ def _instance_params(doc, rep, cpath, ctype: ComponentType, given) -> dict[str, 
         problem = _param_value_problem(value, decl, ctype.gpu_aware)
         if problem:
             hint = ""
-            if isinstance(value, bool) and decl.type in ("str", "path"):
+            if isinstance(value, bool) and decl.type in ("str", "path", "input"):
                 hint = "YAML 1.1 reads yes/no/on/off as booleans: quote the value"
             elif decl.type in ("int", "float") and _value_fits(value, decl.type):
                 hint = "give a value within the parameter's range"
             else:
                 example = decl.default if decl.default not in (None, "") else \
-                    {"int": 1, "float": 1.0, "bool": True, "str": "text", "path": "images"}[decl.type]
+                    {"int": 1, "float": 1.0, "bool": True, "str": "text", "path": "images",
+                     "input": "shots/"}[decl.type]
                 wanted = {"int": "an integer", "float": "a number", "bool": "true or false",
                           "str": "a string (quoted if it looks like a number or boolean)",
-                          "path": "a path, relative to the model file or absolute"}
+                          "path": "a path, relative to the model file or absolute",
+                          "input": "an input URI or a path relative to the model file"}
                 hint = f"give {wanted[decl.type]}, e.g. '{pname}: {py_yaml(example)}'"
             rep.error(doc.pos(*cpath, "params", pname),
                       f"parameter '{pname}' of '{ctype.name}' {problem}", hint)
@@ -1401,6 +1413,66 @@ def _instance_params(doc, rep, cpath, ctype: ComponentType, given) -> dict[str, 
             else:
                 params[pname] = decl.default
     return params
+
+
+def _sizes_from_input(doc, rep, cpath, ctype: ComponentType, params: dict, given,
+                      model_dir: Path) -> None:
+    """A source's 'input' parameter names images, a video or a recording: its frame size is
+    read from the header (never user code) into the size parameters the model left out,
+    and checked against those it gave.  A missing or empty input is an error where the
+    size depends on it, else a warning (the program may be run with --input elsewhere)."""
+    given = given if isinstance(given, dict) else {}
+    inputs = [p for p, d in ctype.params.items() if d.type == "input" and params.get(p)]
+    if len(inputs) > 1:
+        rep.error(doc.pos(*cpath, "params", inputs[1]),
+                  f"'{cpath[-1]}' sets {' and '.join(repr(p) for p in inputs)}: one input only",
+                  f"keep one of them ('{inputs[0]}' or '{inputs[1]}')")
+        return
+    if not inputs or not isinstance(params[inputs[0]], str):
+        return
+    pname = inputs[0]
+    dims = {}  # 'height'/'width' -> the parameter an output's size is
+    for port in ctype.outputs.values():
+        for dim in ("height", "width"):
+            expr = getattr(port, dim)
+            if expr is not None and isinstance(expr.body, ast.Name) \
+                    and expr.body.id in ctype.params:
+                dims[dim] = expr.body.id
+    if not dims:
+        return
+    from .io.probe import probe_size
+    from .runtime.errors import PipelineError
+
+    missing = [p for p in dims.values() if p not in given]
+    where = doc.pos(*cpath, "params", pname)
+    try:
+        size = probe_size(params[pname], model_dir)
+    except PipelineError as exc:
+        if missing:
+            rep.error(where, f"input of '{cpath[-1]}': {exc}",
+                      f"fix '{pname}', or give {' and '.join(missing)} (then the program "
+                      "can be run with --input)")
+        else:
+            rep.warning(where, f"input of '{cpath[-1]}': {exc}",
+                        f"the program will need --input {cpath[-1]}=URI")
+        return
+    if size is None:
+        if missing:
+            rep.error(where, f"the frame size of '{params[pname]}' (a live camera or stream) "
+                      "is not known before it runs",
+                      f"give {' and '.join(missing)} in 'params'")
+        return
+    for dim, value in zip(("height", "width"), size):
+        p = dims.get(dim)
+        if p is None:
+            continue
+        if p not in given:
+            params[p] = value
+        elif given[p] != value:
+            rep.error(doc.pos(*cpath, "params", p),
+                      f"'{p}' of '{cpath[-1]}' is {given[p]}, but '{params[pname]}' has frames "
+                      f"of {size[1]}x{size[0]} (width x height)",
+                      f"set '{p}: {value}', or leave it out: it is read from the input")
 
 
 def _parse_connection(doc, rep, path, text, comps, components) -> Connection | None:

@@ -20,7 +20,7 @@ GENERATED_RESERVED = frozenset({
     "profiler",
     # module level of the generated program (a local of the same name would shadow them)
     "LIB_DIR", "DESCRIPTION", "CpuToGpuAdapter", "GpuToCpuAdapter", "ZeroCopyCpuToGpuAdapter",
-    "ZeroCopyGpuToCpuAdapter", "parts", "exc", "annotations",
+    "ZeroCopyGpuToCpuAdapter", "parts", "exc", "annotations", "PARAMS", "params",
 })
 # Families of names run() makes: its queues, built programs and adapters.
 GENERATED_PATTERN = re.compile(r"(queue[0-9]+|[A-Za-z0-9_]+_program|"
@@ -36,7 +36,7 @@ CLASS_RESERVED = frozenset({
     # runtime.KernelComponent's members
     "function", "inputs", "outputs", "output_sizes", "sizes", "buffers", "hosts",
     "arguments", "copies_own_data", "host_visible", "settings_source", "_inputs",
-    "_outputs", "_slots",
+    "_outputs", "_slots", "_enqueue", "_results", "_copy_and_run",
 })
 
 # A system's name becomes <system>.py, whose folder comes first on sys.path when it runs:

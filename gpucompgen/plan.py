@@ -46,6 +46,7 @@ class Argument:
     port: str = ""  # a buffer: the port it belongs to
     host_type: str = ""  # a scalar: the numpy type it is passed as
     value: Any = None  # a scalar's value, decided at build time
+    param: str = ""  # a parameter's scalar: the model's 'component.param' it passes
 
 
 @dataclass(frozen=True)
@@ -186,6 +187,7 @@ class GroupPlan:
     # and every member's output -> its size ("" for the group's output: a buffer)
     feeds: tuple[tuple[str, str], ...] = ()
     outputs: tuple[tuple[str, str, bool], ...] = ()  # ("member.port", data, fused away)
+    estimate: str = ""  # the fuse pass's estimate: fused against apart
 
 
 @dataclass
@@ -351,6 +353,9 @@ def fusion_lines(plan: ProgramPlan) -> list[str]:
         lines.append(f"  {g.part}: one kernel ({g.file}) for")
         lines += [f"    {'-> ' if i else ''}{m} ({t}, {form})"
                   for i, (m, t, form) in enumerate(g.members)]
+        if g.estimate:
+            lines += textwrap.wrap(g.estimate, 88, initial_indent="    ",
+                                   subsequent_indent="    ")
     for edge, why in plan.unfused:
         lines.append(f"  not fused: {edge}:")
         # wrapped: the generated program's header quotes these lines (100 columns)

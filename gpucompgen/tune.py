@@ -1,7 +1,9 @@
 """`gpucompgen tune MODEL`: measure each flexible component on the CPU and on the device.
 
 Every flexible component of the model runs its real implementations at the model's sizes
-(propagated as for a build): its CPU function on random frames, and its kernel with the
+(propagated as for a build): its CPU function on camera-like frames (the synthetic
+camera's water, noise and buoys, in each port's shape and element type: branchy code runs
+as fast on uniform noise as it never does on images), and its kernel with the
 launch settings a build would give it, on the OpenCL device programs use (PYOPENCL_CTX).
 Each is timed for a few frames after one warm-up, and the median kept — a kernel from
 enqueue to finish, so the launch cost counts.  One copy each way between host and device
@@ -25,14 +27,15 @@ import traceback
 from pathlib import Path
 
 from .ir import ComponentNode
-from .passes.place import sizes_text
+from .passes.place import default_profile, sizes_text
 
 TRANSFER_PROBE_BYTES = 64
 
 
 def default_profile_path(model_path: Path, model) -> Path:
-    """The model's platform.profile, else tune/<system>.yaml beside the model."""
-    return model.profile or model_path.parent / "tune" / f"{model.name}.yaml"
+    """The model's platform.profile, else tune/<system>.yaml beside the model: the file
+    placement: auto reads without platform.profile (passes/place.py profile_path)."""
+    return model.profile or default_profile(model)
 
 
 class FunctionFailed(Exception):
@@ -93,7 +96,6 @@ def write_profile(out: Path, text: str) -> None:
 
 def tune(model_path: Path, frames: int = 20, display: str | None = None) -> tuple[str, list]:
     """Measure; return the profile's text and rows (name, type, cpu_us, gpu_us)."""
-    import numpy as np
     import pyopencl as cl
 
     from . import device as device_mod
@@ -112,13 +114,12 @@ def tune(model_path: Path, frames: int = 20, display: str | None = None) -> tupl
     plan = system.plan
     context = runtime.create_context()
     queue = cl.CommandQueue(context)
-    rng = np.random.default_rng(1)
     rows = []
     for name in flexible:
         node: ComponentNode = system.nodes[name]
         t = node.type
-        inputs = {p: rng.integers(0, 256, port.data.size.shape, dtype=np.uint8)
-                  for p, port in node.inputs.items()}
+        inputs = {p: camera_frame(port.data.size.shape, port.data.dtype, i)
+                  for i, (p, port) in enumerate(node.inputs.items())}
         function, kwargs = _cpu_function(t), {**inputs, **node.params}
         cpu_s = _median(frames, lambda f=function, k=kwargs, n=name, t=t: _call(n, t, f, k))
         gpu_s = _gpu_time(context, queue, system, plan, node, inputs, frames)
@@ -141,6 +142,36 @@ def tune(model_path: Path, frames: int = 20, display: str | None = None) -> tupl
         lines.append(f"  {name}: {{type: {tname}, sizes: {_quote(sizes)}, "
                      f"cpu_us: {cpu_us:.1f}, gpu_us: {gpu_us:.1f}}}")
     return "\n".join(lines) + "\n", rows
+
+
+def camera_frame(shape: tuple[int, ...], dtype: str, index: int = 0):
+    """Frame index of the library's synthetic camera in shape and dtype: RGB for three
+    channels (repeated for more), OpenCV's gray for one; signed types centred on 0
+    (int16 and int32 at a gradient's scale, -512..508), float32 in 0..1. Every byte of
+    the port's frame is there (an int16 port gets twice a uint8 port's bytes)."""
+    import numpy as np
+
+    from .library.camera import Camera
+
+    height, width = shape[:2]
+    channels = shape[2] if len(shape) == 3 else 1
+    camera = Camera(width=width, height=height, seed=1)
+    camera.initialize()
+    rgb = camera.render(index)
+    camera.free_memory()
+    if channels == 1:  # RGB2GRAY's fixed-point weights
+        weights = np.array([19596, 38470, 7470], np.uint32)
+        values = ((rgb.astype(np.uint32) @ weights + (1 << 15)) >> 16).astype(np.int32)
+    else:
+        values = rgb[..., [c % 3 for c in range(channels)]].astype(np.int32)
+    kind = np.dtype(dtype)
+    if kind == np.int8:
+        values = values - 128
+    elif kind.kind == "i":
+        values = (values - 128) * 4
+    elif kind.kind == "f":
+        values = values / np.float32(255)
+    return np.ascontiguousarray(values.astype(kind).reshape(shape))
 
 
 def _quote(text: str) -> str:

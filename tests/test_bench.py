@@ -122,3 +122,39 @@ def test_bench_bounds_agree_with_the_library():
     from gpucompgen.model import library_types
     still = library_types()["StillImage"]
     assert bench.MAX_SIDE == still.params["width"].maximum == still.params["height"].maximum
+
+
+def _benchmark(tmp_path, script: str, *args: str) -> str:
+    from conftest import ROOT
+
+    proc = subprocess.run([sys.executable, str(ROOT / "benchmarks" / script), *args],
+                          capture_output=True, text=True, timeout=600, cwd=tmp_path,
+                          check=False)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    assert "Traceback" not in proc.stderr
+    return proc.stdout
+
+
+def test_pipelines_benchmark_outputs_equal_opencv_in_every_variant(tmp_path):
+    """benchmarks/pipelines.py at an odd tiny size: every pipeline, every variant (default,
+    fusion off, all on the CPU, auto, auto after tune) gives cv2's bytes (it exits 1
+    otherwise) and prints its table, the machine, the device and the load."""
+    require_opencl()
+    out = _benchmark(tmp_path, "pipelines.py", "--sizes", "33x17", "--rounds", "1",
+                     "--frames", "2")
+    assert "OpenCL device:" in out and "load average before:" in out
+    for name in ("lanes", "colour", "edges", "motion", "pointwise"):
+        assert f"| {name} | 33x17 |" in out
+    assert "| pipeline | size | cv2 | default | fusion off | all CPU | placement auto | " \
+           "auto after tune |" in out
+
+
+def test_frame_cost_and_cpu_forms_benchmarks_run(tmp_path):
+    require_opencl()
+    out = _benchmark(tmp_path, "frame_cost.py", "--lengths", "1,2", "--frames", "5",
+                     "--rounds", "1")
+    for variant in ("GPU unfused", "GPU fused", "CPU"):
+        assert f"  2 {variant}" in out
+    # cpu_forms.py asserts each form's bytes equal its cv2 call before timing it
+    out = _benchmark(tmp_path, "cpu_forms.py", "--size", "33x17", "--rounds", "1")
+    assert "MedianBlurGray" in out and "RgbToHsv" in out

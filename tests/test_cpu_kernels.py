@@ -254,7 +254,7 @@ def test_out_arrays_are_filled_and_checked():
     mask = np.empty((6, 5), np.uint8)
     assert cpu_kernels.object_detector(image, red_min=0, margin=-255, out=mask) is mask
     assert (mask == 255).all()
-    with pytest.raises(ValueError, match=r"out= for 'mirrored' must be uint8 of shape"):
+    with pytest.raises(ValueError, match=r"out= for 'mirrored' must be a C-contiguous uint8"):
         cpu_kernels.vertical_mirror(image, out=np.empty((5, 6, 3), np.uint8))
 
 

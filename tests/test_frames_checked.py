@@ -108,7 +108,74 @@ def test_check_frame_directly():
     good = np.zeros((4, 5), np.uint8)
     checked = check_frame("a.b", good, (4, 5), np.uint8)
     assert checked.base is good and not checked.flags.writeable  # a read-only view
-    with pytest.raises(PipelineError, match=r"a\.b: execute\(\) returned a 4x5x1 uint8"):
-        check_frame("a.b", good[..., None], (4, 5), np.uint8)
+    # one channel as height x width x 1 (issue 22): handed on as height x width, a view
+    deep = np.arange(20, dtype=np.uint8).reshape(4, 5, 1)
+    flat = check_frame("a.b", deep, (4, 5), np.uint8)
+    assert flat.shape == (4, 5) and np.shares_memory(flat, deep)
+    assert not flat.flags.writeable
+    np.testing.assert_array_equal(flat, deep[..., 0])
+    strided = np.zeros((4, 10, 1), np.uint8)[:, ::2]  # not contiguous: still no copy
+    assert np.shares_memory(check_frame("a.b", strided, (4, 5), np.uint8), strided)
+    for wrong in (np.zeros((4, 5, 2), np.uint8), np.zeros((1, 4, 5), np.uint8),
+                  np.zeros((4, 5, 1, 1), np.uint8)):
+        with pytest.raises(PipelineError, match=r"a\.b: execute\(\) returned a .* uint8 "
+                                                r"frame where the system was built for 4x5 "
+                                                r"uint8 \(or 4x5x1\)"):
+            check_frame("a.b", wrong, (4, 5), np.uint8)
+    with pytest.raises(PipelineError, match=r"built for 4x5x3 uint8$"):  # three channels
+        check_frame("a.b", deep, (4, 5, 3), np.uint8)
+    with pytest.raises(PipelineError, match=r"4x5x1 float32 frame .*\(convert with"):
+        check_frame("a.b", deep.astype(np.float32), (4, 5), np.uint8)
     with pytest.raises(PipelineError, match="returned int where a numpy array 4x5 uint8"):
         check_frame("a.b", 3, (4, 5), np.uint8)
+
+
+DEEP = (ROOT / "tests" / "data" / "deep_gray" / "types.yaml").as_posix()
+
+
+@pytest.mark.parametrize("variant", ["gpu", "cpu", "standard"])
+def test_one_channel_frames_as_height_width_1_run_through(tmp_path, variant):
+    """(issue 22) A source and a standard component that return one-channel frames as
+    height x width x 1 feed a threshold and an erode on the GPU (through adapters), on
+    the CPU (their CPU forms) and in standard mode (the components copy their own data):
+    every frame arrives, equal to numpy's."""
+    import numpy as np
+
+    if variant != "cpu":
+        require_opencl()
+    import textwrap
+
+    from gpucompgen.build import compile_model, write
+
+    record = tmp_path / "frames.npy"
+    path = tmp_path / "deep.yaml"
+    path.write_text(textwrap.dedent(f"""\
+        system: deep_gray
+        types: [{DEEP}]
+        platform: {{placement: {"cpu" if variant == "cpu" else "gpu"}}}
+        components:
+          source: {{type: DeepGraySource, params: {{width: 10, height: 9, frames: 3}}}}
+          invert: {{type: DeepInvert}}
+          thresh: {{type: ThresholdGray, params: {{thresh: 100, maxval: 255, thresh_type: 0}}}}
+          erode: {{type: ErodeGray}}
+          rec: {{type: GrayRecorder, params: {{path: "{record.as_posix()}"}}}}
+        connections:
+          - source.gray -> invert.image
+          - invert.inverted -> thresh.image
+          - thresh.thresholded -> erode.image
+          - erode.eroded -> rec.image
+        """), encoding="utf-8")
+    out = tmp_path / "out"
+    mode = "standard" if variant == "standard" else "gpu-aware"
+    write(compile_model(path, out, mode, fusion="off"), out)
+    proc = run_program(out / "deep_gray.py")
+    assert proc.returncode == 0, proc.stderr
+    got = np.load(record)
+    assert got.shape == (3, 9, 10)
+    for i in range(3):
+        frame = np.random.default_rng(i).integers(0, 256, (9, 10, 1), dtype=np.uint8)[..., 0]
+        mask = np.where(255 - frame > 100, 255, 0)
+        padded = np.pad(mask, 1, mode="edge")
+        eroded = np.min([padded[dy:dy + 9, dx:dx + 10] for dy in range(3) for dx in range(3)],
+                        axis=0)
+        np.testing.assert_array_equal(got[i], eroded, err_msg=f"frame {i}")

@@ -116,7 +116,8 @@ def test_a_string_parameter_that_looks_like_a_comment_is_kept_whole(tmp_path):
     compile(program, "vision_system.py", "exec")
     # a path parameter: relative to the model, seen from the program's folder
     literal = repr(f"../{COMMENT_LIKE}")
-    assert f"folder=runtime.model_path(__file__, {literal})" in program
+    assert f"runtime.model_path(__file__, {literal})" in program  # in PARAMS
+    assert "folder=params['camera1.folder']" in program
     # every other line fits the line length; the literal is never broken
     long = [line for line in program.splitlines() if len(line) > 100]
     assert all(literal in line for line in long), long

@@ -1,15 +1,18 @@
 """The image-processing library (gpucompgen/library/imgproc.yaml) against OpenCV.
 
-Every type runs three ways: OpenCV's function (the reference), the numpy CPU
-implementation (cpu_kernels.py) and the OpenCL kernel, launched directly with pyopencl on
-the pinned device (PoCL in CI) with its arguments in the calling convention's order. On
-real photographs (scikit-image's bundled chelsea 300x451, coffee 400x600 and astronaut
+Every type runs four ways: OpenCV's function, the CPU form (cpu_kernels.py, which calls
+OpenCV wherever OpenCV has the operation), an independent numpy reference written from
+the operation's definition (imgproc_reference.py: the CPU form must not be checked only
+against itself) and the OpenCL kernel, launched directly with pyopencl on the pinned
+device (PoCL in CI) with its arguments in the calling convention's order. On real
+photographs (scikit-image's bundled chelsea 300x451, coffee 400x600 and astronaut
 512x512; their gray versions for the one-channel types) the CPU and GPU outputs must be
-byte for byte the same, and within MAX_DIFF of OpenCV's: 0, bit-exact, for every type
-but bilinear Resize. Hypothesis then draws small frames (odd sizes, one pixel high or
-wide), parameters and GPU settings: GPU equals CPU everywhere, and the CPU equals OpenCV
-where OpenCV's 8-bit algorithm is integer-defined. RgbToGray and RgbToHsv are also
-compared with OpenCV on all 2^24 colours.
+byte for byte the same, equal to the numpy reference, and within MAX_DIFF of OpenCV's:
+0, bit-exact, for every type but bilinear Resize (numpy in the library). Hypothesis then
+draws small frames (odd sizes, one pixel high or wide), parameters and GPU settings: GPU
+equals CPU equals the numpy reference everywhere. RgbToGray and RgbToHsv are also
+compared with the reference on all 2^24 colours, and every operation with values
+computed by hand (which also pins RGB, not BGR, channel order).
 """
 
 from __future__ import annotations
@@ -22,6 +25,7 @@ import pytest
 from conftest import ROOT
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from imgproc_reference import REFERENCES
 
 from gpucompgen.library import cpu_kernels
 
@@ -107,6 +111,16 @@ def imgproc_types():
 def test_every_imgproc_type_is_compared_and_has_a_cpu_implementation():
     assert set(imgproc_types()) == set(SPECS)
     assert set(SPECS) <= set(cpu_kernels.CPU_IMPLEMENTATIONS)
+    # Crop is a slice in the library itself; every other type has a numpy reference
+    assert set(SPECS) - set(REFERENCES) == {"Crop", "CropGray"}
+
+
+def independent(type_name: str, params: dict):
+    """The numpy reference of a type with these parameters, or None where the library's
+    CPU form is numpy itself (Crop, bilinear Resize): the kernel is then its check."""
+    if type_name.startswith("Crop") or params.get("interpolation", 0) == 1:
+        return None
+    return REFERENCES[type_name]
 
 
 # -- photographs -------------------------------------------------------------------------
@@ -211,6 +225,10 @@ def test_photographs_cpu_and_gpu_against_opencv(type_name, photos, kernels):
         for i, params in enumerate(spec.cases):
             reference = spec.opencv(*arrays, **params)
             cpu = cpu_function(*arrays, **params)
+            numpy_reference = independent(type_name, params)
+            if numpy_reference is not None:
+                np.testing.assert_array_equal(cpu, numpy_reference(*arrays, **params),
+                                              err_msg=f"{name} {params}")
             difference = largest_difference(cpu, reference)
             if params.get("interpolation", 1) == 0:  # nearest resize: bit-exact
                 assert difference == 0, (name, params)
@@ -223,14 +241,14 @@ def test_photographs_cpu_and_gpu_against_opencv(type_name, photos, kernels):
 
 
 def test_all_colours_gray_and_hsv():
-    """RgbToGray and RgbToHsv against OpenCV on every one of the 2^24 RGB colours."""
+    """RgbToGray and RgbToHsv (OpenCV) against the numpy references on every one of the
+    2^24 RGB colours."""
     c = np.arange(1 << 24, dtype=np.uint32)
     image = np.stack([c >> 16, (c >> 8) & 255, c & 255], -1).astype(np.uint8)
     image = image.reshape(4096, 4096, 3)
-    np.testing.assert_array_equal(cpu_kernels.rgb_to_gray(image),
-                                  cv2.cvtColor(image, cv2.COLOR_RGB2GRAY))
-    np.testing.assert_array_equal(cpu_kernels.rgb_to_hsv(image),
-                                  cv2.cvtColor(image, cv2.COLOR_RGB2HSV))
+    for name in ("RgbToGray", "RgbToHsv"):
+        np.testing.assert_array_equal(cpu_kernels.CPU_IMPLEMENTATIONS[name](image),
+                                      REFERENCES[name](image), err_msg=name)
 
 
 def test_all_colours_on_the_gpu(kernels):
@@ -298,10 +316,10 @@ def test_random_frames_gpu_equals_cpu_and_opencv(type_name, kernels):
         arrays, params, setting = case
         cpu = cpu_kernels.CPU_IMPLEMENTATIONS[type_name](*arrays, **params)
         np.testing.assert_array_equal(kernels.run(type_name, arrays, params, setting), cpu)
-        if type_name.startswith("Resize") and params["interpolation"] == 1:
-            assert largest_difference(cpu, spec.opencv(*arrays, **params)) <= spec.max_diff
-        else:
-            np.testing.assert_array_equal(cpu, spec.opencv(*arrays, **params))
+        numpy_reference = independent(type_name, params)
+        if numpy_reference is not None:
+            np.testing.assert_array_equal(cpu, numpy_reference(*arrays, **params))
+        assert largest_difference(cpu, spec.opencv(*arrays, **params)) <= spec.max_diff
 
     check()
 
@@ -327,3 +345,77 @@ def test_cpu_functions_reject_bad_inputs():
     assert cpu_kernels.median_blur(image, out=out) is out
     gradient = np.empty((4, 5, 3), np.int16)
     assert cpu_kernels.sobel(image, dx=0, dy=1, out=gradient) is gradient
+
+
+# -- values computed by hand -------------------------------------------------------------
+def test_hand_computed_values():
+    """A few pixels per operation, worked out on paper from the definitions; they pin the
+    channel order (the library's frames are RGB) and the rounding rules."""
+    c = cpu_kernels
+    rgb = np.array([[[255, 0, 0], [0, 255, 0], [0, 0, 255], [10, 20, 30]]], np.uint8)
+    # (19596 r + 38470 g + 7470 b + 32768) >> 16: red 76, green 150, blue 29, and
+    # (195960 + 769400 + 224100 + 32768) >> 16 = 18
+    np.testing.assert_array_equal(c.rgb_to_gray(rgb), [[76, 150, 29, 18]])
+    # hue in degrees / 2: red 0, green 60, blue 120; (10, 20, 30): v 30, s 255 * 20 / 30
+    # = 170, blue is the maximum: hue 240 + 60 * (r - g) / diff = 240 - 30 = 210 degrees
+    np.testing.assert_array_equal(c.rgb_to_hsv(rgb), [[[0, 255, 255], [60, 255, 255],
+                                                       [120, 255, 255], [105, 170, 30]]])
+    gray = np.array([[5, 7, 100, 101]], np.uint8)
+    # round half to even: 2.5 -> 2, 3.5 -> 4, 50, 50.5 -> 50
+    np.testing.assert_array_equal(c.convert_scale(gray, alpha=0.5, beta=0.0), [[2, 4, 50, 50]])
+    # |5 * -2 + 1| = 9, |7 * -2 + 1| = 13, 300 and 302 saturate to 255... |-199| -> 199
+    np.testing.assert_array_equal(c.convert_scale(gray, alpha=-2.0, beta=1.0),
+                                  [[9, 13, 199, 201]])
+    np.testing.assert_array_equal(c.threshold(gray, thresh=100, maxval=9, thresh_type=0),
+                                  [[0, 0, 0, 9]])
+    np.testing.assert_array_equal(c.threshold(gray, thresh=6, maxval=9, thresh_type=2),
+                                  [[5, 6, 6, 6]])
+    np.testing.assert_array_equal(c.threshold(gray, thresh=6, maxval=9, thresh_type=4),
+                                  [[5, 0, 0, 0]])
+    np.testing.assert_array_equal(c.in_range(gray, lowerb=7, upperb=100), [[0, 255, 255, 0]])
+    np.testing.assert_array_equal(
+        c.in_range(rgb, lowerb_0=0, lowerb_1=0, lowerb_2=0, upperb_0=255, upperb_1=0,
+                   upperb_2=255), [[255, 0, 255, 0]])
+    np.testing.assert_array_equal(c.absdiff(gray, gray[:, ::-1].copy()), [[96, 93, 93, 96]])
+    # 0.5 * 5 + 0.25 * 101 + 1 = 28.75 -> 29, 0.5 * 101 + 0.25 * 5 + 1 = 52.75 -> 53
+    np.testing.assert_array_equal(
+        c.add_weighted(gray, gray[:, ::-1].copy(), alpha=0.5, beta=0.25, gamma=1.0)[0, [0, 3]],
+        [29, 53])
+    # one bright pixel of 16 in a 5x5 frame
+    spot = np.zeros((5, 5), np.uint8)
+    spot[2, 2] = 16
+    blurred = c.gaussian_blur(spot, ksize=3)  # (1 2 1) x (1 2 1) / 16
+    np.testing.assert_array_equal(blurred[1:4, 1:4], [[1, 2, 1], [2, 4, 2], [1, 2, 1]])
+    assert blurred.sum() == 16
+    np.testing.assert_array_equal(c.dilate(spot)[1:4, 1:4], np.full((3, 3), 16))
+    assert c.dilate(spot).sum() == 9 * 16 and not c.erode(spot).any()
+    assert not c.median_blur(spot).any()  # one pixel in nine is not the median
+    # Sobel dx at the centre: (-1 0 1) across, (1 2 1) down: row 2's 2 * (0 - 16) = -32 at
+    # x = 3, +32 at x = 1
+    gradient = c.sobel(spot, dx=1, dy=0)
+    assert gradient.dtype == np.int16 and (gradient[2, 1], gradient[2, 3]) == (32, -32)
+    assert (gradient[1, 1], gradient[3, 3]) == (16, -16)
+    assert c.flip_horizontal(gray).tolist() == [[101, 100, 7, 5]]
+    assert c.rotate180(np.array([[1, 2], [3, 4]], np.uint8)).tolist() == [[4, 3], [2, 1]]
+    assert c.resize(gray, width=2, height=1, interpolation=0).tolist() == [[5, 100]]
+
+
+def test_one_channel_frames_as_height_width_1():
+    """A one-channel frame may come as height x width x 1 (issue 22): the CPU functions
+    take it as it is and answer in the same shape, the values those of height x width."""
+    rng = np.random.default_rng(3)
+    gray = rng.integers(0, 256, (9, 10), np.uint8)
+    column = gray[..., None]
+    assert np.shares_memory(column, gray)
+    for name, params in (("ThresholdGray", {"thresh": 100, "maxval": 255, "thresh_type": 0}),
+                         ("ErodeGray", {}), ("GaussianBlurGray", {"ksize": 5}),
+                         ("MedianBlurGray", {}),
+                         ("ResizeGray", {"width": 4, "height": 3, "interpolation": 1}),
+                         ("CropGray", {"x": 1, "y": 2, "width": 3, "height": 4}),
+                         ("SobelGray", {"dx": 0, "dy": 1})):
+        function = cpu_kernels.CPU_IMPLEMENTATIONS[name]
+        flat, deep = function(gray, **params), function(column, **params)
+        assert deep.shape == flat.shape + (1,), name
+        np.testing.assert_array_equal(deep[..., 0], flat, err_msg=name)
+    mask = cpu_kernels.in_range(column, lowerb=10, upperb=90)
+    np.testing.assert_array_equal(mask, cpu_kernels.in_range(gray, lowerb=10, upperb=90))

@@ -42,16 +42,29 @@ def test_folder_and_glob_give_the_images_in_sorted_order(tmp_path):
 def test_image_errors_say_which_file_and_what_was_expected(tmp_path):
     Image.fromarray(_frames(1, 20, 30)[0]).save(tmp_path / "big.png")
     cam = Camera(width=24, height=16, folder=str(tmp_path))
-    cam.initialize()
-    with pytest.raises(PipelineError, match=r"big.png is 30x20 \(width x height\), but the "
-                                            r"system was built for 24x16"):
-        cam.execute()
-    (tmp_path / "big.png").unlink()
-    (tmp_path / "broken.png").write_bytes(b"not a png at all")
+    # the first image's header is read at initialize: the size is refused before any frame
+    with pytest.raises(PipelineError, match=r"image folder '.*' has frames of 30x20 \(width x "
+                                            r"height\), but the system was built for 24x16"):
+        cam.initialize()
+    Image.fromarray(_frames(1, 16, 24)[0]).save(tmp_path / "a_small.png")
     cam = Camera(width=24, height=16, folder=str(tmp_path))
     cam.initialize()
+    cam.execute()
+    with pytest.raises(PipelineError, match=r"frame 1 of image folder '.*' is 30x20 \(width x "
+                                            r"height\), but the system was built for 24x16"):
+        cam.execute()
+    (tmp_path / "big.png").unlink()
+    (tmp_path / "a_small.png").unlink()
+    (tmp_path / "broken.png").write_bytes(b"not a png at all")
+    with pytest.raises(PipelineError, match=r"cannot read image .*broken.png"):
+        Camera(width=24, height=16, folder=str(tmp_path)).initialize()
+    Image.fromarray(_frames(1, 16, 24)[0]).save(tmp_path / "a_good.png")
+    cam = Camera(width=24, height=16, folder=str(tmp_path))
+    cam.initialize()
+    assert cam.execute() is not None  # the frame before the damaged one arrives
     with pytest.raises(PipelineError, match=r"cannot read image .*broken.png"):
         cam.execute()
+    (tmp_path / "a_good.png").unlink()
     with pytest.raises(PipelineError, match=r"no images match '.*nothing\*.png'"):
         Camera(folder=str(tmp_path / "nothing*.png")).initialize()
     with pytest.raises(PipelineError, match=r"image folder '.*missing' does not exist"):
@@ -75,15 +88,15 @@ def test_video_file_frames_arrive_as_rgb(tmp_path):
         assert r > 180 and g < 40 and b < 40  # red stays red: BGR became RGB
 
     cam = Camera(width=64, height=48, video=str(path))
-    cam.initialize()
-    with pytest.raises(PipelineError, match=r"frame 0 of '.*clip.avi' is 32x24 \(width x "
-                                            r"height\), but the system was built for 64x48"):
-        cam.execute()
+    with pytest.raises(PipelineError, match=r"video file '.*clip.avi' has frames of 32x24 "
+                                            r"\(width x height\), but the system was built for "
+                                            r"64x48"):
+        cam.initialize()
     cam.free_memory()
     cam.free_memory()  # safe twice
     with pytest.raises(PipelineError, match=r"video file '.*none.avi' does not exist"):
         Camera(video=str(tmp_path / "none.avi")).initialize()
     with pytest.raises(PipelineError, match=r"write device:N"):
         Camera(video="device:front").initialize()
-    with pytest.raises(PipelineError, match=r"not both"):
+    with pytest.raises(PipelineError, match=r"not folder and video"):
         Camera(video=str(path), folder=str(tmp_path)).initialize()

@@ -68,4 +68,7 @@ def test_absolute_paths_and_devices_are_left_as_written(tmp_path):
         sub = tmp_path / str(abs(hash(value)))
         sub.mkdir()
         _, program = build(sub, value if value != "''" else "''")
-        assert f"folder={shown}" in program.read_text(encoding="utf-8")
+        text = program.read_text(encoding="utf-8")
+        # the model's value sits in the PARAMS table --set may override
+        assert f"runtime.Param('input', {shown})" in text.replace("(\n        'input'", "('input'")
+        assert "folder=params['camera.folder']" in text

@@ -188,6 +188,51 @@ def test_auto_without_a_profile_uses_the_static_estimate(tmp_path):
     assert cost.gpu_s == pytest.approx(20e-6 + nbytes / 20e9)
 
 
+def test_auto_reads_the_profile_tune_writes_without_platform_profile(tmp_path):
+    """(issue 24) `tune MODEL` writes tune/<system>.yaml when the model names no profile;
+    placement: auto reads that file, not the static estimate, and plan says so."""
+    path = _auto_model(tmp_path, None)
+    (tmp_path / "tune").mkdir()
+    (tmp_path / "tune" / "vs.yaml").write_text(textwrap.dedent(
+        _profile((100, 2000), (100, 2000), 10, 10_000)))
+    system, _ = _passes(path)
+    assert _sides(system) == {"merger": "cpu", "detector": "cpu"}
+    assert {c.source for c in system.placement.costs.values()} == {"profile"}
+    assert "merger: CPU (by auto; est. CPU 0.100 ms, GPU 2.000 ms (profile))" in \
+        "\n".join(plan_lines(system.plan))
+    from gpucompgen.tune import default_profile_path
+
+    model = load_system(path)
+    assert default_profile_path(path, model) == tmp_path / "tune" / "vs.yaml"
+    # a broken one is reported in place, as a named one is
+    (tmp_path / "tune" / "vs.yaml").write_text("components: {merger: {cpu_us: -1}}\n")
+    with pytest.raises(GpucompgenError, match="must be a number"):
+        _passes(path)
+
+
+def test_tune_frames_are_camera_frames_in_each_ports_own_type():
+    """tune feeds camera-like frames (not uniform noise), every byte of the port: an int16
+    port gets twice a uint8 port's bytes."""
+    from gpucompgen.tune import camera_frame
+
+    rgb = camera_frame((48, 64, 3), "uint8")
+    np.testing.assert_array_equal(rgb, _camera_frame(64, 48))
+    gray = camera_frame((48, 64), "uint8")
+    assert gray.shape == (48, 64) and gray.dtype == np.uint8
+    gradient = camera_frame((48, 64), "int16")
+    assert gradient.dtype == np.int16 and gradient.nbytes == 2 * gray.nbytes
+    np.testing.assert_array_equal(gradient, (gray.astype(np.int16) - 128) * 4)
+    assert not np.array_equal(camera_frame((48, 64), "uint8", 1), gray)  # a second input
+    # smoother than noise: neighbouring pixels differ by little on the whole
+    assert np.abs(np.diff(gray.astype(np.int16), axis=1)).mean() < 20
+
+
+def _camera_frame(width: int, height: int) -> np.ndarray:
+    camera = Camera(width=width, height=height, seed=1)
+    camera.initialize()
+    return camera.execute()
+
+
 def test_the_heuristic_agrees_with_exhaustive_search(tmp_path, monkeypatch):
     for profile in (_profile((1000, 500), (1000, 500), 50, 1000),
                     _profile((5000, 100), (5000, 100), 10, 10_000),
@@ -416,13 +461,40 @@ def test_every_placement_of_the_two_branch_model_gives_identical_output(tmp_path
 def test_a_cpu_function_returning_the_wrong_shape_is_named(tmp_path):
     from gpucompgen.runtime import CpuFunctionComponent, Size
 
-    comp = CpuFunctionComponent(lambda image: image[:, :-1], "mirror",
+    # right on initialize()'s zero frame, one column short on a real one
+    comp = CpuFunctionComponent(lambda image: image[:, :-1] if image.any() else image, "mirror",
                                 inputs=(("image", np.uint8),), outputs=(("mirrored", np.uint8),))
-    assert comp.initialize(Size(4, 6, 3)) == Size(4, 5, 3)
-    comp.sizes["mirrored"] = Size(4, 6, 3)  # as the plan says
+    assert comp.initialize(Size(4, 6, 3)) == Size(4, 6, 3)
     with pytest.raises(ValueError, match=r"mirror\.mirrored: the CPU function <lambda>\(\) "
                                          r"returned uint8 \(4, 5, 3\), not uint8 \(4, 6, 3\)"):
-        comp.execute(np.zeros((4, 6, 3), np.uint8))
+        comp.execute(np.ones((4, 6, 3), np.uint8))
+
+
+def test_a_cpu_function_may_return_one_channel_as_height_width_1():
+    """(issue 22) a one-channel output as height x width x 1 goes on as height x width,
+    a view of the same memory; two channels are still refused."""
+    from gpucompgen.runtime import CpuFunctionComponent, Size
+
+    comp = CpuFunctionComponent(lambda image: image.sum(axis=2, keepdims=True, dtype=np.uint8),
+                                "gray", inputs=(("image", np.uint8),),
+                                outputs=(("gray", np.uint8),))
+    assert comp.initialize(Size(4, 6, 3)) == Size(4, 6, 1)
+    frame = np.arange(72, dtype=np.uint8).reshape(4, 6, 3)
+    result = comp.execute(frame)
+    assert result.shape == (4, 6)
+    np.testing.assert_array_equal(result, frame.sum(axis=2, dtype=np.uint8))
+    kept = np.zeros((4, 6, 1), np.uint8)
+    comp = CpuFunctionComponent(lambda image: kept, "keep", inputs=(("image", np.uint8),),
+                                outputs=(("mask", np.uint8),))
+    comp.initialize(Size(4, 6, 3))
+    assert np.shares_memory(comp.execute(frame), kept)  # no copy
+    comp = CpuFunctionComponent(lambda image: image[..., :2] if image.any() else image[..., :1],
+                                "two", inputs=(("image", np.uint8),),
+                                outputs=(("mask", np.uint8),))
+    comp.initialize(Size(4, 6, 3))
+    with pytest.raises(ValueError, match=r"two\.mask: .* returned uint8 \(4, 6, 2\), not "
+                                         r"uint8 \(4, 6\) \(or \(4, 6, 1\)\)"):
+        comp.execute(frame)
 
 
 def test_tune_writes_the_profile_that_auto_reads(tmp_path, capsys):

@@ -278,6 +278,9 @@ def test_a_kernel_writing_far_out_of_bounds_is_reported(tmp_path):
                           env=dict(os.environ), cwd=tmp_path, check=False)
     if proc.returncode == 0:
         pytest.skip("this OpenCL device survives a write 64 GiB past a buffer")
+    if proc.returncode == 1:  # a GPU: the fault surfaces as an error of the next command
+        assert "out of bounds" in proc.stderr and "hint:" in proc.stderr, proc.stderr
+        return
     assert proc.returncode in (128 + signal.SIGSEGV, 128 + signal.SIGBUS), proc.stderr
     assert "the program was killed by signal SIG" in proc.stderr
     assert "out of bounds" in proc.stderr

@@ -42,12 +42,15 @@ def test_check_fails_after_a_model_edit_and_diff_writes_nothing(tmp_path):
     assert proc.returncode == 1
     assert "is stale" in proc.stderr
     assert "--- a/vision_system.py\n+++ b/vision_system.py\n" in proc.stdout
-    # the detector runs in the fused merger_detector group: its parameter is a kernel argument
-    assert "-                np.int32(150),  # detector_red_min\n" in proc.stdout
-    assert "+                np.int32(140),  # detector_red_min\n" in proc.stdout
+    # the detector's parameter is a kernel argument of the fused merger_detector group, read
+    # from the PARAMS table (where --set can change it)
+    assert "-    'detector.red_min': runtime.Param('int', 150, minimum=0, maximum=255),\n" \
+        in proc.stdout
+    assert "+    'detector.red_min': runtime.Param('int', 140, minimum=0, maximum=255),\n" \
+        in proc.stdout
 
     proc = gpucompgen("build", "models/vision_system.yaml", "--diff", cwd=tmp_path)
-    assert proc.returncode == 0 and "np.int32(140),  # detector_red_min" in proc.stdout
+    assert proc.returncode == 0 and "runtime.Param('int', 140" in proc.stdout
     assert (tmp_path / "generated" / "vision_system.py").read_bytes() == before
 
     assert gpucompgen("build", "models/vision_system.yaml", cwd=tmp_path).returncode == 0

@@ -91,7 +91,7 @@ def test_standard_type_and_model_type_in_full(capsys, monkeypatch):
     _, out, _ = run(capsys, "Camera")
     assert "Kind            standard (runs on the CPU)" in out
     assert "  image         CPU memory, uint8, 3 channels, height height, width width" in out
-    assert "  folder        path, default ''" in out
+    assert "  folder        input, default ''" in out
     assert "  seed          int, default 1, range 0.." in out
     assert out.splitlines()[-1] == "  CPU (python)  class Camera in camera.py"
     monkeypatch.chdir(ROOT)  # paths as the user wrote them, relative to the working folder

@@ -5,24 +5,22 @@ vertical gradient and seeded noise, and red buoys that bob along known paths.  T
 seed always gives the same frames, and :meth:`Camera.ground_truth` tells where every buoy
 is in any frame, so tests can check what the pipeline detected.
 
-Real inputs: ``folder`` (a folder of images, or a glob such as ``shots/*.png``, read in
-sorted order with Pillow) or ``video`` (a video file, or ``device:N`` for live camera N,
-read with OpenCV's VideoCapture; OpenCV's BGR frames become RGB here, at the edge).
-Every frame must have the size the system was built for.
+Real inputs: ``source``, a URI of gpucompgen.io — a folder or glob of images, a video file,
+a camera (``v4l2:///dev/video0``, ``csi://0``, ``device:0``), an RTSP stream, an MCAP file
+or ROS 2 bag (``mcap://drive.mcap?topic=/camera/image``) — or the older ``folder`` (images)
+and ``video`` (a video file or ``device:N``).  Frames are converted to RGB at the edge;
+every frame must have the size the system was built for.
 """
 
 from __future__ import annotations
 
-import glob
 import math
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
 from gpucompgen.runtime import PipelineError, Size
 
-IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".ppm", ".bmp")
 NOISE_FIELDS = 4  # pre-rendered noise fields, cycled, so a frame costs little CPU
 RED = np.array((210, 30, 35), np.int16)  # a buoy's colour, before noise
 
@@ -35,25 +33,39 @@ class Buoy:
 
 
 class Camera:
+    RUNTIME_OPTIONS = ("drop",)
+
     def __init__(self, *, width: int = 640, height: int = 480, seed: int = 1, buoys: int = 2,
-                 frames: int = 0, folder: str = "", video: str = ""):
+                 frames: int = 0, folder: str = "", video: str = "", source: str = ""):
         self.width, self.height, self.seed = width, height, seed
         self.buoys, self.frames, self.folder, self.video = buoys, frames, folder, video
+        self.source = source
         self.frame = 0
-        self.files: list[Path] = []
-        self.capture = None
+        self.reader = None  # a gpucompgen.io Source, for real inputs
+        self.drop = False  # --drop: read in a thread, keep only the newest frame
+        self._dropped = 0
         self.background = None
         self.noise: list[np.ndarray] = []
         self.water: list[np.ndarray] = []
 
     # -- the component interface ------------------------------------------------------
+    def runtime_options(self, options: dict) -> None:
+        """--drop: when the pipeline falls behind a live input, frames are dropped (and
+        counted) instead of queued."""
+        self.drop = bool(options.get("drop"))
+
+    @property
+    def dropped_frames(self) -> int:
+        """Frames --drop dropped (kept after free_memory, for the run's summary)."""
+        return getattr(self.reader, "dropped", self._dropped)
+
     def initialize(self) -> Size:
-        if self.folder and self.video:
-            raise PipelineError("set 'folder' or 'video', not both")
-        if self.folder:
-            self.files = self._image_files(self.folder)
-        elif self.video:
-            self.capture = self._open_video(self.video)
+        given = [k for k in ("source", "folder", "video") if getattr(self, k)]
+        if len(given) > 1:
+            raise PipelineError(f"set one of 'source', 'folder' and 'video', not "
+                                f"{' and '.join(given)}")
+        if given:
+            self.reader = self._open(getattr(self, given[0]), given[0])
         else:
             rng = np.random.default_rng(self.seed)
             rows = np.linspace(0.0, 1.0, self.height, dtype=np.float32)[:, None]
@@ -73,14 +85,15 @@ class Camera:
         """The next RGB frame (height x width x 3, uint8), or None at the end of the stream."""
         if self.frames and self.frame >= self.frames:
             return None
-        if self.files:
-            if self.frame >= len(self.files):
-                return None
-            image = self._read(self.files[self.frame])
-        elif self.capture is not None:
-            image = self._grab()
+        if self.reader is not None:
+            image = self.reader.read()
             if image is None:
                 return None
+            if image.shape[:2] != (self.height, self.width):
+                raise PipelineError(
+                    f"frame {self.frame} of {self.reader.uri.describe()} is "
+                    f"{image.shape[1]}x{image.shape[0]} (width x height), but the system was "
+                    f"built for {self.width}x{self.height}; {SIZE_HINT}")
         else:
             image = self.render(self.frame)
         self.frame += 1
@@ -90,9 +103,10 @@ class Camera:
         self.background = None
         self.noise = []
         self.water = []
-        if self.capture is not None:
-            capture, self.capture = self.capture, None
-            capture.release()
+        if self.reader is not None:
+            reader, self.reader = self.reader, None
+            reader.close()
+            self._dropped = getattr(reader, "dropped", 0)
 
     # -- synthetic scene ----------------------------------------------------------------
     def ground_truth(self, frame: int) -> list[Buoy]:
@@ -146,76 +160,33 @@ class Camera:
         return img
 
     # -- real inputs ------------------------------------------------------------------
-    @staticmethod
-    def _image_files(spec: str) -> list[Path]:
-        if glob.has_magic(spec):
-            files = sorted(Path(p) for p in glob.glob(spec)
-                           if Path(p).suffix.lower() in IMAGE_SUFFIXES)
-            if not files:
-                raise PipelineError(f"no images match '{spec}' "
-                                    f"({', '.join(IMAGE_SUFFIXES)})")
-            return files
-        folder = Path(spec)
-        if not folder.is_dir():
-            what = "is not a folder" if folder.exists() else "does not exist"
-            raise PipelineError(f"image folder '{spec}' {what}")
-        files = sorted(p for p in folder.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES)
-        if not files:
-            raise PipelineError(f"image folder '{spec}' has no images "
-                                f"({', '.join(IMAGE_SUFFIXES)})")
-        return files
+    def _open(self, spec: str, param: str):
+        from gpucompgen import io
 
-    @staticmethod
-    def _open_video(spec: str):
-        try:
-            import cv2
-        except ImportError:
-            raise PipelineError("reading video needs OpenCV: "
-                                "pip install 'gpucompgen[video]'") from None
-        if spec.startswith("device:"):
-            index = spec.removeprefix("device:")
-            if not index.isdigit():
-                raise PipelineError(f"'{spec}' is not a camera; write device:N, e.g. "
-                                    "device:0")
-            capture = cv2.VideoCapture(int(index))
-            what = f"live camera {index}"
+        if param == "folder":
+            uri = io.parse_source(spec)
+            if uri.kind != "images":
+                raise PipelineError(f"'folder' is '{spec}', which is not a folder or glob of "
+                                    "images; set 'source' for other inputs")
+        elif param == "video":
+            uri = io.parse_source(spec)
+            if uri.kind not in ("video", "camera"):
+                raise PipelineError(f"'video' is '{spec}', which is not a video file or a "
+                                    "camera; set 'source' for other inputs")
         else:
-            if not Path(spec).is_file():
-                raise PipelineError(f"video file '{spec}' does not exist")
-            capture = cv2.VideoCapture(spec)
-            what = f"video file '{spec}'"
-        if not capture.isOpened():
-            capture.release()
-            raise PipelineError(f"cannot open {what} with OpenCV")
-        return capture
+            uri = io.parse_source(spec)
+        reader = io.open_source(uri)
+        if self.drop:
+            from gpucompgen.io.live import DropFrames
 
-    def _grab(self) -> np.ndarray | None:
-        import cv2
-
-        ok, bgr = self.capture.read()
-        if not ok:
-            return None
-        if bgr.shape[:2] != (self.height, self.width):
+            reader = DropFrames(reader)
+        size = reader.open()
+        if size is not None and size != (self.height, self.width):
+            reader.close()
             raise PipelineError(
-                f"frame {self.frame} of '{self.video}' is {bgr.shape[1]}x{bgr.shape[0]} "
-                f"(width x height), but the system was built for {self.width}x{self.height}; "
-                "set the camera's width and height params to the video's size")
-        return cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
+                f"{uri.describe()} has frames of {size[1]}x{size[0]} (width x height), but "
+                f"the system was built for {self.width}x{self.height}; {SIZE_HINT}")
+        return reader
 
-    def _read(self, path: Path) -> np.ndarray:
-        try:
-            from PIL import Image
-        except ImportError:
-            raise PipelineError("reading camera images needs Pillow: "
-                                "pip install 'gpucompgen[image]'") from None
-        try:
-            with Image.open(path) as im:
-                array = np.asarray(im.convert("RGB"))
-        except OSError as exc:
-            raise PipelineError(f"cannot read image {path}: {exc}") from None
-        if array.shape[:2] != (self.height, self.width):
-            raise PipelineError(
-                f"image {path} is {array.shape[1]}x{array.shape[0]} (width x "
-                f"height), but the system was built for {self.width}x{self.height}; set the "
-                "camera's width and height params to the images' size")
-        return np.ascontiguousarray(array)
+
+SIZE_HINT = "set the camera's width and height params to the input's size"

@@ -6,7 +6,9 @@ For every frame it gets the camera's image and a black-and-white mask of the sam
 ``history`` (the latest frames only, so memory stays flat), and, with a ``folder`` (or the
 generated program's ``--save-images DIR``), written as two PNGs per frame:
 ``mask_NNNNNN.png`` (the mask as it arrived) and ``annotated_NNNNNN.png`` (the image with
-the mask's pixels tinted and each object boxed in green).
+the mask's pixels tinted and each object boxed in green).  With ``output`` (a gpucompgen.io
+sink URI: ``display://``, ``out.mp4``, a folder, ``mcap://out.mcap``) the annotated frames
+and the masks go there too, as the outputs ``annotated`` and ``mask``.
 """
 
 from __future__ import annotations
@@ -69,8 +71,11 @@ class MaskWriter:
     RUNTIME_OPTIONS = ("save_images", "quiet")
     HISTORY = 1000  # the latest frames' objects kept for inspection
 
-    def __init__(self, *, min_area: int = 30, folder: str = "", print_objects: bool = True):
+    def __init__(self, *, min_area: int = 30, folder: str = "", print_objects: bool = True,
+                 output: str = ""):
         self.min_area, self.print_objects = min_area, print_objects
+        self.output = output
+        self.sink = None
         self.folder = Path(folder) if folder else None
         self.history: deque[list[Box]] = deque(maxlen=self.HISTORY)
         self.frame = 0
@@ -95,6 +100,11 @@ class MaskWriter:
             except OSError as exc:
                 raise PipelineError(f"cannot create image folder {self.folder}: "
                                     f"{exc.strerror}") from None
+        if self.output:
+            from gpucompgen import io
+
+            self.sink = io.open_sink(self.output)
+            self.sink.open()
 
     def execute(self, image: np.ndarray, mask: np.ndarray) -> None:
         boxes = find_objects(mask, self.min_area)
@@ -104,17 +114,23 @@ class MaskWriter:
                               for b in boxes)
             print(f"frame {self.frame}: {len(boxes)} object{'s' if len(boxes) != 1 else ''}"
                   + (f": {shown}" if boxes else ""), flush=True)
+        annotated = annotate(image, mask, boxes) if self.sink is not None or self.folder is not None else None
+        if self.sink is not None:
+            self.sink.write(annotated, "annotated")
+            self.sink.write(mask, "mask")
         if self.folder is not None:
             from PIL import Image
 
             name = f"{self.frame:06d}.png"
             try:
                 Image.fromarray(mask).save(self.folder / f"mask_{name}")
-                Image.fromarray(annotate(image, mask, boxes)).save(
+                Image.fromarray(annotated).save(
                     self.folder / f"annotated_{name}")
             except OSError as exc:
                 raise PipelineError(f"cannot save images in {self.folder}: {exc}") from None
         self.frame += 1
 
     def free_memory(self) -> None:
-        pass
+        if self.sink is not None:
+            sink, self.sink = self.sink, None
+            sink.close()

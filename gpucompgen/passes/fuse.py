@@ -13,20 +13,25 @@ and Inductor's scheduler, which records why two nodes were not fused):
   and absorbs its producers, upstream, as long as a producer is a candidate, every reader
   of its output is already in the group (an output read by a component outside the group,
   or by the CPU through an adapter, must be materialized: it ends the group), and the
-  recomputation stays within the cost cap.
-- Cost cap: inside a group a member is evaluated once for every read of its output, so a
-  stencil of (2r + 1)^2 taps evaluates each producer (2r + 1)^2 times per output element.
-  A member evaluated R > 1 times per output element, reading T input elements each time
-  (T = 1 for pointwise and index maps, (2r + 1)^2 for a stencil), costs R x T loads; the
-  group is refused where any such member would exceed FUSE_COST_CAP (64): e.g. a 5x5
-  blur may absorb mirrors and detectors, but not another blur (25 x 25 = 625).
+  cost model says the group with it is cheaper than the group and it apart.
+- Cost model (estimate()): inside a group a member is evaluated once for every read of
+  its output: a stencil reading a producer at 9 taps evaluates it 9 times per output
+  element, a gray conversion reading 3 channels evaluates its producer 3 times.  Reads
+  are counted per snippet (its accessor calls, at least a stencil's window), so an index
+  map reading its input 40 times costs 40 evaluations of its producer.  Fused, each
+  member costs its evaluations times its arithmetic and its loads of group inputs; apart,
+  each member costs one evaluation an element, plus storing its output, reading it back
+  and a launch.  A producer joins only where the estimate with it is lower than without
+  it, so no group chosen is estimated slower than its members apart; `plan` shows the
+  estimate of every group and the figures of every refusal.  Where in doubt (a tie) the
+  producer stays apart.
 - A group of one component is no group: the component keeps its own, hand-written kernel.
 
 Every GPU-to-GPU edge between components that ends up outside a group gets its reason in
 system.unfused (shown by `plan`, `check` and --print-between-passes), and so does every
 connection between two components with kernels that the placement put through the CPU.
 A reason starts with its kind — "fusion off", "placed on the CPU", "fuse: false",
-"opaque type", "read by several consumers", "stencil cost cap", "different groups" — then
+"opaque type", "read by several consumers", "cost model", "different groups" — then
 says what, in the model's names.
 """
 
@@ -36,12 +41,22 @@ from dataclasses import replace
 
 from ..ir import AdapterNode, ComponentNode, Edge, GroupNode, Port, System
 from ..model import ComponentType, Endpoint, GpuDecl
+from ..snippet import accessor_calls
 from .base import Pass
 
-FUSE_COST_CAP = 64
 # the generated kernel's settings: tile rows a work-group, 64 threads splitting them
 # (measured on PoCL, as for VerticalMirror: long runs of pixels per work-item)
 GROUP_GPU = GpuDecl((1, 2, 4, 8, 16, 32, 64, 128), (1,), (32, 8, 8, 1))
+# on a GPU: a work-group of 128 threads along a row, 4 rows at a time, adjacent threads
+# adjacent elements (backend/opencl/fused.py, schedule 'strided')
+GROUP_GPU_STRIDED = GpuDecl((1, 2, 4, 8, 16, 32, 64, 128), (1,), (4, 128, 1, 1))
+
+
+def group_gpu_decl(device) -> GpuDecl:
+    """The generated kernel's settings for the device: fused.schedule() decides."""
+    from ..backend.opencl.fused import schedule
+
+    return GROUP_GPU if schedule(device) == "runs" else GROUP_GPU_STRIDED
 
 
 class Fuse(Pass):
@@ -90,7 +105,8 @@ class Fuse(Pass):
             system.unfused[str(e)] = why
         for names in groups:
             if len(names) > 1:
-                make_group(system, names)
+                text = estimate_text(system, set(names))
+                make_group(system, names).estimate = text
         return system
 
 
@@ -135,13 +151,20 @@ def _why_not(system: System, src: Endpoint, members: set[str], consumer: str) ->
     if outside:
         return (f"read by several consumers: {src} is also read by {', '.join(outside)}, "
                 "outside the group; its output must be materialized")
-    cost = _worst_recompute(system, members | {src.component})
-    if cost is not None:
-        member, r, taps = cost
-        return (f"stencil cost cap: recomputing {member} {r} times per output element of "
-                f"the group (reading {taps} input element{'s' if taps != 1 else ''} each "
-                f"time) costs {r * taps} loads, over the cap of {FUSE_COST_CAP}")
+    grown = members | {src.component}
+    fused, _ = estimate(system, grown)
+    now, _ = estimate(system, members)
+    alone = apart_cost(system, src.component) + LAUNCH
+    if fused >= now + alone:
+        r = evaluations(system, grown)[src.component]
+        return (f"cost model: with {src.component} the group's kernel costs an estimated "
+                f"{_ops(fused)} a frame, against {_ops(now + alone)} with {src.component} "
+                f"apart (it would run {r} times per output element of the group)")
     return ""
+
+
+def _ops(n: int) -> str:
+    return f"{n:,} element operations"
 
 
 def _reader(system: System, end: Endpoint) -> str:
@@ -153,34 +176,92 @@ def _reader(system: System, end: Endpoint) -> str:
     return str(end)
 
 
+# The cost model, in element operations a frame (an element read, computed or stored
+# costs about one; measured figures in docs/fusion.md).  A buffer between two kernels is
+# written and read back from memory (MATERIALIZE a element more than a read of a value
+# still in registers), and a kernel launch costs LAUNCH.
+MATERIALIZE = 2
+LAUNCH = 20_000
+
+
+def reads(node, port: str) -> int:
+    """Elements of input port one evaluation of node's snippet reads: its accessor calls
+    on the port, at least the window for a stencil (whose reads may be in a loop)."""
+    decl = node.type.fusable
+    calls = len(accessor_calls(decl.tree, [port])[port])
+    return max(calls, decl.taps(node.params) if decl.form == "stencil" else 1)
+
+
+def arithmetic(node) -> int:
+    """Operations one evaluation computes besides its reads: none for an index map (its
+    work is the read), one a read for stencils and pointwise snippets."""
+    if node.type.fusable.form == "index_map":
+        return 0
+    return max(1, sum(reads(node, p) for p in node.inputs))
+
+
+def elements(node) -> int:
+    (port,) = node.outputs.values()
+    return port.data.height * port.data.width * port.channels if port.data else 1
+
+
+def apart_cost(system: System, name: str) -> int:
+    """A member run as its own kernel: its elements computed, its reads loaded, its output
+    stored and read back from memory by its consumer."""
+    node = system.nodes[name]
+    per = arithmetic(node) + sum(reads(node, p) for p in node.inputs) + 1 + MATERIALIZE
+    return elements(node) * per
+
+
 def evaluations(system: System, members: set[str]) -> dict[str, int]:
-    """How many times each member is evaluated per output element of the group."""
+    """How many times each member is evaluated per output element of the group: a read
+    of a member inside the group is an evaluation of it (Inductor's recompute count)."""
     order = [n for n in system.order if n in members]
     count = dict.fromkeys(order, 0)
     count[order[-1]] = 1
     for m in reversed(order):
         node = system.nodes[m]
-        taps = node.type.fusable.taps(node.params)
         for pname in node.inputs:
             src = system.writer(Endpoint(m, pname))
             if src is not None and src.component in members:
-                count[src.component] += count[m] * taps
+                count[src.component] += count[m] * reads(node, pname)
     return count
 
 
-def _worst_recompute(system: System, members: set[str]) -> tuple[str, int, int] | None:
-    """The first member whose recomputation costs more than the cap, or None."""
-    for m, r in evaluations(system, members).items():
+def estimate(system: System, members: set[str]) -> tuple[int, int]:
+    """(the group as one kernel, its members apart), element operations a frame.  Fused,
+    every member runs as often as evaluations() says, loading only the group's inputs;
+    apart, each member runs once an element, and every buffer between them is stored,
+    read back, and costs a launch."""
+    count = evaluations(system, members)
+    order = [n for n in system.order if n in members]
+    root = system.nodes[order[-1]]
+    per = 1  # the group's output stored
+    for m in order:
         node = system.nodes[m]
-        taps = node.type.fusable.taps(node.params)
-        if r > 1 and r * taps > FUSE_COST_CAP:
-            return m, r, taps
-    return None
+        loads = sum(reads(node, p) for p in node.inputs
+                    if (w := system.writer(Endpoint(m, p))) is None or w.component not in members)
+        per += count[m] * (arithmetic(node) + loads)
+    fused = elements(root) * per + LAUNCH
+    apart = sum(apart_cost(system, m) for m in order) - elements(root) * MATERIALIZE \
+        + LAUNCH * len(order)
+    return fused, apart
+
+
+def estimate_text(system: System, members: set[str]) -> str:
+    fused, apart = estimate(system, members)
+    return (f"estimate: {_ops(fused)} a frame as one kernel, {_ops(apart)} apart "
+            f"({apart / fused:.1f}x)")
 
 
 def group_name(system: System, names: list[str]) -> str:
+    """Named after its members, never like a component of the model (one fused earlier
+    has left the nodes, but users know it by that name: stats, profiles, plan)."""
     wanted = "_".join(names) if len(names) <= 3 else f"{names[0]}_to_{names[-1]}"
-    return system.unique_name(wanted)
+    name = system.unique_name(wanted)
+    while name in system.model.components:
+        name = system.unique_name(name + "_")
+    return name
 
 
 def make_group(system: System, names: list[str]) -> GroupNode:
@@ -200,6 +281,8 @@ def make_group(system: System, names: list[str]) -> GroupNode:
             internal.append(e)
         elif b:
             port_name = f"{e.target.component}_{e.target.port}"
+            while port_name in inputs:  # member a_b's port c and member a's port b_c
+                port_name += "_"
             inputs[port_name] = replace(system.nodes[e.target.component].inputs[e.target.port],
                                         name=port_name)
             feeds[port_name] = e.target
@@ -246,4 +329,4 @@ def group_type(system: System, name: str, members: list[ComponentNode],
         + " into one kernel.",
         params={}, inputs=ports, outputs={out_name: out_decl}, requires=[],
         decl_file=rt.decl_file, origin="group", pos=root.pos, kernel_function=name,
-        grid=out_name, cover="rows", gpu=GROUP_GPU)
+        grid=out_name, cover="rows", gpu=group_gpu_decl(system.device))

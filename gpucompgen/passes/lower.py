@@ -221,7 +221,8 @@ def launch(system: System, node: ComponentNode, program: str) -> Launch:
             host = PARAM_C_TYPES[owner.type.params[pname].type][1].removeprefix("np.")
             value = owner.params[pname]
             value = float(value) if host == "float32" else int(value)
-            args.append(Argument(p.name, "scalar", host_type=host, value=value))
+            args.append(Argument(p.name, "scalar", host_type=host, value=value,
+                                 param=f"{owner.name}.{pname}"))
         else:  # the tile
             args.append(Argument(p.name, "scalar", host_type="int32", value=s.tile))
     grid = system.data(Endpoint(node.name, t.grid))
@@ -445,7 +446,8 @@ def lower(system: System) -> ProgramPlan:
                                              for m in g.members), files[lib_key(g.type)],
                                tuple((p, str(end)) for p, end in g.feeds.items()),
                                tuple((f"{m.name}.{p}", str(port.data), m is not g.root)
-                                     for m in g.members for p, port in m.outputs.items()))
+                                     for m in g.members for p, port in m.outputs.items()),
+                               g.estimate)
                      for g in system.groups),
         unfused=tuple(system.unfused.items()), fusion=system.fusion,
         parts=tuple(parts), buffers=tuple(buffers), launches=tuple(launches),

@@ -6,6 +6,7 @@
 
 from __future__ import annotations
 
+import fnmatch
 import os
 from collections.abc import Callable
 
@@ -56,7 +57,7 @@ def new_system(model: SystemModel, device: DeviceFacts, mode: str = "gpu-aware",
         raise ValueError(f"mode {mode!r}, execution {execution!r}, zero_copy {zero_copy!r}, "
                          f"staging {staging!r}, frames_in_flight {frames_in_flight!r}, "
                          f"fusion {fusion!r}")
-    check_places(model, places or {})
+    places = check_places(model, places or {})
     system = build_system(model, device, mode,
                           "sequential" if mode == "standard" else execution, places)
     if mode == "standard":
@@ -89,21 +90,39 @@ def new_system(model: SystemModel, device: DeviceFacts, mode: str = "gpu-aware",
     return system
 
 
-def check_places(model: SystemModel, places: dict[str, str]) -> None:
-    """--place COMPONENT=gpu|cpu names a flexible component of the model."""
+def check_places(model: SystemModel, places: dict[str, str]) -> dict[str, str]:
+    """--place COMPONENT=gpu|cpu names a flexible component of the model, or is a glob
+    ('*=cpu', 'blur*=gpu') over the flexible components; the later of two options for a
+    component wins.  Returns {component: side}, globs expanded."""
+    result: dict[str, str] = {}
     for name, side in places.items():
+        if side not in ("gpu", "cpu", "auto"):
+            raise UsageError(f"--place {name}={side}: the side must be gpu, cpu or auto")
+        if any(c in name for c in "*?["):
+            matched = [n for n, inst in model.components.items()
+                       if inst.type.flexible and fnmatch.fnmatchcase(n, name)]
+            if not matched:
+                flexible = [n for n, inst in model.components.items() if inst.type.flexible]
+                raise UsageError(f"--place {name}={side}: the pattern matches no flexible "
+                                 "component (flexible: "
+                                 f"{', '.join(flexible) if flexible else 'none'})")
+            for n in matched:
+                result.pop(n, None)
+                result[n] = side
+            continue
         inst = model.components.get(name)
         if inst is None:
             hint = did_you_mean(name, model.components)
             raise UsageError(f"--place {name}={side}: the model has no component '{name}'"
                              + (f" ({hint})" if hint else ""))
-        if side not in ("gpu", "cpu", "auto"):
-            raise UsageError(f"--place {name}={side}: the side must be gpu, cpu or auto")
         if not inst.type.flexible and side != ("gpu" if inst.type.gpu_aware else "cpu"):
             raise UsageError(f"--place {name}={side}: '{name}' is {inst.type.kind} "
                              f"({inst.type.name}) and runs on the "
                              f"{'GPU' if inst.type.gpu_aware else 'CPU'} only; only "
                              "flexible types can be placed")
+        result.pop(name, None)
+        result[name] = side
+    return result
 
 
 def verify_by_default() -> bool:
@@ -131,9 +150,10 @@ def run_pipeline(system: System, passes: tuple[Pass, ...] = PIPELINE,
             system.verify()
         if dump is not None:
             dump(f"// after {p.name}\n{system.dump()}\n")
+    loaded = list(getattr(system.model, "load_warnings", None) or [])
     if rep.has_errors:
-        raise GpucompgenError(sorted(set(rep.diagnostics)))
-    return system, rep.warnings
+        raise GpucompgenError(sorted(set(rep.diagnostics + loaded)))
+    return system, sorted(rep.warnings + loaded)
 
 
 def run_passes(model: SystemModel, device: DeviceFacts, mode: str = "gpu-aware",

@@ -247,11 +247,26 @@ def _near_best(model: CostModel, names: list[str]) -> list[dict[str, str]]:
 
 # --------------------------------------------------------------------------- profiles
 
+def default_profile(model) -> Path:
+    """Where `gpucompgen tune` writes a model's profile when the model names none."""
+    return model.file.parent / "tune" / f"{model.name}.yaml"
+
+
+def profile_path(model) -> Path | None:
+    """The profile placement: auto reads: the model's platform.profile, else the file
+    `gpucompgen tune` writes for it (tune/<system>.yaml beside the model) when it exists,
+    else None (the static estimate)."""
+    if model.profile is not None:
+        return model.profile
+    default = default_profile(model)
+    return default if default.is_file() else None
+
+
 def read_profile(system: System, rep: Reporter) -> dict | None:
-    """The model's platform.profile as {"components": {name: (cpu_s, gpu_s)},
+    """The profile profile_path() finds as {"components": {name: (cpu_s, gpu_s)},
     "transfer": (latency_s, bytes_per_s)}; problems are reported at their position."""
     model = system.model
-    path: Path | None = model.profile
+    path: Path | None = profile_path(model)
     if path is None:
         return None
     if not path.is_file():

@@ -16,6 +16,7 @@ pyopencl and numpy only. One module per concern:
     pipeline    frames in flight: the stages of a stream, one thread each
     monitor     progress, --stats-json, runtime options
     signals     SIGINT and SIGTERM stop a run cleanly
+    overrides   --set, --input and --output, checked against the program's PARAMS
     cli         the generated program's command line (main)
 
 Everything is importable from ``gpucompgen.runtime`` as before.
@@ -62,6 +63,7 @@ from .lifecycle import (
     model_path,
 )
 from .monitor import Monitor
+from .overrides import Param, param_values
 from .pipeline import FrameFailure, stream_in_flight
 from .profiling import Profile
 from .programs import build_program, quiet_compiler
@@ -79,6 +81,7 @@ __all__ = [
     "KernelComponent",
     "KernelLimits",
     "Monitor",
+    "Param",
     "PipelineError",
     "Profile",
     "Result",
@@ -103,7 +106,7 @@ __all__ = [
     "load_class",
     "load_function",
     "load_module",
-    "main", "model_path",
+    "main", "model_path", "param_values",
     "probe_device",
     "quiet_compiler",
     "select_device",

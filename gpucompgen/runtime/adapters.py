@@ -127,7 +127,12 @@ class ZeroCopyCpuToGpuAdapter(_Adapter):
     change while the device reads it; the program finishes every frame before the next.
     With buffer_sets (frames in flight) the producer makes its next frame while the
     device still reads this one: the frame is kept in one of the adapter's own host
-    arrays (a host copy, no CPU-GPU copy), each wrapped once in a USE_HOST_PTR buffer.
+    arrays (a host copy, no CPU-GPU copy), each wrapped once in a USE_HOST_PTR buffer
+    and written only while mapped: OpenCL defines what the device sees of a USE_HOST_PTR
+    buffer's memory written by the host only through map and unmap (a discrete GPU keeps
+    its own copy of it and, written behind its back, reads a frame from N frames ago).
+    The mapping runs on a queue of the adapter's own, so it never waits for the kernels
+    that still read other sets; on unified memory it costs no copy.
     """
 
     def __init__(self, context, queue, nbytes: int, buffer_sets: int = 1):
@@ -136,6 +141,7 @@ class ZeroCopyCpuToGpuAdapter(_Adapter):
         self.buffer = None
         self.host = None
         self.snapshots: list = []  # (host array, buffer over it) per set
+        self._map_queue = None  # with buffer_sets: the queue that maps them for writing
         self._turn = 0
 
     def initialize(self, size, dtype):
@@ -144,6 +150,7 @@ class ZeroCopyCpuToGpuAdapter(_Adapter):
 
         size = super().initialize(size, dtype)
         if self.buffer_sets > 1:
+            self._map_queue = cl.CommandQueue(self.context, device=self.queue.device)
             for _ in range(self.buffer_sets):
                 host = np.empty(size.shape, dtype)
                 self.snapshots.append((host, cl.Buffer(
@@ -160,7 +167,11 @@ class ZeroCopyCpuToGpuAdapter(_Adapter):
             k = self._turn
             self._turn = (k + 1) % self.buffer_sets
             self.host, self.buffer = self.snapshots[k]
-            np.copyto(self.host, np.reshape(host, self.host.shape), casting="no")
+            view, _ = cl.enqueue_map_buffer(
+                self._map_queue, self.buffer, cl.map_flags.WRITE_INVALIDATE_REGION, 0,
+                self.host.shape, self.host.dtype, is_blocking=True)
+            np.copyto(view, np.reshape(host, view.shape), casting="no")
+            view.base.release(self._map_queue).wait()  # unmapped: the device sees the frame
             return self.buffer
         self.free_memory()  # the previous frame's buffer: its frame is complete
         self.host = np.ascontiguousarray(host)  # kept alive while the device reads it
@@ -177,6 +188,7 @@ class ZeroCopyCpuToGpuAdapter(_Adapter):
         snapshots, self.snapshots = self.snapshots, []
         for _, buffer in snapshots:
             buffer.release()
+        self._map_queue = None
 
 
 class GpuToCpuAdapter(_Adapter):

@@ -16,6 +16,7 @@ from pathlib import Path
 from .errors import PipelineError, Stopped
 from .lifecycle import Result
 from .monitor import Monitor
+from .overrides import OverrideError, Param, parse_overrides
 from .signals import GRACE_SECONDS, StopOnSignals, running_kernels
 
 
@@ -37,6 +38,25 @@ def add_program_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--profile", action="store_true",
                         help="time every kernel and copy with OpenCL profiling events and "
                              "count the bytes moved between CPU and GPU (printed at the end)")
+    parser.add_argument("--drop", action="store_true",
+                        help="sources read in their own thread and keep only the newest "
+                             "frame: frames the pipeline cannot keep up with are dropped "
+                             "(counted in the summary and --stats-json), as live cameras do")
+    parser.add_argument("--trace", metavar="FILE",
+                        help="write a Chrome trace-event JSON of the run to FILE (open it in "
+                             "ui.perfetto.dev or chrome://tracing): a track per component "
+                             "and per device queue, each frame followable")
+    parser.add_argument("--input", action="append", default=[], metavar="NAME=URI",
+                        help="read source NAME from URI: a folder or glob of images, a video "
+                             "file, v4l2:///dev/videoN, csi://N, device:N, rtsp://..., "
+                             "mcap://FILE?topic=T or a ROS 2 bag folder; repeatable")
+    parser.add_argument("--output", action="append", default=[], metavar="NAME=URI",
+                        help="write sink NAME's frames to URI: display://, a video file "
+                             "(out.mp4), a folder (out/) or mcap://FILE; repeatable")
+    parser.add_argument("--set", action="append", default=[], metavar="NAME.PARAM=VALUE",
+                        dest="set_params",
+                        help="change a parameter that no size depends on (a threshold) "
+                             "without a rebuild, checked against its type; repeatable")
 
 
 class _Quiet(argparse.Action):
@@ -68,11 +88,13 @@ def output_file_problem(path: Path) -> str:
     return ""
 
 
-def main(run: Callable[..., Result], description: str, argv: list[str] | None = None) -> int:
+def main(run: Callable[..., Result], description: str, argv: list[str] | None = None,
+         params: dict[str, Param] | None = None) -> int:
     """Command line of a generated program: run it, print errors without tracebacks.
 
     Exit codes: 0 done, 1 a component or the device failed, 2 usage, 130 SIGINT,
-    143 SIGTERM (128 + the signal's number).
+    143 SIGTERM (128 + the signal's number).  params: the program's PARAMS table, which
+    --set, --input and --output are checked against.
     """
     parser = argparse.ArgumentParser(
         description=description,
@@ -85,16 +107,25 @@ def main(run: Callable[..., Result], description: str, argv: list[str] | None = 
     args = parser.parse_args(argv)
     if args.frames is not None and args.frames < 0:
         parser.error("--frames must be 0 or more")
-    if args.stats_json is not None:  # found out before the run, not after it
-        problem = output_file_problem(Path(args.stats_json))
-        if problem:
-            parser.error(f"--stats-json {args.stats_json}: {problem}")
+    for flag, value in (("--stats-json", args.stats_json), ("--trace", args.trace)):
+        if value is not None:  # found out before the run, not after it
+            problem = output_file_problem(Path(value))
+            if problem:
+                parser.error(f"{flag} {value}: {problem}")
+    try:
+        overrides = parse_overrides(params or {}, args.set_params, args.input, args.output)
+    except OverrideError as exc:
+        parser.error(str(exc))
     monitor = Monitor(progress=False if args.quiet else None, stats_path=args.stats_json,
                       options={"decisions": args.decisions, "save_images": args.save_images,
-                               "quiet": args.quiet})
+                               "quiet": args.quiet, "drop": args.drop},
+                      trace_path=args.trace)
     if args.debug:
         faulthandler.enable()  # a crash (SIGSEGV in a kernel) prints where the host was
-    call = functools.partial(run, frames=args.frames, monitor=monitor, profile=args.profile)
+    # a trace needs the device's profiling events
+    call = functools.partial(run, frames=args.frames, monitor=monitor,
+                             profile=args.profile or bool(args.trace),
+                             **({"params": overrides} if overrides else {}))
     try:
         if threading.current_thread() is threading.main_thread():
             stopper = StopOnSignals(monitor)
@@ -125,10 +156,14 @@ def main(run: Callable[..., Result], description: str, argv: list[str] | None = 
         print(f"error: {type(exc).__name__}: {exc}", file=sys.stderr)
         print("  (run with --debug for the traceback)", file=sys.stderr)
         return 1
-    if result.profile is not None:
+    if args.profile and result.profile is not None:
         print(result.profile.report(result.frames), file=sys.stderr)
     if not args.quiet:
-        print(f"processed {result.frames} frame(s)", file=sys.stderr)
+        dropped = monitor.dropped_frames()
+        print(f"processed {result.frames} frame(s)"
+              + (f"; dropped {sum(dropped.values())} ("
+                 + ", ".join(f"{k} {v}" for k, v in dropped.items()) + ")" if args.drop else ""),
+              file=sys.stderr)
     return 1 if monitor.stats_failed else 0
 
 

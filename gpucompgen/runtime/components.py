@@ -37,6 +37,7 @@ class KernelComponent:
         # one kernel object per buffer set: arguments that do not change from frame to
         # frame are set once per set, not once per launch
         self.kernels = [cl.Kernel(program, self.function) for _ in range(buffer_sets)]
+        self._enqueue = cl.enqueue_nd_range_kernel  # looked up once, not once a frame
         self.kernel = self.kernels[0]
         self.copies_own_data = copies_own_data
         self.host_visible = host_visible
@@ -49,6 +50,7 @@ class KernelComponent:
         self.sets: list[dict[str, Any]] = []  # device buffers by port, per set
         self.host_sets: list[dict[str, Any]] = []  # host arrays of outputs (copies_own_data)
         self._turn = 0  # the set the next execute() uses
+        self._results: list = []  # per set: what execute() returns (a buffer or a tuple)
 
     @property
     def buffers(self) -> dict[str, Any]:
@@ -90,6 +92,8 @@ class KernelComponent:
                                               self.sizes[port].nbytes(dtype))
             self.sets.append(buffers)
             self.host_sets.append(hosts)
+            given = [(hosts if self.copies_own_data else buffers)[port] for port in self._outputs]
+            self._results.append(given[0] if len(given) == 1 else tuple(given))
         return out_sizes[0] if len(out_sizes) == 1 else tuple(out_sizes)
 
     def config_gpu(self, tile: int, local_size: tuple[int, int, int],
@@ -113,7 +117,7 @@ class KernelComponent:
         an input buffer differs from the one set last time (never, once producers keep
         their buffers: the host cost of a launch is then the enqueue alone)."""
         kernel = self.kernels[k]
-        given = tuple(inputs)
+        given = inputs
         bound = self._bound[k]
         if bound is None or len(bound) != len(given) or any(
                 a is not b for a, b in zip(bound, given)):
@@ -128,36 +132,37 @@ class KernelComponent:
         return kernel
 
     def execute(self, *inputs, wait_for=None):
+        k = self._turn
+        if self.buffer_sets > 1:
+            self._turn = (k + 1) % self.buffer_sets
+        if self.copies_own_data:
+            self._copy_and_run(k, inputs)
+        else:
+            self.event = self._enqueue(self.queue, self._kernel_for(k, inputs),
+                                       self.global_size, self.local_size, wait_for=wait_for)
+            if self.profile is not None:
+                self.profile.kernel(self, self.event)
+        return self._results[k]
+
+    def _copy_and_run(self, k: int, inputs) -> None:
+        """A standard component's frame: its inputs to the device, the kernel, its outputs
+        back, all waited for by the blocking copies back."""
         import numpy as np
         import pyopencl as cl
 
-        k = self._turn
-        self._turn = (k + 1) % self.buffer_sets
-        buffers = self.sets[k]
-        if self.copies_own_data:
-            hosts = self.host_sets[k]
-            copied_in = [cl.enqueue_copy(self.queue, buffers[port], np.ascontiguousarray(x))
-                         for port, x in zip(self._inputs, inputs)]
-            kernel = self._kernel_for(k, ())
-            ran = cl.enqueue_nd_range_kernel(self.queue, kernel, self.global_size,
-                                             self.local_size)
-            copied_out = [cl.enqueue_copy(self.queue, hosts[port], buffers[port])
-                          for port in self._outputs]
-            if self.profile is not None:
-                for port, event in zip(self._inputs, copied_in):
-                    self.profile.copy(self, "cpu2gpu", event, buffers[port].size)
-                self.profile.kernel(self, ran)
-                for port, event in zip(self._outputs, copied_out):
-                    self.profile.copy(self, "gpu2cpu", event, hosts[port].nbytes)
-            results = [hosts[port] for port in self._outputs]
-        else:
-            kernel = self._kernel_for(k, inputs)
-            self.event = cl.enqueue_nd_range_kernel(self.queue, kernel, self.global_size,
-                                                    self.local_size, wait_for=wait_for)
-            if self.profile is not None:
-                self.profile.kernel(self, self.event)
-            results = [buffers[port] for port, _ in self.outputs]
-        return results[0] if len(results) == 1 else tuple(results)
+        buffers, hosts = self.sets[k], self.host_sets[k]
+        copied_in = [cl.enqueue_copy(self.queue, buffers[port], np.ascontiguousarray(x))
+                     for port, x in zip(self._inputs, inputs)]
+        ran = self._enqueue(self.queue, self._kernel_for(k, ()), self.global_size,
+                            self.local_size)
+        copied_out = [cl.enqueue_copy(self.queue, hosts[port], buffers[port])
+                      for port in self._outputs]
+        if self.profile is not None:
+            for port, event in zip(self._inputs, copied_in):
+                self.profile.copy(self, "cpu2gpu", event, buffers[port].size)
+            self.profile.kernel(self, ran)
+            for port, event in zip(self._outputs, copied_out):
+                self.profile.copy(self, "gpu2cpu", event, hosts[port].nbytes)
 
     def free_memory(self):
         for hosts in self.host_sets:
@@ -167,7 +172,7 @@ class KernelComponent:
                 buffer = buffers.pop(port, None)
                 if buffer is not None:
                     buffer.release()
-        self.sets, self.host_sets = [], []
+        self.sets, self.host_sets, self._results = [], [], []
         self._argument_sets = []
 
 
@@ -179,13 +184,17 @@ def _check_work_group(kernel, device, local_size, component: str, settings_sourc
 
 
 class CpuFunctionComponent:
-    """A flexible component placed on the CPU: its type's numpy function, called per frame.
+    """A flexible component placed on the CPU: its type's CPU function, called per frame.
 
     The function takes the input arrays and the parameters as keywords and returns the
     output array (a tuple of arrays for several outputs, in the type's order).
     initialize() calls it once on zero-filled inputs of the propagated sizes to learn the
     output sizes (the program then checks them against the plan's); execute() checks every
     result's shape and element type and names the component and port when one is wrong.
+    A one-channel output may come as height x width x 1: it is handed on as the height x
+    width view of the same memory.  What can be decided once (port names, the shapes and
+    element types expected) is decided in initialize(), so a frame costs the call and
+    a few comparisons.
     """
 
     def __init__(self, function, name: str, *, inputs: tuple[tuple[str, Any], ...],
@@ -198,6 +207,8 @@ class CpuFunctionComponent:
         self.sizes: dict[str, Size] = {}
         self.profile = None  # a runtime.Profile with --profile: nothing to time on a queue
         self.event = None  # never waited for: results are ready when execute returns
+        self._ports = tuple(port for port, _ in self.inputs)
+        self._expected: tuple = ()  # (port, shape, numpy dtype) per output, from initialize
 
     def initialize(self, *inputs: Size):
         import numpy as np
@@ -210,10 +221,13 @@ class CpuFunctionComponent:
         out_sizes = []
         for (port, _), result in zip(self.outputs, results):
             shape = getattr(result, "shape", ())
-            size = Size(shape[0], shape[1], shape[2] if len(shape) == 3 else 1) \
-                if len(shape) in (2, 3) else Size(0, 0, 0)
+            channels = shape[2] if len(shape) == 3 else 1
+            size = Size(shape[0], shape[1], channels) if len(shape) in (2, 3) \
+                else Size(0, 0, 0)
             self.sizes[port] = size
             out_sizes.append(size)
+        self._expected = tuple((port, self.sizes[port].shape, np.dtype(dtype))
+                               for port, dtype in self.outputs)
         return out_sizes[0] if len(out_sizes) == 1 else tuple(out_sizes)
 
     def _call(self, arrays) -> tuple:
@@ -227,21 +241,28 @@ class CpuFunctionComponent:
         return results
 
     def execute(self, *inputs):
+        # inputs are read-only: another reader of the producer gets the same frame
+        results = self._call({p: read_only(x) for p, x in zip(self._ports, inputs)})
+        checked = [self._checked(result, *expected)
+                   for result, expected in zip(results, self._expected)]
+        return checked[0] if len(checked) == 1 else tuple(checked)
+
+    def _checked(self, result, port: str, want: tuple[int, ...], dtype):
+        """result as a C-contiguous array of the shape and dtype the system expects."""
         import numpy as np
 
-        results = self._call({port: read_only(x) for (port, _), x in zip(self.inputs, inputs)})
-        checked = []
-        for (port, dtype), result in zip(self.outputs, results):
-            want = self.sizes[port].shape
-            if not isinstance(result, np.ndarray) or result.shape != want or \
-                    result.dtype != np.dtype(dtype):
-                got = (f"{result.dtype} {result.shape}" if isinstance(result, np.ndarray)
-                       else type(result).__name__)
-                raise ValueError(f"{self.name}.{port}: the CPU function "
-                                 f"{self.function.__name__}() returned {got}, not "
-                                 f"{np.dtype(dtype)} {want}")
-            checked.append(read_only(np.ascontiguousarray(result)))
-        return checked[0] if len(checked) == 1 else tuple(checked)
+        if isinstance(result, np.ndarray) and result.dtype == dtype:
+            if result.shape != want and len(want) == 2 and result.shape == (*want, 1):
+                result = result.reshape(want)  # one channel as height x width x 1: a view
+            if result.shape == want:
+                # every reader gets the same array: none may write it
+                return read_only(result if result.flags.c_contiguous
+                                 else np.ascontiguousarray(result))
+        got = (f"{result.dtype} {result.shape}" if isinstance(result, np.ndarray)
+               else type(result).__name__)
+        raise ValueError(f"{self.name}.{port}: the CPU function "
+                         f"{self.function.__name__}() returned {got}, not {dtype} {want}"
+                         + (f" (or {(*want, 1)})" if len(want) == 2 else ""))
 
     def free_memory(self):
         self.sizes.clear()

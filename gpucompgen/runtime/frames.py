@@ -31,11 +31,48 @@ def check_frame(what: str, value: Any, shape: tuple[int, ...], dtype: Any) -> An
     """Return value when it is an array of exactly shape and dtype, else raise.
 
     what is 'component.port'; shape is (height, width) for one channel, else
-    (height, width, channels), as runtime.Size.shape gives.
+    (height, width, channels), as runtime.Size.shape gives.  A one-channel frame may also
+    come as height x width x 1 (as many libraries give one-channel images): it is
+    returned as the height x width view of the same memory, never copied.
+
+    Called once a frame for every frame a CPU part hands on: the accepted case costs a
+    type test, two comparisons and a read-only view (read_only); the message is composed
+    only for a wrong frame.
     """
+    if type(value) is _ndarray() and value.dtype == dtype:
+        if value.shape == shape:
+            return read_only(value)  # every reader gets the same frame: none may write it
+        if len(shape) == 2 and value.shape == (*shape, 1):
+            return read_only(value.reshape(shape))  # drops a length-1 axis: a view
+    return _refuse(what, value, shape, dtype)
+
+
+def _ndarray():
+    """numpy.ndarray, imported on first use (the generator imports runtime without it)."""
+    global _NDARRAY
+    if _NDARRAY is None:
+        import numpy as np
+
+        _NDARRAY = np.ndarray
+    return _NDARRAY
+
+
+_NDARRAY = None
+
+
+def _refuse(what: str, value: Any, shape: tuple[int, ...], dtype: Any) -> Any:
+    """check_frame's slow path: a subclass of ndarray passes, anything else raises."""
     import numpy as np
 
+    shape = tuple(shape)
+    if isinstance(value, np.ndarray) and value.dtype == np.dtype(dtype):
+        if value.shape == shape:
+            return read_only(value)
+        if len(shape) == 2 and value.shape == (*shape, 1):
+            return read_only(value.reshape(shape))
     expected = f"{_shown(shape)} {np.dtype(dtype).name}"
+    if len(shape) == 2:
+        expected += " (or " + _shown((*shape, 1)) + ")"
     if value is None:
         raise FrameError(what,
             f"execute() returned None mid-stream where a {expected} frame was "
@@ -45,16 +82,14 @@ def check_frame(what: str, value: Any, shape: tuple[int, ...], dtype: Any) -> An
         raise FrameError(what,
             f"execute() returned {type(value).__name__} where a numpy array "
             f"{expected} was expected")
-    if value.shape != tuple(shape) or value.dtype != np.dtype(dtype):
-        got = f"{_shown(value.shape)} {value.dtype.name}"
-        hint = ""
-        if value.shape != tuple(shape) and sorted(value.shape) == sorted(shape):
-            hint = " (transposed? arrays are height x width x channels)"
-        elif value.shape == tuple(shape):
-            hint = f" (convert with .astype(np.{np.dtype(dtype).name}))"
-        raise FrameError(what, f"execute() returned a {got} frame where the system was "
-                               f"built for {expected}{hint}")
-    return read_only(value)
+    got = f"{_shown(value.shape)} {value.dtype.name}"
+    hint = ""
+    if value.shape != shape and sorted(value.shape) == sorted(shape):
+        hint = " (transposed? arrays are height x width x channels)"
+    elif value.shape in (shape, (*shape, 1)):
+        hint = f" (convert with .astype(np.{np.dtype(dtype).name}))"
+    raise FrameError(what, f"execute() returned a {got} frame where the system was "
+                           f"built for {expected}{hint}")
 
 
 def read_only(array: Any) -> Any:

@@ -164,10 +164,30 @@ def component_failure(exc: BaseException, frame: int | None,
         if who is None or text.startswith((f"{who}:", f"{who} ")):
             return exc
         return PipelineError(f"{who} failed {when}: {text}")
-    hint = f"\n  hint: {READ_ONLY_HINT}" if isinstance(exc, ValueError) and \
-        "read-only" in str(exc) else ""
-    return PipelineError(f"{who or 'a component'} failed {when}: {type(exc).__name__}: "
-                         f"{exc}{hint}")
+    return PipelineError(f"{who or 'a component'} failed {when}: {type(exc).__name__}: {exc}"
+                         + _device_fault_hint(exc) + _read_only_hint(exc))
+
+
+def _read_only_hint(exc: BaseException) -> str:
+    """A component wrote into a frame it was given (runtime.frames.read_only)."""
+    if isinstance(exc, ValueError) and "read-only" in str(exc):
+        return f"\n  hint: {READ_ONLY_HINT}"
+    return ""
+
+
+# OpenCL errors a GPU gives at the command after a kernel that faulted (NVIDIA:
+# OUT_OF_RESOURCES at the next read; a lost queue; events of a wait list that failed).
+_DEVICE_FAULT_CODES = {-5: "OUT_OF_RESOURCES", -36: "INVALID_COMMAND_QUEUE",
+                       -14: "EXEC_STATUS_ERROR_FOR_EVENTS_IN_WAIT_LIST", -9999: "-9999"}
+
+
+def _device_fault_hint(exc: BaseException) -> str:
+    code = getattr(exc, "code", None)
+    if not isinstance(code, int) or code not in _DEVICE_FAULT_CODES:
+        return ""
+    return ("\nhint: a GPU reports a kernel that failed (most often one that read or wrote out "
+            "of bounds) at the next command on its queue, so the command named here may not be "
+            "the culprit: check the index computations of the kernels launched before it")
 
 
 def free_all(parts: dict[str, Any]) -> None:
@@ -205,5 +225,10 @@ def free_all(parts: dict[str, Any]) -> None:
 def model_path(program_file: str, relative: str) -> str:
     """A 'path' parameter of the model: written relative to the model's folder, stored in
     the program relative to the program's folder, resolved here to an absolute path (so
-    errors name the path that was looked at, whatever the working directory)."""
+    errors name the path that was looked at, whatever the working directory).  An input
+    URI's path is resolved the same way: 'mcap://../drive.mcap?topic=/cam'."""
+    scheme, sep, rest = relative.partition("://")
+    if sep and scheme.isalpha():
+        path, q, query = rest.partition("?")
+        return f"{scheme}://{model_path(program_file, path)}{q}{query}"
     return str((Path(program_file).resolve().parent / relative).resolve())

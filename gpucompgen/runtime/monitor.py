@@ -40,7 +40,8 @@ class Monitor:
     """
 
     def __init__(self, *, progress: bool | None = None, stats_path: str | Path | None = None,
-                 options: dict[str, Any] | None = None, stream=None):
+                 options: dict[str, Any] | None = None, stream=None,
+                 trace_path: str | Path | None = None):
         self.stream = stream if stream is not None else sys.stderr
         if progress is None:
             progress = hasattr(self.stream, "isatty") and self.stream.isatty()
@@ -60,6 +61,11 @@ class Monitor:
         self._shown = False  # whether it is on the screen now
         self._stdout = None  # the real sys.stdout while _ClearsProgress stands in
         self.stop_signal: int | None = None  # set by request_stop (SIGINT, SIGTERM)
+        self.tracer = None  # --trace FILE (runtime.trace)
+        if trace_path:
+            from .trace import Tracer
+
+            self.tracer = Tracer(trace_path)
 
     def attach(self, parts: dict[str, Any]) -> None:
         """Called by run() once every component and adapter is constructed."""
@@ -74,6 +80,8 @@ class Monitor:
                 for method in ("execute", "transfer"):
                     if hasattr(obj, method):
                         setattr(obj, method, self._timed(name, getattr(obj, method)))
+        if self.tracer is not None:
+            self.tracer.attach(parts)
         self._started = time.perf_counter()
 
     def _give_options(self, parts: dict[str, Any]) -> None:
@@ -156,6 +164,14 @@ class Monitor:
         self.clear_progress()
         if self.stats_path is not None:
             self.write_stats(self.stats_path)
+        if self.tracer is not None:
+            self.tracer.frames_in_flight = self.frames_in_flight
+            try:
+                self.tracer.write()
+            except OSError as exc:
+                self.stats_failed = True
+                print(f"error: cannot write the trace to {self.tracer.path}: "
+                      f"{exc.strerror}", file=sys.stderr)
 
     def stats(self) -> dict[str, Any]:
         """The --stats-json document. Times are host wall-clock seconds.
@@ -187,7 +203,13 @@ class Monitor:
             "latency_seconds": latency_summary(self.frame_seconds),
             "frame_seconds": list(self.frame_seconds),
             "components": components,
+            "dropped_frames": self.dropped_frames(),
         }
+
+    def dropped_frames(self) -> dict[str, int]:
+        """Frames each source dropped because the pipeline fell behind (--drop)."""
+        return {name: obj.dropped_frames for name, obj in self.parts.items()
+                if isinstance(getattr(obj, "dropped_frames", None), int)}
 
     def write_stats(self, path: Path) -> None:
         try:

@@ -26,26 +26,29 @@ class Profile:
         self.copies = {"cpu2gpu": 0, "gpu2cpu": 0}  # number of copies
         self.bytes = {"cpu2gpu": 0, "gpu2cpu": 0}
         self.maps = 0  # zero-copy maps of device buffers for the host
+        self.on_event = None  # --trace's hook: on_event(owner, what, event, nbytes)
         for obj in parts.values():
             if hasattr(obj, "profile"):
                 obj.profile = self
 
     def kernel(self, owner: Any, event: Any) -> None:
-        self._add((self.names.get(id(owner), "?"), "kernel"), event)
+        self._add(owner, "kernel", event)
 
     def copy(self, owner: Any, direction: str, event: Any, nbytes: int) -> None:
         self.copies[direction] += 1
         self.bytes[direction] += nbytes
-        self._add((self.names.get(id(owner), "?"), direction), event)
+        self._add(owner, direction, event, nbytes)
 
     def mapping(self, owner: Any, what: str, event: Any) -> None:
         """A zero-copy adapter's map or unmap: device time, but no bytes copied."""
         if what == "map":
             self.maps += 1
-        self._add((self.names.get(id(owner), "?"), what), event)
+        self._add(owner, what, event)
 
-    def _add(self, key: tuple[str, str], event: Any) -> None:
-        self.pending.append((key, event))
+    def _add(self, owner: Any, what: str, event: Any, nbytes: int = 0) -> None:
+        if self.on_event is not None:
+            self.on_event(owner, what, event, nbytes)
+        self.pending.append(((self.names.get(id(owner), "?"), what), event))
         if len(self.pending) >= self.BATCH:
             self.collect()
 

@@ -103,6 +103,21 @@ def _split_header(source: str) -> tuple[str, str]:
     return "", source
 
 
+# NVIDIA's compiler ignores #line and names the source '<kernel>' (others '<source>').
+_UNNAMED = re.compile(r"<(?:kernel|source)>:(\d+):(\d+)")
+
+
+def _name_unnamed_source(lines: list[str], name: str, offset: int) -> list[str]:
+    """Messages that name the compiled text itself ('<kernel>:9:25') name the kernel file
+    and its own line ('broken.cl:5:25'): the text's first `offset` lines are gpucompgen's
+    header and #line directive."""
+    def rename(match: re.Match) -> str:
+        line = int(match.group(1)) - offset
+        return f"{name}:{line}:{match.group(2)}" if line >= 1 else match.group(0)
+
+    return [_UNNAMED.sub(rename, line) for line in lines]
+
+
 def build_program(context, path: Path, component: str, options: tuple[str, ...] = ()):
     """Build one kernel file once; a failure names the component and file and gives the
     compiler's messages once, as file:line:col (a #line directive makes the compiler
@@ -136,6 +151,7 @@ def build_program(context, path: Path, component: str, options: tuple[str, ...] 
     if not log.strip():
         log = _log_from_error(str(error))
     lines = clean_build_log(log + "\n" + "".join(captured))
+    lines = _name_unnamed_source(lines, path.name, header.count("\n") + 1)
     if not lines:
         lines = [str(error).strip().splitlines()[0] if str(error).strip() else
                  type(error).__name__]

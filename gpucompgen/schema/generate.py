@@ -196,8 +196,9 @@ def types_schema() -> dict[str, Any]:
                       "<port>(y, x, c)"),
         "radius": {"type": ["integer", "string"],
                    "description": "stencil: the window's radius, a number or an int parameter"},
-        "border": _enum(fusable_forms.BORDERS, "stencil: reads outside the input are clamped "
-                        "to its edge")}, ("form", "value"),
+        "border": _enum(fusable_forms.BORDERS, "stencil: what a read outside the input gets: "
+                        "clamp, the nearest edge pixel; reflect101, OpenCV's BORDER_REFLECT_101 "
+                        "(gfedcb|abcdefgh|gfedcba)")}, ("form", "value"),
         description="the per-element work in a form the system may fuse with its neighbours "
                     "into one kernel (the kernel stays for the unfused path)")
     kind_gpu, kind_standard = model.KINDS[1], model.KINDS[0]

@@ -9,19 +9,21 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 """
 
 # System plan:
-#   step  name                         stage  queue  runs  GPU settings            threads
-#   1     camera (Camera)              1      -      CPU   -                       -
-#   2     adapter1_cpu2gpu             1      -      copy  -                       -
-#   3     hsv_red_erode (fused group)  4      -      GPU   tile 32, block 8x8x1    448
-#   4     dilate (DilateGray)          5      -      GPU   tile 16, block 16x16x1  16,384
-#   5     adapter2_gpu2cpu             5      -      copy  -                       -
-#   6     writer (MaskWriter)          6      -      CPU   -                       -
+#   step  name                   stage  queue  runs  GPU settings            threads
+#   1     camera (Camera)        1      -      CPU   -                       -
+#   2     adapter1_cpu2gpu       1      -      copy  -                       -
+#   3     hsv_red (fused group)  3      -      GPU   tile 32, block 8x8x1    448
+#   4     erode (ErodeGray)      4      -      GPU   tile 16, block 16x16x1  16,384
+#   5     dilate (DilateGray)    5      -      GPU   tile 16, block 16x16x1  16,384
+#   6     adapter2_gpu2cpu       5      -      copy  -                       -
+#   7     writer (MaskWriter)    6      -      CPU   -                       -
 #
 #   buffer                             memory       size               bytes
 #   camera.image                       host         200x301x3 uint8  180,600
 #   adapter1_cpu2gpu (camera.image)    device       200x301x3 uint8  180,600
 #   adapter1_cpu2gpu staging           pinned host  200x301x3 uint8  180,600
-#   hsv_red_erode.eroded               device       200x301x1 uint8   60,200
+#   hsv_red.mask                       device       200x301x1 uint8   60,200
+#   erode.eroded                       device       200x301x1 uint8   60,200
 #   dilate.dilated                     device       200x301x1 uint8   60,200
 #   adapter2_gpu2cpu (dilate.dilated)  pinned host  200x301x1 uint8   60,200
 #
@@ -32,23 +34,30 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 #     dilate: GPU (by default)
 #
 #   device: portable OpenCL 1.2 device
-#   peak device memory: 301,000 bytes; peak host memory: 421,400 bytes
+#   peak device memory: 361,200 bytes; peak host memory: 421,400 bytes
 #   (every buffer is allocated once, at start)
 #   bytes copied between CPU and GPU per frame: 240,800
 #   zero-copy adapters: off (auto: device has no unified host memory)
 #   staging of copying adapters: pinned (auto: device has no unified host memory)
 #   execution: sequential
 #   thread budget: 16,384 (device total); GPU components that can run at the same time:
-#     hsv_red_erode: 448 threads
+#     hsv_red: 448 threads
+#     erode: 16,384 threads
 #     dilate: 16,384 threads
 #   fusion: auto, 1 group:
-#     hsv_red_erode: one kernel (group_hsv_red_erode.cl) for
+#     hsv_red: one kernel (group_hsv_red.cl) for
 #       hsv (RgbToHsv, pointwise)
 #       -> red (InRange, pointwise)
-#       -> erode (ErodeGray, stencil)
+#       estimate: 1,344,400 element operations a frame as one kernel, 2,086,800 element
+#       operations apart (1.6x)
+#     not fused: red.mask -> erode.image:
+#       cost model: with red the group's kernel costs an estimated 3,872,800 element
+#       operations a frame, against 1,725,600 element operations with red apart (it would
+#       run 9 times per output element of the group)
 #     not fused: erode.eroded -> dilate.image:
-#       stencil cost cap: recomputing erode 9 times per output element of the group (reading
-#       9 input elements each time) costs 81 loads, over the cap of 64
+#       cost model: with erode the group's kernel costs an estimated 10,374,400 element
+#       operations a frame, against 2,448,000 element operations with erode apart (it would
+#       run 9 times per output element of the group)
 
 from __future__ import annotations
 
@@ -67,6 +76,26 @@ DESCRIPTION = (
     'annotated images'
 )
 LIB_DIR = Path(__file__).resolve().with_name('red_objects_lib')
+# The parameters --set NAME.PARAM=VALUE (and --input, --output) may change when the program
+# starts: those no size or requirement depends on. Their declarations and model values.
+PARAMS = {
+    'camera.buoys': runtime.Param('int', 2, minimum=0, maximum=8),
+    'camera.folder': runtime.Param('input', runtime.model_path(__file__, '../../../models/photos')),
+    'camera.frames': runtime.Param('int', 0, minimum=0),
+    'camera.seed': runtime.Param('int', 1, minimum=0),
+    'camera.source': runtime.Param('input', ''),
+    'camera.video': runtime.Param('input', ''),
+    'red.lowerb_0': runtime.Param('int', 0, minimum=0, maximum=255),
+    'red.lowerb_1': runtime.Param('int', 140, minimum=0, maximum=255),
+    'red.lowerb_2': runtime.Param('int', 60, minimum=0, maximum=255),
+    'red.upperb_0': runtime.Param('int', 6, minimum=0, maximum=255),
+    'red.upperb_1': runtime.Param('int', 255, minimum=0, maximum=255),
+    'red.upperb_2': runtime.Param('int', 255, minimum=0, maximum=255),
+    'writer.folder': runtime.Param('str', ''),
+    'writer.min_area': runtime.Param('int', 150, minimum=1),
+    'writer.output': runtime.Param('str', ''),
+    'writer.print_objects': runtime.Param('bool', True),
+}
 
 
 class DilateGray(runtime.KernelComponent):
@@ -90,17 +119,38 @@ class DilateGray(runtime.KernelComponent):
         ]
 
 
-class FusedHsvRedErode(runtime.KernelComponent):
-    """GPU-aware component FusedHsvRedErode: kernel hsv_red_erode() in group_hsv_red_erode.cl.
+class ErodeGray(runtime.KernelComponent):
+    """GPU-aware component ErodeGray: kernel erode_gray() in filter.cl.
+
+    One work-group of block_x * block_y * block_z threads covers a tile x tile square
+    of 'eroded'.
+    """
+    # Each element becomes the minimum of its 3x3 neighbourhood (a 3x3 rectangle, one iteration;
+    # chain two for iterations=2), pixels outside the frame ignored. OpenCV: cv2.erode(image,
+    # np.ones((3, 3), np.uint8)), bit-exact.
+
+    function = 'erode_gray'
+    inputs = (('image', np.uint8),)
+    outputs = (('eroded', np.uint8),)
+
+    def output_sizes(self, image):
+        """Input sizes in, output sizes out (the type's size expressions)."""
+        return [
+            Size(image.height, image.width, 1),
+        ]
+
+
+class FusedHsvRed(runtime.KernelComponent):
+    """GPU-aware component FusedHsvRed: kernel hsv_red() in group_hsv_red.cl.
 
     One work-group of block_x * block_y * block_z threads covers tile whole rows of
-    'eroded'.
+    'mask'.
     """
-    # Fuses hsv (RgbToHsv), red (InRange), erode (ErodeGray) into one kernel.
+    # Fuses hsv (RgbToHsv), red (InRange) into one kernel.
 
-    function = 'hsv_red_erode'
+    function = 'hsv_red'
     inputs = (('hsv_image', np.uint8),)
-    outputs = (('eroded', np.uint8),)
+    outputs = (('mask', np.uint8),)
 
     def output_sizes(self, hsv_image):
         """Input sizes in, output sizes out (the type's size expressions)."""
@@ -109,34 +159,38 @@ class FusedHsvRedErode(runtime.KernelComponent):
         ]
 
 
-def run(frames=None, context=None, monitor=None, profile=False):
+def run(frames=None, context=None, monitor=None, profile=False, params=None):
     """Build the system, stream up to `frames` frames (default: until a source ends).
 
     A runtime.Monitor shows progress, times the components when asked and hands them
     runtime options such as --decisions; main() makes one from the command line.
     With profile=True, OpenCL profiling events time every kernel and copy (see
-    runtime.Profile); the result's profile holds them.
+    runtime.Profile); the result's profile holds them. params: {'component.param': value}
+    for entries of PARAMS, checked against their declarations.
     """
     monitor = monitor or runtime.Monitor(progress=False)
+    params = runtime.param_values(PARAMS, params)
     context = context or runtime.create_context()
     # Sequential execution: one in-order queue; copies to the GPU block.
     queue = runtime.create_queue(context, profile)
     # every device buffer, with its bytes: checked against the device before allocating
     runtime.check_device_memory(context.devices[0], {
         'adapter1_cpu2gpu (camera.image)': 180_600,
-        'hsv_red_erode.eroded': 60_200,
+        'hsv_red.mask': 60_200,
+        'erode.eroded': 60_200,
         'dilate.dilated': 60_200,
     })
-    dilate_gray_program = runtime.build_program(
-        context, LIB_DIR / 'filter.cl', 'dilate (DilateGray)')
-    fused_hsv_red_erode_program = runtime.build_program(
-        context, LIB_DIR / 'group_hsv_red_erode.cl', 'hsv_red_erode (FusedHsvRedErode)')
+    filter_program = runtime.build_program(
+        context, LIB_DIR / 'filter.cl', 'dilate (DilateGray), erode (ErodeGray)')
+    fused_hsv_red_program = runtime.build_program(
+        context, LIB_DIR / 'group_hsv_red.cl', 'hsv_red (FusedHsvRed)')
 
     # every component and adapter, filled in as it is constructed; freed in reverse order
     parts = dict.fromkeys([
         'camera',
         'adapter1_cpu2gpu',
-        'hsv_red_erode',
+        'hsv_red',
+        'erode',
         'dilate',
         'adapter2_gpu2cpu',
         'writer',
@@ -144,44 +198,60 @@ def run(frames=None, context=None, monitor=None, profile=False):
     frame = None  # while constructing and initializing
     try:
         camera = parts['camera'] = Camera(
-            width=301, height=200, seed=1, buoys=2, frames=0,
-            folder=runtime.model_path(__file__, '../../../models/photos'), video='')
-        # camera.image -> hsv_red_erode.hsv_image
+            width=301, height=200, seed=params['camera.seed'], buoys=params['camera.buoys'],
+            frames=params['camera.frames'], folder=params['camera.folder'],
+            video=params['camera.video'], source=params['camera.source'])
+        # camera.image -> hsv_red.hsv_image
         adapter1_cpu2gpu = parts['adapter1_cpu2gpu'] = runtime.CpuToGpuAdapter(
             context, queue, nbytes=180_600, blocking=True, staging='pinned')
-        hsv_red_erode = parts['hsv_red_erode'] = FusedHsvRedErode(
-            context, queue, fused_hsv_red_erode_program)
-        dilate = parts['dilate'] = DilateGray(context, queue, dilate_gray_program)
+        hsv_red = parts['hsv_red'] = FusedHsvRed(context, queue, fused_hsv_red_program)
+        erode = parts['erode'] = ErodeGray(context, queue, filter_program)
+        dilate = parts['dilate'] = DilateGray(context, queue, filter_program)
         # dilate.dilated -> writer.mask
         adapter2_gpu2cpu = parts['adapter2_gpu2cpu'] = runtime.GpuToCpuAdapter(
             context, queue, nbytes=60_200, staging='pinned')
-        writer = parts['writer'] = MaskWriter(min_area=150, folder='', print_objects=True)
+        writer = parts['writer'] = MaskWriter(
+            min_area=params['writer.min_area'], folder=params['writer.folder'],
+            print_objects=params['writer.print_objects'], output=params['writer.output'])
         monitor.attach(parts)
         profiler = runtime.Profile(parts) if profile else None
 
         camera_image_size = camera.initialize()
         runtime.expect_size('camera.image', camera_image_size, Size(200, 301, 3))
         camera_image_gpu_size = adapter1_cpu2gpu.initialize(camera_image_size, np.uint8)
-        hsv_red_erode_eroded_size = hsv_red_erode.initialize(camera_image_gpu_size)
-        runtime.expect_size('hsv_red_erode.eroded', hsv_red_erode_eroded_size, Size(200, 301, 1))
-        dilate_dilated_size = dilate.initialize(hsv_red_erode_eroded_size)
+        hsv_red_mask_size = hsv_red.initialize(camera_image_gpu_size)
+        runtime.expect_size('hsv_red.mask', hsv_red_mask_size, Size(200, 301, 1))
+        erode_eroded_size = erode.initialize(hsv_red_mask_size)
+        runtime.expect_size('erode.eroded', erode_eroded_size, Size(200, 301, 1))
+        dilate_dilated_size = dilate.initialize(erode_eroded_size)
         runtime.expect_size('dilate.dilated', dilate_dilated_size, Size(200, 301, 1))
         dilate_dilated_cpu_size = adapter2_gpu2cpu.initialize(dilate_dilated_size, np.uint8)
         writer.initialize(camera_image_size, dilate_dilated_cpu_size)
 
-        # hsv_red_erode: settings preferred, 448 resident threads; kernel arguments in the calling
+        # hsv_red: settings preferred, 448 resident threads; kernel arguments in the calling
         # convention's order (a port's name stands for its buffer)
-        hsv_red_erode.config_gpu(
+        hsv_red.config_gpu(
             tile=32, local_size=(8, 8, 1), global_size=(8, 56, 1),
             settings_source='preferred', arguments=[
-                'hsv_image', 'eroded',  # buffers: inputs, then outputs
-                np.int32(0),  # red_lowerb_0
-                np.int32(140),  # red_lowerb_1
-                np.int32(60),  # red_lowerb_2
-                np.int32(6),  # red_upperb_0
-                np.int32(255),  # red_upperb_1
-                np.int32(255),  # red_upperb_2
+                'hsv_image', 'mask',  # buffers: inputs, then outputs
+                np.int32(params['red.lowerb_0']),  # red_lowerb_0
+                np.int32(params['red.lowerb_1']),  # red_lowerb_1
+                np.int32(params['red.lowerb_2']),  # red_lowerb_2
+                np.int32(params['red.upperb_0']),  # red_upperb_0
+                np.int32(params['red.upperb_1']),  # red_upperb_1
+                np.int32(params['red.upperb_2']),  # red_upperb_2
                 np.int32(32),  # tile
+            ])
+
+        # erode: settings preferred, 16,384 resident threads; kernel arguments in the calling
+        # convention's order (a port's name stands for its buffer)
+        erode.config_gpu(
+            tile=16, local_size=(16, 16, 1), global_size=(304, 208, 1),
+            settings_source='preferred', arguments=[
+                'image', 'eroded',  # buffers: inputs, then outputs
+                np.int32(200), np.int32(301),  # image: height, width
+                np.int32(200), np.int32(301),  # eroded: height, width
+                np.int32(16),  # tile
             ])
 
         # dilate: settings preferred, 16,384 resident threads; kernel arguments in the calling
@@ -203,8 +273,9 @@ def run(frames=None, context=None, monitor=None, profile=False):
             camera_image = runtime.check_frame(
                 'camera.image', camera_image, (200, 301, 3), np.uint8)
             camera_image_gpu = adapter1_cpu2gpu.transfer(camera_image)
-            hsv_red_erode_eroded = hsv_red_erode.execute(camera_image_gpu)
-            dilate_dilated = dilate.execute(hsv_red_erode_eroded)
+            hsv_red_mask = hsv_red.execute(camera_image_gpu)
+            erode_eroded = erode.execute(hsv_red_mask)
+            dilate_dilated = dilate.execute(erode_eroded)
             dilate_dilated_cpu = adapter2_gpu2cpu.transfer(dilate_dilated)
             writer.execute(camera_image, dilate_dilated_cpu)
             frame += 1
@@ -219,7 +290,7 @@ def run(frames=None, context=None, monitor=None, profile=False):
 
 
 def main(argv=None):
-    return runtime.main(run, DESCRIPTION, argv)
+    return runtime.main(run, DESCRIPTION, argv, PARAMS)
 
 
 if __name__ == "__main__":

@@ -82,6 +82,13 @@ DESCRIPTION = (
     "components; 'gpucompgen bench' builds longer chains like this one."
 )
 LIB_DIR = Path(__file__).resolve().with_name('mirror_chain_lib')
+# The parameters --set NAME.PARAM=VALUE (and --input, --output) may change when the program
+# starts: those no size or requirement depends on. Their declarations and model values.
+PARAMS = {
+    'sink.output': runtime.Param('str', ''),
+    'source.frames': runtime.Param('int', 0, minimum=0),
+    'source.seed': runtime.Param('int', 1, minimum=0),
+}
 
 
 class VerticalMirror(runtime.KernelComponent):
@@ -104,15 +111,17 @@ class VerticalMirror(runtime.KernelComponent):
         ]
 
 
-def run(frames=None, context=None, monitor=None, profile=False):
+def run(frames=None, context=None, monitor=None, profile=False, params=None):
     """Build the system, stream up to `frames` frames (default: until a source ends).
 
     A runtime.Monitor shows progress, times the components when asked and hands them
     runtime options such as --decisions; main() makes one from the command line.
     With profile=True, OpenCL profiling events time every kernel and copy (see
-    runtime.Profile); the result's profile holds them.
+    runtime.Profile); the result's profile holds them. params: {'component.param': value}
+    for entries of PARAMS, checked against their declarations.
     """
     monitor = monitor or runtime.Monitor(progress=False)
+    params = runtime.param_values(PARAMS, params)
     context = context or runtime.create_context()
     # Sequential execution: one in-order queue; copies to the GPU block.
     queue = runtime.create_queue(context, profile)
@@ -145,7 +154,8 @@ def run(frames=None, context=None, monitor=None, profile=False):
     ])
     frame = None  # while constructing and initializing
     try:
-        source = parts['source'] = StillImage(width=1152, height=864, seed=1, frames=0)
+        source = parts['source'] = StillImage(
+            width=1152, height=864, seed=params['source.seed'], frames=params['source.frames'])
         mirror1 = parts['mirror1'] = VerticalMirror(
             context, queue, vertical_mirror_program, copies_own_data=True)
         mirror2 = parts['mirror2'] = VerticalMirror(
@@ -156,7 +166,7 @@ def run(frames=None, context=None, monitor=None, profile=False):
             context, queue, vertical_mirror_program, copies_own_data=True)
         mirror5 = parts['mirror5'] = VerticalMirror(
             context, queue, vertical_mirror_program, copies_own_data=True)
-        sink = parts['sink'] = FrameSink()
+        sink = parts['sink'] = FrameSink(output=params['sink.output'])
         monitor.attach(parts)
         profiler = runtime.Profile(parts) if profile else None
 
@@ -254,7 +264,7 @@ def run(frames=None, context=None, monitor=None, profile=False):
 
 
 def main(argv=None):
-    return runtime.main(run, DESCRIPTION, argv)
+    return runtime.main(run, DESCRIPTION, argv, PARAMS)
 
 
 if __name__ == "__main__":

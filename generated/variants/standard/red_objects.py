@@ -74,6 +74,26 @@ DESCRIPTION = (
     'annotated images'
 )
 LIB_DIR = Path(__file__).resolve().with_name('red_objects_lib')
+# The parameters --set NAME.PARAM=VALUE (and --input, --output) may change when the program
+# starts: those no size or requirement depends on. Their declarations and model values.
+PARAMS = {
+    'camera.buoys': runtime.Param('int', 2, minimum=0, maximum=8),
+    'camera.folder': runtime.Param('input', runtime.model_path(__file__, '../../../models/photos')),
+    'camera.frames': runtime.Param('int', 0, minimum=0),
+    'camera.seed': runtime.Param('int', 1, minimum=0),
+    'camera.source': runtime.Param('input', ''),
+    'camera.video': runtime.Param('input', ''),
+    'red.lowerb_0': runtime.Param('int', 0, minimum=0, maximum=255),
+    'red.lowerb_1': runtime.Param('int', 140, minimum=0, maximum=255),
+    'red.lowerb_2': runtime.Param('int', 60, minimum=0, maximum=255),
+    'red.upperb_0': runtime.Param('int', 6, minimum=0, maximum=255),
+    'red.upperb_1': runtime.Param('int', 255, minimum=0, maximum=255),
+    'red.upperb_2': runtime.Param('int', 255, minimum=0, maximum=255),
+    'writer.folder': runtime.Param('str', ''),
+    'writer.min_area': runtime.Param('int', 150, minimum=1),
+    'writer.output': runtime.Param('str', ''),
+    'writer.print_objects': runtime.Param('bool', True),
+}
 
 
 class DilateGray(runtime.KernelComponent):
@@ -158,15 +178,17 @@ class RgbToHsv(runtime.KernelComponent):
         ]
 
 
-def run(frames=None, context=None, monitor=None, profile=False):
+def run(frames=None, context=None, monitor=None, profile=False, params=None):
     """Build the system, stream up to `frames` frames (default: until a source ends).
 
     A runtime.Monitor shows progress, times the components when asked and hands them
     runtime options such as --decisions; main() makes one from the command line.
     With profile=True, OpenCL profiling events time every kernel and copy (see
-    runtime.Profile); the result's profile holds them.
+    runtime.Profile); the result's profile holds them. params: {'component.param': value}
+    for entries of PARAMS, checked against their declarations.
     """
     monitor = monitor or runtime.Monitor(progress=False)
+    params = runtime.param_values(PARAMS, params)
     context = context or runtime.create_context()
     # Sequential execution: one in-order queue; copies to the GPU block.
     queue = runtime.create_queue(context, profile)
@@ -198,15 +220,20 @@ def run(frames=None, context=None, monitor=None, profile=False):
     frame = None  # while constructing and initializing
     try:
         camera = parts['camera'] = Camera(
-            width=301, height=200, seed=1, buoys=2, frames=0,
-            folder=runtime.model_path(__file__, '../../../models/photos'), video='')
+            width=301, height=200, seed=params['camera.seed'], buoys=params['camera.buoys'],
+            frames=params['camera.frames'], folder=params['camera.folder'],
+            video=params['camera.video'], source=params['camera.source'])
         hsv = parts['hsv'] = RgbToHsv(context, queue, rgb_to_hsv_program, copies_own_data=True)
         red = parts['red'] = InRange(
-            context, queue, in_range_program, lowerb_0=0, lowerb_1=140, lowerb_2=60, upperb_0=6,
-            upperb_1=255, upperb_2=255, copies_own_data=True)
+            context, queue, in_range_program, lowerb_0=params['red.lowerb_0'],
+            lowerb_1=params['red.lowerb_1'], lowerb_2=params['red.lowerb_2'],
+            upperb_0=params['red.upperb_0'], upperb_1=params['red.upperb_1'],
+            upperb_2=params['red.upperb_2'], copies_own_data=True)
         erode = parts['erode'] = ErodeGray(context, queue, filter_program, copies_own_data=True)
         dilate = parts['dilate'] = DilateGray(context, queue, filter_program, copies_own_data=True)
-        writer = parts['writer'] = MaskWriter(min_area=150, folder='', print_objects=True)
+        writer = parts['writer'] = MaskWriter(
+            min_area=params['writer.min_area'], folder=params['writer.folder'],
+            print_objects=params['writer.print_objects'], output=params['writer.output'])
         monitor.attach(parts)
         profiler = runtime.Profile(parts) if profile else None
 
@@ -241,12 +268,12 @@ def run(frames=None, context=None, monitor=None, profile=False):
                 'image', 'mask',  # buffers: inputs, then outputs
                 np.int32(200), np.int32(301),  # image: height, width
                 np.int32(200), np.int32(301),  # mask: height, width
-                np.int32(0),  # lowerb_0
-                np.int32(140),  # lowerb_1
-                np.int32(60),  # lowerb_2
-                np.int32(6),  # upperb_0
-                np.int32(255),  # upperb_1
-                np.int32(255),  # upperb_2
+                np.int32(params['red.lowerb_0']),  # lowerb_0
+                np.int32(params['red.lowerb_1']),  # lowerb_1
+                np.int32(params['red.lowerb_2']),  # lowerb_2
+                np.int32(params['red.upperb_0']),  # upperb_0
+                np.int32(params['red.upperb_1']),  # upperb_1
+                np.int32(params['red.upperb_2']),  # upperb_2
                 np.int32(16),  # tile
             ])
 
@@ -296,7 +323,7 @@ def run(frames=None, context=None, monitor=None, profile=False):
 
 
 def main(argv=None):
-    return runtime.main(run, DESCRIPTION, argv)
+    return runtime.main(run, DESCRIPTION, argv, PARAMS)
 
 
 if __name__ == "__main__":

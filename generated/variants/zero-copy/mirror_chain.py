@@ -44,6 +44,8 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 #       -> mirror3 (VerticalMirror, index_map)
 #       -> mirror4 (VerticalMirror, index_map)
 #       -> mirror5 (VerticalMirror, index_map)
+#       estimate: 5,991,968 element operations a frame as one kernel, 53,847,712 element
+#       operations apart (9.0x)
 
 from __future__ import annotations
 
@@ -62,6 +64,13 @@ DESCRIPTION = (
     "components; 'gpucompgen bench' builds longer chains like this one."
 )
 LIB_DIR = Path(__file__).resolve().with_name('mirror_chain_lib')
+# The parameters --set NAME.PARAM=VALUE (and --input, --output) may change when the program
+# starts: those no size or requirement depends on. Their declarations and model values.
+PARAMS = {
+    'sink.output': runtime.Param('str', ''),
+    'source.frames': runtime.Param('int', 0, minimum=0),
+    'source.seed': runtime.Param('int', 1, minimum=0),
+}
 
 
 class FusedMirror1ToMirror5(runtime.KernelComponent):
@@ -85,15 +94,17 @@ class FusedMirror1ToMirror5(runtime.KernelComponent):
         ]
 
 
-def run(frames=None, context=None, monitor=None, profile=False):
+def run(frames=None, context=None, monitor=None, profile=False, params=None):
     """Build the system, stream up to `frames` frames (default: until a source ends).
 
     A runtime.Monitor shows progress, times the components when asked and hands them
     runtime options such as --decisions; main() makes one from the command line.
     With profile=True, OpenCL profiling events time every kernel and copy (see
-    runtime.Profile); the result's profile holds them.
+    runtime.Profile); the result's profile holds them. params: {'component.param': value}
+    for entries of PARAMS, checked against their declarations.
     """
     monitor = monitor or runtime.Monitor(progress=False)
+    params = runtime.param_values(PARAMS, params)
     context = context or runtime.create_context()
     # Parallel execution: 1 in-order queue (lanes). Commands are enqueued
     # without waiting; a command waits for another queue's event (wait_for=[...]) only
@@ -117,7 +128,8 @@ def run(frames=None, context=None, monitor=None, profile=False):
     ])
     frame = None  # while constructing and initializing
     try:
-        source = parts['source'] = StillImage(width=1152, height=864, seed=1, frames=0)
+        source = parts['source'] = StillImage(
+            width=1152, height=864, seed=params['source.seed'], frames=params['source.frames'])
         # source.image -> mirror1_to_mirror5.mirror1_image
         adapter1_cpu2gpu = parts['adapter1_cpu2gpu'] = runtime.ZeroCopyCpuToGpuAdapter(
             context, queue, nbytes=2_985_984)
@@ -126,7 +138,7 @@ def run(frames=None, context=None, monitor=None, profile=False):
         # mirror5.mirrored -> sink.image
         adapter2_gpu2cpu = parts['adapter2_gpu2cpu'] = runtime.ZeroCopyGpuToCpuAdapter(
             context, queue, nbytes=2_985_984)
-        sink = parts['sink'] = FrameSink()
+        sink = parts['sink'] = FrameSink(output=params['sink.output'])
         monitor.attach(parts)
         profiler = runtime.Profile(parts) if profile else None
 
@@ -173,7 +185,7 @@ def run(frames=None, context=None, monitor=None, profile=False):
 
 
 def main(argv=None):
-    return runtime.main(run, DESCRIPTION, argv)
+    return runtime.main(run, DESCRIPTION, argv, PARAMS)
 
 
 if __name__ == "__main__":

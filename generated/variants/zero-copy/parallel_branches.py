@@ -9,19 +9,23 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 """
 
 # System plan:
-#   step  name                             stage  queue  runs      GPU settings          threads
-#   1     camera1 (Camera)                 1      -      CPU       -                     -
-#   2     camera2 (Camera)                 1      -      CPU       -                     -
-#   3     adapter1_cpu2gpu                 1      -      in place  -                     -
-#   4     adapter2_cpu2gpu                 1      -      in place  -                     -
-#   5     blur1_to_detector (fused group)  4      -      GPU       tile 32, block 8x8x1  960
-#   6     adapter3_gpu2cpu                 4      -      map       -                     -
-#   7     manager (VisionManager)          5      -      CPU       -                     -
+#   step  name                           stage  queue  runs      GPU settings           threads
+#   1     camera1 (Camera)               1      -      CPU       -                      -
+#   2     camera2 (Camera)               1      -      CPU       -                      -
+#   3     adapter1_cpu2gpu               1      0      in place  -                      -
+#   4     blur1 (BoxBlur)                2      0      GPU       tile 64, block 8x8x1   5,120
+#   5     adapter2_cpu2gpu               1      1      in place  -                      -
+#   6     blur2 (BoxBlur)                2      1      GPU       tile 64, block 8x16x1  10,240
+#   7     merger_detector (fused group)  4      0      GPU       tile 32, block 8x8x1   960
+#   8     adapter3_gpu2cpu               4      0      map       -                      -
+#   9     manager (VisionManager)        5      -      CPU       -                      -
 #
 #   buffer                            memory              size                bytes
 #   camera1.image                     host                480x640x3 uint8   921,600
 #   camera2.image                     host                480x640x3 uint8   921,600
-#   blur1_to_detector.mask            device              480x1280x1 uint8  614,400
+#   blur1.smooth                      device              480x640x3 uint8   921,600
+#   blur2.smooth                      device              480x640x3 uint8   921,600
+#   merger_detector.mask              device              480x1280x1 uint8  614,400
 #   adapter1_cpu2gpu (camera1.image)  host view           480x640x3 uint8         0
 #   adapter2_cpu2gpu (camera2.image)  host view           480x640x3 uint8         0
 #   adapter3_gpu2cpu (detector.mask)  mapped device view  480x1280x1 uint8        0
@@ -33,19 +37,28 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 #     detector: GPU (by default)
 #
 #   device: portable OpenCL 1.2 device
-#   peak device memory: 614,400 bytes; peak host memory: 1,843,200 bytes
+#   peak device memory: 2,457,600 bytes; peak host memory: 1,843,200 bytes
 #   (every buffer is allocated once, at start)
 #   bytes copied between CPU and GPU per frame: 0
 #   zero-copy adapters: on (forced by the model or the command line)
-#   execution: parallel, 1 queue
+#   execution: parallel, 2 queues
 #   thread budget: 16,384 (device total); GPU components that can run at the same time:
-#     blur1_to_detector: 960 threads
+#     blur1, blur2: 15,360 threads
+#     merger_detector: 960 threads
 #   fusion: auto, 1 group:
-#     blur1_to_detector: one kernel (group_blur1_to_detector.cl) for
-#       blur1 (BoxBlur, stencil)
-#       -> blur2 (BoxBlur, stencil)
-#       -> merger (ImageMerger, index_map)
+#     merger_detector: one kernel (group_merger_detector.cl) for
+#       merger (ImageMerger, index_map)
 #       -> detector (ObjectDetector, pointwise)
+#       estimate: 6,164,000 element operations a frame as one kernel, 13,556,800 element
+#       operations apart (2.2x)
+#     not fused: blur1.smooth -> merger.left:
+#       cost model: with blur1 the group's kernel costs an estimated 96,480,800 element
+#       operations a frame, against 55,028,800 element operations with blur1 apart (it would
+#       run 3 times per output element of the group)
+#     not fused: blur2.smooth -> merger.right:
+#       cost model: with blur2 the group's kernel costs an estimated 96,480,800 element
+#       operations a frame, against 55,028,800 element operations with blur2 apart (it would
+#       run 3 times per output element of the group)
 
 from __future__ import annotations
 
@@ -61,79 +74,141 @@ from gpucompgen.runtime import Size
 
 DESCRIPTION = 'Two cameras, each filtered on its own GPU branch, merged and searched for buoys'
 LIB_DIR = Path(__file__).resolve().with_name('parallel_branches_lib')
+# The parameters --set NAME.PARAM=VALUE (and --input, --output) may change when the program
+# starts: those no size or requirement depends on. Their declarations and model values.
+PARAMS = {
+    'blur1.radius': runtime.Param('int', 2, minimum=0, maximum=7),
+    'blur2.radius': runtime.Param('int', 2, minimum=0, maximum=7),
+    'camera1.buoys': runtime.Param('int', 2, minimum=0, maximum=8),
+    'camera1.folder': runtime.Param('input', ''),
+    'camera1.frames': runtime.Param('int', 0, minimum=0),
+    'camera1.seed': runtime.Param('int', 1, minimum=0),
+    'camera1.source': runtime.Param('input', ''),
+    'camera1.video': runtime.Param('input', ''),
+    'camera2.buoys': runtime.Param('int', 2, minimum=0, maximum=8),
+    'camera2.folder': runtime.Param('input', ''),
+    'camera2.frames': runtime.Param('int', 0, minimum=0),
+    'camera2.seed': runtime.Param('int', 2, minimum=0),
+    'camera2.source': runtime.Param('input', ''),
+    'camera2.video': runtime.Param('input', ''),
+    'detector.margin': runtime.Param('int', 80, minimum=0, maximum=255),
+    'detector.red_min': runtime.Param('int', 150, minimum=0, maximum=255),
+    'manager.decisions_file': runtime.Param('str', ''),
+    'manager.min_area': runtime.Param('int', 30, minimum=1),
+    'manager.print_decisions': runtime.Param('bool', True),
+    'manager.stop_radius': runtime.Param('int', 60, minimum=1),
+}
 
 
-class FusedBlur1ToDetector(runtime.KernelComponent):
-    """GPU-aware component FusedBlur1ToDetector:
-    kernel blur1_to_detector() in group_blur1_to_detector.cl.
+class BoxBlur(runtime.KernelComponent):
+    """GPU-aware component BoxBlur: kernel box_blur() in box_blur.cl.
+
+    One work-group of block_x * block_y * block_z threads covers a tile x tile square
+    of 'smooth'.
+    """
+    # Denoises an RGB frame: each channel becomes the mean of the (2 radius + 1)^2 neighbourhood,
+    # edges clamped, rounded half up (integer arithmetic, bit-exact).
+
+    function = 'box_blur'
+    inputs = (('image', np.uint8),)
+    outputs = (('smooth', np.uint8),)
+
+    def output_sizes(self, image):
+        """Input sizes in, output sizes out (the type's size expressions)."""
+        return [
+            Size(image.height, image.width, 3),
+        ]
+
+
+class FusedMergerDetector(runtime.KernelComponent):
+    """GPU-aware component FusedMergerDetector:
+    kernel merger_detector() in group_merger_detector.cl.
 
     One work-group of block_x * block_y * block_z threads covers tile whole rows of
     'mask'.
     """
-    # Fuses blur1 (BoxBlur), blur2 (BoxBlur), merger (ImageMerger), detector (ObjectDetector) into
-    # one kernel.
+    # Fuses merger (ImageMerger), detector (ObjectDetector) into one kernel.
 
-    function = 'blur1_to_detector'
-    inputs = (('blur1_image', np.uint8), ('blur2_image', np.uint8))
+    function = 'merger_detector'
+    inputs = (('merger_left', np.uint8), ('merger_right', np.uint8))
     outputs = (('mask', np.uint8),)
 
-    def output_sizes(self, blur1_image, blur2_image):
+    def output_sizes(self, merger_left, merger_right):
         """Input sizes in, output sizes out (the type's size expressions)."""
         return [
             Size(480, 1280, 1),
         ]
 
 
-def run(frames=None, context=None, monitor=None, profile=False):
+def run(frames=None, context=None, monitor=None, profile=False, params=None):
     """Build the system, stream up to `frames` frames (default: until a source ends).
 
     A runtime.Monitor shows progress, times the components when asked and hands them
     runtime options such as --decisions; main() makes one from the command line.
     With profile=True, OpenCL profiling events time every kernel and copy (see
-    runtime.Profile); the result's profile holds them.
+    runtime.Profile); the result's profile holds them. params: {'component.param': value}
+    for entries of PARAMS, checked against their declarations.
     """
     monitor = monitor or runtime.Monitor(progress=False)
+    params = runtime.param_values(PARAMS, params)
     context = context or runtime.create_context()
-    # Parallel execution: 1 in-order queue (lanes). Commands are enqueued
+    # Parallel execution: 2 in-order queues (lanes). Commands are enqueued
     # without waiting; a command waits for another queue's event (wait_for=[...]) only
     # where it reads that queue's data, and the host waits only where it reads a result.
-    queue = runtime.create_queue(context, profile)
+    queue0 = runtime.create_queue(context, profile)
+    queue1 = runtime.create_queue(context, profile)
     # every device buffer, with its bytes: checked against the device before allocating
     runtime.check_device_memory(context.devices[0], {
-        'blur1_to_detector.mask': 614_400,
+        'blur1.smooth': 921_600,
+        'blur2.smooth': 921_600,
+        'merger_detector.mask': 614_400,
     })
-    fused_blur1_to_detector_program = runtime.build_program(
-        context, LIB_DIR / 'group_blur1_to_detector.cl', 'blur1_to_detector (FusedBlur1ToDetector)')
+    box_blur_program = runtime.build_program(
+        context, LIB_DIR / 'box_blur.cl', 'blur1, blur2 (BoxBlur)')
+    fused_merger_detector_program = runtime.build_program(
+        context, LIB_DIR / 'group_merger_detector.cl', 'merger_detector (FusedMergerDetector)')
 
     # every component and adapter, filled in as it is constructed; freed in reverse order
     parts = dict.fromkeys([
         'camera1',
         'camera2',
         'adapter1_cpu2gpu',
+        'blur1',
         'adapter2_cpu2gpu',
-        'blur1_to_detector',
+        'blur2',
+        'merger_detector',
         'adapter3_gpu2cpu',
         'manager',
     ])
     frame = None  # while constructing and initializing
     try:
         camera1 = parts['camera1'] = Camera(
-            width=640, height=480, seed=1, buoys=2, frames=0, folder='', video='')
+            width=640, height=480, seed=params['camera1.seed'], buoys=params['camera1.buoys'],
+            frames=params['camera1.frames'], folder=params['camera1.folder'],
+            video=params['camera1.video'], source=params['camera1.source'])
         camera2 = parts['camera2'] = Camera(
-            width=640, height=480, seed=2, buoys=2, frames=0, folder='', video='')
-        # camera1.image -> blur1_to_detector.blur1_image
+            width=640, height=480, seed=params['camera2.seed'], buoys=params['camera2.buoys'],
+            frames=params['camera2.frames'], folder=params['camera2.folder'],
+            video=params['camera2.video'], source=params['camera2.source'])
+        # camera1.image -> blur1.image
         adapter1_cpu2gpu = parts['adapter1_cpu2gpu'] = runtime.ZeroCopyCpuToGpuAdapter(
-            context, queue, nbytes=921_600)
-        # camera2.image -> blur1_to_detector.blur2_image
+            context, queue0, nbytes=921_600)
+        blur1 = parts['blur1'] = BoxBlur(
+            context, queue0, box_blur_program, radius=params['blur1.radius'], host_visible=True)
+        # camera2.image -> blur2.image
         adapter2_cpu2gpu = parts['adapter2_cpu2gpu'] = runtime.ZeroCopyCpuToGpuAdapter(
-            context, queue, nbytes=921_600)
-        blur1_to_detector = parts['blur1_to_detector'] = FusedBlur1ToDetector(
-            context, queue, fused_blur1_to_detector_program, host_visible=True)
+            context, queue1, nbytes=921_600)
+        blur2 = parts['blur2'] = BoxBlur(
+            context, queue1, box_blur_program, radius=params['blur2.radius'], host_visible=True)
+        merger_detector = parts['merger_detector'] = FusedMergerDetector(
+            context, queue0, fused_merger_detector_program, host_visible=True)
         # detector.mask -> manager.mask
         adapter3_gpu2cpu = parts['adapter3_gpu2cpu'] = runtime.ZeroCopyGpuToCpuAdapter(
-            context, queue, nbytes=614_400)
+            context, queue0, nbytes=614_400)
         manager = parts['manager'] = VisionManager(
-            min_area=30, stop_radius=60, print_decisions=True, decisions_file='')
+            min_area=params['manager.min_area'], stop_radius=params['manager.stop_radius'],
+            print_decisions=params['manager.print_decisions'],
+            decisions_file=params['manager.decisions_file'])
         monitor.attach(parts)
         profiler = runtime.Profile(parts) if profile else None
 
@@ -142,24 +217,48 @@ def run(frames=None, context=None, monitor=None, profile=False):
         camera2_image_size = camera2.initialize()
         runtime.expect_size('camera2.image', camera2_image_size, Size(480, 640, 3))
         camera1_image_gpu_size = adapter1_cpu2gpu.initialize(camera1_image_size, np.uint8)
+        blur1_smooth_size = blur1.initialize(camera1_image_gpu_size)
+        runtime.expect_size('blur1.smooth', blur1_smooth_size, Size(480, 640, 3))
         camera2_image_gpu_size = adapter2_cpu2gpu.initialize(camera2_image_size, np.uint8)
-        blur1_to_detector_mask_size = blur1_to_detector.initialize(
-            camera1_image_gpu_size, camera2_image_gpu_size)
-        runtime.expect_size(
-            'blur1_to_detector.mask', blur1_to_detector_mask_size, Size(480, 1280, 1))
-        detector_mask_cpu_size = adapter3_gpu2cpu.initialize(blur1_to_detector_mask_size, np.uint8)
+        blur2_smooth_size = blur2.initialize(camera2_image_gpu_size)
+        runtime.expect_size('blur2.smooth', blur2_smooth_size, Size(480, 640, 3))
+        merger_detector_mask_size = merger_detector.initialize(blur1_smooth_size, blur2_smooth_size)
+        runtime.expect_size('merger_detector.mask', merger_detector_mask_size, Size(480, 1280, 1))
+        detector_mask_cpu_size = adapter3_gpu2cpu.initialize(merger_detector_mask_size, np.uint8)
         manager.initialize(detector_mask_cpu_size)
 
-        # blur1_to_detector: settings preferred, 960 resident threads; kernel arguments in the
-        # calling convention's order (a port's name stands for its buffer)
-        blur1_to_detector.config_gpu(
+        # blur1: settings shrunk to share the thread budget, 5,120 resident threads; kernel
+        # arguments in the calling convention's order (a port's name stands for its buffer)
+        blur1.config_gpu(
+            tile=64, local_size=(8, 8, 1), global_size=(80, 64, 1),
+            settings_source='shrunk to share the thread budget', arguments=[
+                'image', 'smooth',  # buffers: inputs, then outputs
+                np.int32(480), np.int32(640),  # image: height, width
+                np.int32(480), np.int32(640),  # smooth: height, width
+                np.int32(params['blur1.radius']),  # radius
+                np.int32(64),  # tile
+            ])
+
+        # blur2: settings shrunk to share the thread budget, 10,240 resident threads; kernel
+        # arguments in the calling convention's order (a port's name stands for its buffer)
+        blur2.config_gpu(
+            tile=64, local_size=(8, 16, 1), global_size=(80, 128, 1),
+            settings_source='shrunk to share the thread budget', arguments=[
+                'image', 'smooth',  # buffers: inputs, then outputs
+                np.int32(480), np.int32(640),  # image: height, width
+                np.int32(480), np.int32(640),  # smooth: height, width
+                np.int32(params['blur2.radius']),  # radius
+                np.int32(64),  # tile
+            ])
+
+        # merger_detector: settings preferred, 960 resident threads; kernel arguments in the calling
+        # convention's order (a port's name stands for its buffer)
+        merger_detector.config_gpu(
             tile=32, local_size=(8, 8, 1), global_size=(8, 120, 1),
             settings_source='preferred', arguments=[
-                'blur1_image', 'blur2_image', 'mask',  # buffers: inputs, then outputs
-                np.int32(2),  # blur1_radius
-                np.int32(2),  # blur2_radius
-                np.int32(150),  # detector_red_min
-                np.int32(80),  # detector_margin
+                'merger_left', 'merger_right', 'mask',  # buffers: inputs, then outputs
+                np.int32(params['detector.red_min']),  # detector_red_min
+                np.int32(params['detector.margin']),  # detector_margin
                 np.int32(32),  # tile
             ])
 
@@ -174,14 +273,18 @@ def run(frames=None, context=None, monitor=None, profile=False):
             camera2_image = runtime.check_frame(
                 'camera2.image', camera2_image, (480, 640, 3), np.uint8)
             camera1_image_gpu = adapter1_cpu2gpu.transfer(camera1_image)
+            blur1_smooth = blur1.execute(camera1_image_gpu)
             camera2_image_gpu = adapter2_cpu2gpu.transfer(camera2_image)
-            blur1_to_detector_mask = blur1_to_detector.execute(camera1_image_gpu, camera2_image_gpu)
-            detector_mask_cpu = adapter3_gpu2cpu.transfer(blur1_to_detector_mask)
+            blur2_smooth = blur2.execute(camera2_image_gpu)
+            merger_detector_mask = merger_detector.execute(
+                blur1_smooth, blur2_smooth, wait_for=[blur2.event])
+            detector_mask_cpu = adapter3_gpu2cpu.transfer(merger_detector_mask)
             manager.execute(detector_mask_cpu)
             adapter3_gpu2cpu.unmap()  # the device may write detector.mask again
             frame += 1
             monitor.frame_done(frame)
-        queue.finish()
+        queue0.finish()
+        queue1.finish()
     except Exception as exc:
         raise runtime.component_failure(exc, frame, parts) from exc
     finally:
@@ -191,7 +294,7 @@ def run(frames=None, context=None, monitor=None, profile=False):
 
 
 def main(argv=None):
-    return runtime.main(run, DESCRIPTION, argv)
+    return runtime.main(run, DESCRIPTION, argv, PARAMS)
 
 
 if __name__ == "__main__":

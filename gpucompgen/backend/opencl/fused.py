@@ -1,102 +1,355 @@
-"""The OpenCL kernel of a fused group (passes/fuse.py): members' snippets composed.
+"""The OpenCL kernel of a group (passes/fuse.py): members' snippets composed and scheduled.
 
-One readable file per group: a header naming the members; GROUP_PARAMS / GROUP_ARGS, the
-group kernel's parameter list (convention.group_parameters) as every member function
-takes it; then, per member in run order, its snippet as a ``static inline`` function named
-after the component, computing one element (y, x, c) of its output.  Around each function,
-each input port's accessor ``<port>(y, x, c)`` is a macro: the producing member's function
-when the producer is in the group (index maps compose back to front, values apply front
-to back), else a load from the group's input buffer.
+One readable file per group (a group may have one member: a lone component of a fusable
+type runs the kernel generated from its form).  A header names the members; then, per
+member in run order, its snippet as a ``static inline`` function computing one element
+(y, x, c) of its output.  Around each function, each input port's accessor
+``<port>(y, x, c)`` is a macro: the producing member's function when the producer is in
+the group (index maps compose back to front, values apply front to back), else a load
+from the group's input buffer.
 
-What makes it fast (it must cost about what one unfused component costs, whatever the
-number of members):
+Names.  Every identifier the generator itself makes starts with an underscore (``_m0_blur``,
+``_in0``, ``_ARGS``, ``_y``, ``_row``, ``_reflect101``); model names (components, ports,
+parameters) start with a letter, so the two never meet, whatever the model calls its
+components.  Inside a member's function the snippet sees only its own language: y, x, c,
+its ports' accessors and sizes, its parameters.
 
-- Every function is visible to the compiler and inlined, and every size is a constant:
-  the system fixed the sizes when it was built, so the text states them.  A chain of
-  index maps then folds to one index expression (a mirror of a mirror reads
-  ``h - 1 - (h - 1 - y)``, which is ``y``), and nothing is computed per member.
-- No clamp and no bounds test on an access that is in range by construction: pointwise
-  members read the element they compute, index maps read in-range positions for every
-  in-range output element (their contract, as for a kernel), and the kernel only
-  computes output elements inside the frame.  The one clamp is where a stencil with
-  ``border: clamp`` reads its input: a window reaches outside the frame at the edges.
-- The grid covers whole rows (as the VerticalMirror kernel): a work-group computes
-  ``tile`` rows, its block_y threads take them in turn and its block_x threads split
-  each row into contiguous runs of pixels.  A work-item computes a pixel's channels
-  together and stores them as one vector (vstore3 for three channels), which a CPU
-  device turns into wide copies.
+The schedule (what makes it fast; Halide's algorithm vs schedule, Intel's guide for CPU
+OpenCL devices):
+
+- Every size is a constant (the system fixed them at build time), every function is
+  visible and inlined: a chain of index maps folds to one index expression.
+- Borders outside the hot path.  A stencil's reads outside its input follow its border
+  rule (clamp, reflect101) in the accessor; where the group has stencils and no index
+  map, each member has a second, interior version whose accessors read without any
+  border rule, and the kernel runs it on the output elements whose every read is inside
+  the frame (``margin``: the radii summed along the deepest path), the border version on
+  the rest of the row.
+- Channel-flat groups.  Where every member computes each channel alike (it reads inputs
+  only as ``port(..., x + k, c)`` and uses x and c nowhere else) a frame of C channels
+  is a row of W x C elements computed alike: the kernel stores one element at a time, a
+  loop the compiler turns into vector loads and stores (a read k pixels away is k x C
+  elements away).  Otherwise a work-item computes
+  a pixel's channels together and stores them as one vector (vstore3 for three).
+- Work split from device facts (schedule()): on a CPU device a work-item takes a
+  contiguous run of the row (the compiler vectorizes the straight-line loop over it);
+  on a GPU adjacent work-items take adjacent elements (coalesced).  Work-groups cover
+  ``tile`` whole rows, their block_y threads taking the rows in turn.
 """
 
 from __future__ import annotations
 
+import re
+
 from ...ir import GroupNode
 from ...model import DTYPES, Endpoint
-from .convention import group_parameters
+from ...snippet import accessor_calls, is_name, is_shifted, uses_outside_calls
 
 VECTOR_WIDTHS = (2, 3, 4, 8, 16)  # OpenCL C vector types: a pixel stored at once
 
+BORDER_RULES = {
+    "reflect101": [
+        "// OpenCV's BORDER_REFLECT_101 (gfedcb|abcdefgh|gfedcba) of position p in 0..n-1",
+        "static inline int _reflect101(int p, const int n)",
+        "{",
+        "    if (n == 1)",
+        "        return 0;",
+        "    const int period = 2 * (n - 1);",
+        "    p = (p < 0 ? -p : p) % period;",
+        "    return p < n ? p : period - p;",
+        "}",
+        ""],
+    "clamp": [
+        "// the nearest position in 0..n-1 (BORDER_REPLICATE)",
+        "static inline int _clamp(const int p, const int n)",
+        "{",
+        "    return p < 0 ? 0 : p >= n ? n - 1 : p;",
+        "}",
+        ""],
+}
 
-def group_kernel(group: GroupNode, header: str) -> str:
+# Built-in functions a snippet calls, as inline code the compiler sees through.  On a CPU
+# device (PoCL) a call to the library's min(), max(), fabs(), fma() or convert_*_sat_rte()
+# keeps the loop over a row from being vectorized: ErodeGray with min() took 2.8 ms a
+# 640x360 frame, the same with these 0.05 ms.  Same results as the built-ins: fma stays
+# fused (the compiler's own fma intrinsic), rounding is to nearest even, NaN converts to 0.
+_SCALARS = ("uchar", "char", "ushort", "short", "uint", "int", "float")
+_OVERLOADED = "static inline __attribute__((overloadable))"
+HELPERS: dict[str, list[str]] = {
+    "min": [f"{_OVERLOADED} {t} _min(const {t} a, const {t} b) {{ return a < b ? a : b; }}"
+            for t in _SCALARS],
+    "max": [f"{_OVERLOADED} {t} _max(const {t} a, const {t} b) {{ return a > b ? a : b; }}"
+            for t in _SCALARS],
+    "clamp": [f"{_OVERLOADED} {t} _clamp3(const {t} v, const {t} lo, const {t} hi) "
+              "{ return v < lo ? lo : v > hi ? hi : v; }" for t in _SCALARS],
+    "fabs": ["static inline float _fabs(const float v) { return v < 0.0f ? -v : v; }"],
+    "fma": ["#ifdef __clang__",
+            "#define _fma(a, b, c) __builtin_fmaf((a), (b), (c))",
+            "#else",
+            "#define _fma(a, b, c) fma((a), (b), (c))",
+            "#endif"],
+    "convert_uchar_sat_rte": [
+        "#ifdef __clang__",
+        "#define _rint(v) __builtin_rintf(v)",
+        "#else",
+        "#define _rint(v) rint(v)",
+        "#endif",
+        "static inline uchar _convert_uchar_sat_rte(float v)",
+        "{",
+        "    v = v >= 0.0f ? v : 0.0f;  /* NaN too */",
+        "    return (uchar)_rint(v <= 255.0f ? v : 255.0f);",
+        "}"],
+}
+HELPER_NAMES = {"min": "_min", "max": "_max", "clamp": "_clamp3", "fabs": "_fabs",
+                "fma": "_fma", "convert_uchar_sat_rte": "_convert_uchar_sat_rte"}
+_CALL = re.compile(r"//[^\n]*|/\*.*?\*/|\b(" + "|".join(HELPER_NAMES) + r")(?=\s*\()",
+                   re.DOTALL)
+
+
+def inline_builtins(body: str, used: set[str]) -> str:
+    """The snippet with calls of HELPERS' built-ins renamed to the inline versions (words
+    in comments left alone); adds the names it renamed to used."""
+    def swap(m):
+        if m.group(1) is None:
+            return m.group(0)
+        used.add(m.group(1))
+        return HELPER_NAMES[m.group(1)]
+    return _CALL.sub(swap, body)
+
+
+def is_cpu(device) -> bool:
+    """Whether to schedule for a CPU OpenCL device (PoCL, Intel's runtime), from its facts:
+    a CPU keeps resident as many threads as one work-group holds (runtime/facts.py), a GPU
+    thousands.  No facts, or the 'portable' profile (any OpenCL 1.2 device, which the
+    default build runs on PoCL as often as on a GPU): the CPU schedule, correct on both."""
+    from ...device import PROFILES
+
+    if device is None or device == PROFILES["portable"]:
+        return True
+    return device.threads_per_compute_unit <= device.max_work_group_size
+
+
+def schedule(device) -> str:
+    """'runs' (a work-item a contiguous run of the row) on CPUs, 'strided' on GPUs."""
+    return "runs" if is_cpu(device) else "strided"
+
+
+def kernel_name(group: GroupNode) -> str:
+    """The entry point's name in the group's file."""
+    return group.name
+
+
+def preferred_settings(group: GroupNode, device) -> tuple[int, int, int, int]:
+    """(tile, block_x, block_y, block_z) the system prefers for the group's kernel."""
+    from ...passes.fuse import group_gpu_decl
+
+    return group_gpu_decl(device).prefer
+
+
+def launch_geometry(group: GroupNode, tile: int, bx: int, by: int):
+    """(global size, local size) of the group kernel's launch, as passes/lower.py makes it:
+    work-groups cover whole rows of the output."""
+    (out,) = group.outputs.values()
+    return (bx, -(-out.data.height // tile) * by, 1), (bx, by, 1)
+
+
+def group_of_one(ctype, params: dict, shapes: dict[str, tuple[int, int]], member: str = "m",
+                 name: str = "only") -> GroupNode:
+    """The group of one component (named member) of a fusable type, for ports of the
+    given (height, width) sizes: what the generator writes for the operation alone (the
+    tests and benchmarks/kernels.py run it)."""
+    from ...ir import ComponentNode, Data, Port
+    from ...runtime.sizes import Size
+
+    def port(p, direction, d):
+        h, w = shapes[p]
+        return Port(p, direction, "gpu", d.dtype, d.channels,
+                    Data(Size(h, w, d.channels), d.dtype))
+
+    ins = {p: port(p, "in", d) for p, d in ctype.inputs.items()}
+    outs = {p: port(p, "out", d) for p, d in ctype.outputs.items()}
+    node = ComponentNode(member, None, ins, outs, type=ctype, params=params, placement="gpu")
+    return GroupNode(name, None, {f"{member}_{p}": q for p, q in ins.items()}, outs,
+                     members=[node], feeds={f"{member}_{p}": Endpoint(member, p) for p in ins})
+
+
+def channel_flat(group: GroupNode) -> bool:
+    """Every member computes each channel alike, from the same channel of its inputs: a
+    row of W pixels of C channels is W x C elements computed alike.  True where every
+    member is pointwise or a stencil, all ports have the same size and channels, every
+    read is port(..., ..., c) and the snippet uses x and c nowhere but in its reads."""
+    channels = {p.channels for m in group.members for p in (*m.inputs.values(),
+                                                              *m.outputs.values())}
+    sizes = {(p.data.height, p.data.width) for m in group.members
+             for p in (*m.inputs.values(), *m.outputs.values())}
+    if len(channels) != 1 or len(sizes) != 1:
+        return False
+    for m in group.members:
+        decl = m.type.fusable
+        calls = accessor_calls(decl.tree, list(m.inputs))
+        if any(len(args) != 3 or not is_name(args[2], "c") or not is_shifted(args[1], "x")
+               for found in calls.values() for args in found):
+            return False
+        if uses_outside_calls(decl.tree, list(m.inputs), {"x", "c"}):
+            return False
+    return True
+
+
+def margin(group: GroupNode) -> int | None:
+    """How far from the output's edges every read of the group is in range without
+    border rules (the stencil radii summed along the deepest path), or None where no
+    interior fast path applies: no stencil, an index map (it moves positions), or ports
+    of different sizes."""
+    forms = {m.type.fusable.form for m in group.members}
+    if "stencil" not in forms or "index_map" in forms:
+        return None
+    sizes = {(p.data.height, p.data.width) for m in group.members
+             for p in (*m.inputs.values(), *m.outputs.values())}
+    if len(sizes) != 1:
+        return None
+    depth: dict[str, int] = {}
+    for m in reversed(group.members):
+        consumers = [depth[e.target.component] for e in group.internal
+                     if e.source.component == m.name]
+        depth[m.name] = _radius(m) + max(consumers, default=0)
+    return max(depth.values())
+
+
+def _radius(m) -> int:
+    decl = m.type.fusable
+    if decl.form != "stencil":
+        return 0
+    r = decl.radius
+    return int(m.params.get(r, 0)) if isinstance(r, str) else int(r)
+
+
+def group_kernel(group: GroupNode, header: str, device=None) -> str:
+    from .convention import group_parameters
+
     params = group_parameters(group)
-    decls = [p.declaration() for p in params if p.role != "tile"]
-    args = [p.name for p in params if p.role != "tile"]
+    index = {m.name: i for i, m in enumerate(group.members)}
+    names = _param_names(group, params, index)
+    decls = [_declaration(p, names[p.name]) for p in params if p.role != "tile"]
+    args = [names[p.name] for p in params if p.role != "tile"]
     root = group.root
     (out_name, out_port), = group.outputs.items()
+    edge = margin(group)
+    stencils = any(m.type.fusable.form == "stencil" for m in group.members)
+    # flat stencils need the interior path: border rules apply to pixel positions
+    flat = channel_flat(group) and (edge is not None or not stencils)
     lines = [f"// {header}",
-             f"// Fused group {group.name}: one kernel for "
-             + ", ".join(f"{m.name} ({m.type.name}, {m.type.fusable.form})"
-                         for m in group.members) + ".",
+             *_comment(f"Group {group.name}: one kernel for "
+                       + ", ".join(f"{m.name} ({m.type.name}, {m.type.fusable.form})"
+                                   for m in group.members) + "."),
              (f"// It computes {root.name}.{out_name} from the group's inputs directly: no "
               "buffers between members."),
              "// Each member's snippet is a function of the element (y, x, c) it computes;",
              "// an input read <port>(y, x, c) calls the producing member, or loads from a",
              "// group input.  Sizes are constants: the system fixed them at build time.",
+             *_comment("Kernel arguments, in the calling convention's order: "
+                       + ", ".join(f"{names[p.name]} = {p.name}" for p in params
+                                   if p.role != "tile") + "."),
              "",
-             "#define GROUP_PARAMS \\",
+             *[line for rule, text in BORDER_RULES.items()
+               if any(m.type.fusable.form == "stencil" and m.type.fusable.border == rule
+                      for m in group.members) for line in text],
+             "#define _PARAMS \\",
              *(f"    {d}, \\" if i < len(decls) - 1 else f"    {d}" for i, d in enumerate(decls)),
              "",
-             "#define GROUP_ARGS \\",
+             "#define _ARGS \\",
              *(f"    {a}, \\" if i < len(args) - 1 else f"    {a}" for i, a in enumerate(args)),
              ""]
     feeds = {end: port for port, end in group.feeds.items()}
     producer = {e.target: e.source for e in group.internal}
-    for m in group.members:
-        lines += _member(m, feeds, producer)
-    lines += _kernel(group, out_name, out_port)
+    # (interior, channel-flat) versions of every member: without stencils one version,
+    # with them a border version in pixel coordinates and an interior one
+    versions = [(False, flat)] if edge is None else [(False, False), (True, flat)]
+    used: set[str] = set()
+    members = []
+    for interior, flat_version in versions:
+        for m in group.members:
+            members += _member(m, feeds, producer, index, names, flat_version, interior,
+                               used)
+    helpers = [line for name in HELPERS if name in used for line in HELPERS[name]]
+    if helpers:
+        lines += ["// built-ins the snippets call, inline (see fused.py: HELPERS)", *helpers, ""]
+    lines += members
+    lines += _kernel(group, out_name, out_port, names, flat, edge, schedule(device))
     return "\n".join(lines)
 
 
-def _member(m, feeds: dict[Endpoint, str], producer: dict[Endpoint, Endpoint]) -> list[str]:
+def _param_names(group, params, index) -> dict[str, str]:
+    """Each kernel parameter's name in the kernel text: generator namespace."""
+    names, inputs = {}, 0
+    for p in params:
+        if p.role == "input":
+            names[p.name] = f"_in{inputs}"
+            inputs += 1
+        elif p.role == "output":
+            names[p.name] = "_out"
+        elif p.role == "param":
+            member, pname = p.param.split(".", 1)
+            names[p.name] = f"_m{index[member]}_{pname}"
+        else:
+            names[p.name] = "_tile"
+    return names
+
+
+def _declaration(p, name: str) -> str:
+    if p.kind == "buffer":
+        const = "const " if p.role == "input" else ""
+        return f"__global {const}{p.c_type} *restrict {name}"
+    return f"const {p.c_type} {name}"
+
+
+def _function(name: str, index, interior: bool) -> str:
+    """The generated function of member name: its interior version ends '_in'."""
+    return f"_m{index[name]}_{name}" + ("_in" if interior else "")
+
+
+def _member(m, feeds: dict[Endpoint, str], producer: dict[Endpoint, Endpoint], index,
+            names, flat: bool, interior: bool, used: set[str]) -> list[str]:
     """A member's snippet as a function, between the macros of its input accessors."""
     decl = m.type.fusable
     ctype = DTYPES[next(iter(m.outputs.values())).dtype][1]
+    what = "interior: no border rule" if interior else "every element"
     lines = [f"// {m.name}: {m.type.name} ({decl.form}"
              + (f", radius {decl.radius}, border {decl.border}" if decl.form == "stencil"
-                else "") + ")"]
+                else "") + f"); {what}"]
     macros = []
     for pname, port in m.inputs.items():
         src = producer.get(Endpoint(m.name, pname))
+        h, w = port.data.height, port.data.width
         yy, xx = "(y_)", "(x_)"
-        if decl.form == "stencil" and decl.border == "clamp":
-            h, w = port.data.height, port.data.width
-            yy, xx = f"clamp((y_), 0, {h - 1})", f"clamp((x_), 0, {w - 1})"
+        if decl.form == "stencil" and not interior:
+            rule = "_reflect101" if decl.border == "reflect101" else "_clamp"
+            yy, xx = f"{rule}((y_), {h})", f"{rule}((x_), {w})"
+        if flat and port.channels > 1:
+            # x is the element's place in the row of W x C: a read dx pixels away is
+            # dx x C elements away, the same channel
+            xx = f"(x + ((x_) - x) * {port.channels})"
         if src is not None:
-            body = f"{src.component}(GROUP_ARGS, {yy}, {xx}, (c_))"
+            body = f"{_function(src.component, index, interior)}(_ARGS, {yy}, {xx}, (c_))"
         else:
-            buf = feeds[Endpoint(m.name, pname)]
-            body = f"{buf}[{port.channels} * ((size_t){yy} * {port.data.width} + {xx}) + (c_)]"
+            buf = names[feeds[Endpoint(m.name, pname)]]
+            if flat:
+                body = f"{buf}[(size_t){yy} * {w * port.channels} + {xx}]"
+            else:
+                body = (f"{buf}[{port.channels} * ((size_t){yy} * {w} + {xx}) + (c_)]"
+                        if port.channels > 1 else f"{buf}[(size_t){yy} * {w} + {xx}]")
         macros.append(pname)
         lines.append(f"#define {pname}(y_, x_, c_) {body}")
-    lines.append(f"static inline {ctype} {m.name}(GROUP_PARAMS, const int y, const int x, "
-                 "const int c)")
+    lines.append(f"static inline {ctype} {_function(m.name, index, interior)}(_PARAMS, "
+                 "const int y, const int x, const int c)")
     lines.append("{")
     for pname, port in {**m.inputs, **m.outputs}.items():
         lines.append(f"    const int {pname}_height = {port.data.height}, "
                      f"{pname}_width = {port.data.width};")
     for pname, pdecl in m.type.params.items():
         c = "float" if pdecl.type == "float" else "int"
-        lines.append(f"    const {c} {pname} = {m.name}_{pname};")
-    for line in decl.body.splitlines():
+        lines.append(f"    const {c} {pname} = _m{index[m.name]}_{pname};")
+    # printed from the parsed snippet; built-in calls swapped for their inline versions
+    for line in inline_builtins("\n".join(decl.lines()), used).splitlines():
         lines.append(f"    {line}".rstrip())
     lines.append("}")
     lines += [f"#undef {p}" for p in macros]
@@ -104,45 +357,101 @@ def _member(m, feeds: dict[Endpoint, str], producer: dict[Endpoint, Endpoint]) -
     return lines
 
 
-def _kernel(group: GroupNode, out_name: str, out_port) -> list[str]:
-    """The kernel: rows of the output, a run of pixels per work-item, a pixel at once."""
+def _kernel(group: GroupNode, out_name: str, out_port, names, flat: bool,
+            edge: int | None, how: str) -> list[str]:
+    """The kernel: rows of the output; the row's elements split among block_x threads."""
+    index = {m.name: i for i, m in enumerate(group.members)}
     root = group.root
     channels = out_port.channels
     out_c = DTYPES[out_port.dtype][1]
-    out_buf = f"{root.name}_{out_name}"
     h, w = out_port.data.height, out_port.data.width
-    call = f"{root.name}(GROUP_ARGS, y, x, {{c}})"
-    if channels == 1:
-        store = ["            row[x] = " + call.format(c=0) + ";"]
+    per_row = w * channels if flat else w
+    stride = w * channels
+
+    def store(fn: str, indent: str, pixel: bool = False) -> list[str]:
+        call = f"{fn}(_ARGS, _y, _x, {{c}})"
+        if flat and pixel and channels > 1:  # an element of the flat row, by pixel
+            return [f"{indent}_row[_x] = {fn}(_ARGS, _y, _x / {channels}, _x % {channels});"]
+        if flat or channels == 1:
+            return [f"{indent}_row[_x] = " + call.format(c=0) + ";"]
+        if channels in VECTOR_WIDTHS:
+            values = ", ".join(call.format(c=c) for c in range(channels))
+            return [f"{indent}vstore{channels}(({out_c}{channels})(",
+                    *_wrap(values, indent + "    "), f"{indent}    _x, _row);"]
+        return [f"{indent}for (int _c = 0; _c < {channels}; _c++)",
+                f"{indent}    _row[{channels} * _x + _c] = " + call.format(c="_c") + ";"]
+
+    border = _function(root.name, index, False)
+    inner = _function(root.name, index, True)
+    if flat:
+        what = f"{channels} channel{'s' if channels > 1 else ''} as {per_row} elements a row"
+    elif channels == 1:
         what = "one channel"
     elif channels in VECTOR_WIDTHS:
-        values = ", ".join(call.format(c=c) for c in range(channels))
-        store = [f"            vstore{channels}(({out_c}{channels})(",
-                 *_wrap(values, " " * 16), "                x, row);"]
         what = f"{channels} channels stored as one {out_c}{channels}"
     else:
-        store = [f"            for (int c = 0; c < {channels}; c++)",
-                 f"                row[{channels} * x + c] = " + call.format(c="c") + ";"]
         what = f"{channels} channels"
-    return [
-        f"// {h} rows of {w} pixels, {what} a pixel.  Work-group g computes the rows",
-        "// [g * tile, g * tile + tile); its block_y threads take them in turn, its block_x",
-        "// threads each a contiguous run of pixels of the row.",
-        f"__kernel void {group.name}(GROUP_PARAMS, const int tile)",
+    split = ("its block_x threads each a contiguous run of the row" if how == "runs" else
+             "its block_x threads adjacent elements of the row, in turn")
+    lines = _comment(f"{h} rows of {w} pixels, {what}.  Work-group g computes the rows "
+                     "[g * tile, g * tile + tile); its block_y threads take them in turn, "
+                     f"{split}.")
+    if edge is not None:
+        lines += _comment(f"Elements {edge} or more from every edge read inside the frame: "
+                          "the interior version, without border rules, computes them.")
+    lines += [
+        f"__kernel void {group.name}(_PARAMS, const int _tile)",
         "{",
-        "    const int y0 = get_group_id(1) * tile;",
-        f"    const int y1 = min(y0 + tile, {h});",
-        "    const int nx = get_local_size(0);",
-        f"    const int per = ({w} + nx - 1) / nx;",
-        f"    const int x0 = min((int)get_local_id(0) * per, {w});",
-        f"    const int x1 = min(x0 + per, {w});",
-        "    for (int y = y0 + get_local_id(1); y < y1; y += get_local_size(1)) {",
-        f"        __global {out_c} *row = {out_buf} + (size_t)y * {w * channels};",
-        "        for (int x = x0; x < x1; x++)",
-        *store,
-        "    }",
-        "}",
-        ""]
+        "    const int _y0 = get_group_id(1) * _tile;",
+        f"    const int _y1 = min(_y0 + _tile, {h});",
+        "    const int _nx = get_local_size(0);"]
+    if how == "runs":
+        lines += [f"    const int _per = ({per_row} + _nx - 1) / _nx;",
+                  f"    const int _x0 = min((int)get_local_id(0) * _per, {per_row});",
+                  f"    const int _x1 = min(_x0 + _per, {per_row});"]
+    lines += ["    for (int _y = _y0 + get_local_id(1); _y < _y1; _y += get_local_size(1)) {",
+              f"        __global {out_c} *_row = _out + (size_t)_y * {stride};"]
+    if how == "runs":
+        loop = "for (int _x = {a}; _x < {b}; _x++)"
+        if edge is None:
+            lines += ["        " + loop.format(a="_x0", b="_x1"), *store(border, " " * 12)]
+        else:
+            k = channels if flat else 1  # elements a pixel
+            lo, hi = edge * k, max(edge, w - edge) * k
+            lines += [f"        if (_y >= {edge} && _y < {h - edge}) {{",
+                      "            " + loop.format(a="_x0", b=f"min(_x1, {lo})"),
+                      *store(border, " " * 16, True),
+                      "            " + loop.format(a=f"max(_x0, {lo})",
+                                                   b=f"min(_x1, {(w - edge) * k})"),
+                      *store(inner, " " * 16),
+                      "            " + loop.format(a=f"max(_x0, {hi})", b="_x1"),
+                      *store(border, " " * 16, True),
+                      "        } else {",
+                      "            " + loop.format(a="_x0", b="_x1"),
+                      *store(border, " " * 16, True),
+                      "        }"]
+    else:
+        loop = f"for (int _x = get_local_id(0); _x < {per_row}; _x += _nx)"
+        if edge is None:
+            lines += ["        " + loop, *store(border, " " * 12)]
+        else:
+            k = channels if flat else 1
+            lines += [f"        const bool _inside = _y >= {edge} && _y < {h - edge};",
+                      "        " + loop + " {",
+                      f"            if (_inside && _x >= {edge * k} && _x < {(w - edge) * k})",
+                      *store(inner, " " * 16),
+                      "            else",
+                      *store(border, " " * 16, True),
+                      "        }"]
+    lines += ["    }", "}", ""]
+    return lines
+
+
+def _comment(text: str, width: int = 92) -> list[str]:
+    """A '//' comment over lines of at most width characters."""
+    import textwrap
+
+    return ["// " + line for line in textwrap.wrap(text, width - 3, break_on_hyphens=False)]
 
 
 def _wrap(text: str, indent: str, width: int = 92) -> list[str]:

@@ -122,8 +122,14 @@ class ModelPath(str):
     printed as a call that resolves it when the program runs, wherever it is started."""
 
 
+class ParamRef(str):
+    """A parameter --set may change: printed as its entry of run()'s `params`."""
+
+
 def py_literal(value) -> str:
     """A Python literal for a model value (escaped: no model text becomes code)."""
+    if isinstance(value, ParamRef):
+        return f"params[{str(value)!r}]"
     if isinstance(value, ModelPath):
         return f"runtime.model_path(__file__, {str(value)!r})"
     if isinstance(value, (bool, int, float, str)) or value is None:
@@ -182,6 +188,21 @@ def source_path(model_file: Path, out_dir: Path) -> str:
 URI = re.compile(r"[A-Za-z][A-Za-z0-9+.-]*:")  # e.g. a camera's device:0, not a path
 
 
+FILE_URI = re.compile(r"(file|mcap|rosbag)://(?!/)")  # a file URI with a relative path
+
+
+def relative_to_program(value: str, model_dir: str):
+    """A path (or a file URI's path) relative to the model, as seen from the program."""
+    m = FILE_URI.match(value)
+    if m:
+        path, q, query = value[m.end():].partition("?")
+        return ModelPath(f"{m.group(0)}{posixpath.normpath(posixpath.join(model_dir, path))}"
+                         f"{q}{query}")
+    if posixpath.isabs(value) or URI.match(value):
+        return value
+    return ModelPath(posixpath.normpath(posixpath.join(model_dir, value)))
+
+
 def with_model_paths(system: System, plan: ProgramPlan, model_dir: str) -> ProgramPlan:
     """The plan with every relative 'path' parameter made relative to the program's folder
     (model_dir: the model's folder as seen from there), so that it names the same file
@@ -190,13 +211,77 @@ def with_model_paths(system: System, plan: ProgramPlan, model_dir: str) -> Progr
     for part in plan.parts:
         node = system.nodes.get(part.name)
         decls = getattr(getattr(node, "type", None), "params", {})
-        params = tuple(
-            (k, ModelPath(posixpath.normpath(posixpath.join(model_dir, v))))
-            if decls.get(k) is not None and decls[k].type == "path" and isinstance(v, str)
-            and v and not posixpath.isabs(v) and not URI.match(v) else (k, v)
-            for k, v in part.params)
+        params = tuple((k, relative_to_program(v, model_dir))
+                       if decls.get(k) is not None and decls[k].type in ("path", "input")
+                       and isinstance(v, str) and v else (k, v)
+                       for k, v in part.params)
         parts.append(dataclasses.replace(part, params=params))
     return dataclasses.replace(plan, parts=parts)
+
+
+@dataclass(frozen=True)
+class Settable:
+    """A parameter the program's --set may change when it starts: one that no size,
+    requirement or compiled kernel depends on."""
+
+    key: str  # 'component.param'
+    type: str  # the declaration's type
+    value: object  # the model's value (a literal, or a ModelPath)
+    minimum: float | None = None
+    maximum: float | None = None
+
+    def arguments(self) -> list[str]:
+        """runtime.Param's arguments: type, value, and the bounds the declaration has."""
+        return [repr(self.type), py_literal(self.value)] + [
+            f"{k}={v!r}" for k, v in (("minimum", self.minimum), ("maximum", self.maximum))
+            if v is not None]
+
+
+def size_names(t) -> set[str]:
+    """The parameters a type's output sizes or requirements name: fixed at build time."""
+    import ast
+
+    exprs = [e for d in t.outputs.values() for e in (d.height, d.width) if e is not None]
+    exprs += [check for check, _ in t.requires]
+    return {n.id for e in exprs for n in ast.walk(e) if isinstance(n, ast.Name)}
+
+
+def with_settable_params(system: System, plan: ProgramPlan) -> tuple[ProgramPlan, list]:
+    """The plan with every settable parameter printed as params['component.param'], and
+    the declarations of those parameters (the program's PARAMS table)."""
+    settable: dict[str, Settable] = {}
+
+    def declare(key: str, t, pname: str, value) -> bool:
+        decl = t.params.get(pname)
+        if decl is None or pname in size_names(t):
+            return False
+        settable[key] = Settable(key, decl.type, value, decl.minimum, decl.maximum)
+        return True
+
+    parts = []
+    for part in plan.parts:
+        t = getattr(system.nodes.get(part.name), "type", None)
+        if t is None:
+            parts.append(part)
+            continue
+        params = tuple((k, ParamRef(f"{part.name}.{k}"))
+                       if declare(f"{part.name}.{k}", t, k, v) else (k, v)
+                       for k, v in part.params)
+        parts.append(dataclasses.replace(part, params=params))
+    launches = []
+    for la in plan.launches:
+        node = system.nodes[la.part]
+        args = []
+        for a in la.arguments:
+            if a.param:
+                owner, pname = a.param.split(".", 1)
+                member = node if owner == la.part else node.member(owner)
+                if declare(a.param, member.type, pname, a.value):
+                    a = dataclasses.replace(a, value=ParamRef(a.param))  # noqa: PLW2901
+            args.append(a)
+        launches.append(dataclasses.replace(la, arguments=tuple(args)))
+    plan = dataclasses.replace(plan, parts=parts, launches=launches)
+    return plan, sorted(settable.values(), key=lambda s: s.key)
 
 
 def render(system: System, source: str, model_dir: str = ".") -> list[OutputFile]:
@@ -204,6 +289,7 @@ def render(system: System, source: str, model_dir: str = ".") -> list[OutputFile
     kernel and user Python file once, whatever number of types use it).  model_dir: the
     model's folder relative to the output folder ('path' parameters start there)."""
     plan: ProgramPlan = with_model_paths(system, system.plan, model_dir)
+    plan, settable = with_settable_params(system, plan)
     env = environment()
     model = system.model
     lib = lib_dir_name(system.name)
@@ -256,7 +342,7 @@ def render(system: System, source: str, model_dir: str = ".") -> list[OutputFile
                                     "// built at start-up to check it.\n\n" + t.kernel_text))
     for g in system.groups:
         name = plan.lib_files_of(lib_key(g.type))
-        files.append(OutputFile(PurePosixPath(lib, name), group_kernel(g, header)))
+        files.append(OutputFile(PurePosixPath(lib, name), group_kernel(g, header, system.device)))
     from ...plan import plan_lines
 
     model_folder = model.file.resolve().parent
@@ -265,7 +351,7 @@ def render(system: System, source: str, model_dir: str = ".") -> list[OutputFile
     program = env.get_template("program.py.j2").render(
         header=header, sha256=model.text_sha256, inputs=inputs,
         description=model.description, lib=lib,
-        plan=plan, plan_lines=plan_lines(plan),
+        plan=plan, plan_lines=plan_lines(plan), settable=settable,
         sources=[n for n in system.order if isinstance(system.nodes[n], ComponentNode)])
     files.insert(0, OutputFile(PurePosixPath(f"{system.name}.py"), program))
     return files

@@ -1,0 +1,354 @@
+"""Independent numpy references for the library's OpenCV operations (tests only).
+
+The library's CPU forms (gpucompgen/library/cpu_kernels.py) call OpenCV, so comparing
+them with cv2 would compare OpenCV with itself. These functions compute each operation
+from its definition in plain numpy, whole-array operations, following OpenCV's 8-bit
+algorithms (fixed-point colour weights, division tables, binomial weights with
+BORDER_REFLECT_101, round half to even after a float32 fma): tests/test_imgproc.py
+compares the CPU forms and the OpenCL kernels with them on small frames and photographs.
+They were the library's CPU forms before it called OpenCV (issue 24) and are slow: 5 to
+300 times cv2.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+# OpenCV's codes for Threshold's thresh_type and Resize's interpolation
+THRESH_BINARY, THRESH_BINARY_INV, THRESH_TRUNC, THRESH_TOZERO, THRESH_TOZERO_INV = range(5)
+INTER_NEAREST, INTER_LINEAR = 0, 1
+# RGB2GRAY in fixed point, 16 fractional bits (OpenCV's 15-bit coefficients doubled)
+GRAY_R, GRAY_G, GRAY_B, GRAY_SHIFT = 19596, 38470, 7470, 16
+HSV_SHIFT = 12  # RGB2HSV's division tables: round(255 << 12 / v), round(180 << 12 / 6 diff)
+
+
+def rgb_to_gray(image: np.ndarray, *, out: np.ndarray | None = None) -> np.ndarray:
+    """RgbToGray: cv2.cvtColor(image, cv2.COLOR_RGB2GRAY), bit-exact.
+
+    gray = (19596 r + 38470 g + 7470 b + 2^15) >> 16: OpenCV's fixed-point weights
+    (0.299, 0.587, 0.114 in 1/65536), rounded half up.
+    """
+    _check_image("RgbToGray", "image", image, 3)
+    r, g, b = (image[..., i].astype(np.uint32) for i in range(3))
+    gray = (GRAY_R * r + GRAY_G * g + GRAY_B * b + (1 << (GRAY_SHIFT - 1))) >> GRAY_SHIFT
+    return _store(gray, out, "RgbToGray", "gray")
+
+
+def _div_table(numerator: int, per: int) -> np.ndarray:
+    """round(numerator / (per * i)) for i = 0..255 (0 for i = 0), in integers.
+
+    OpenCV rounds the double quotient half to even; for the two tables RGB2HSV uses no
+    quotient is a tie (2 numerator / (per i) is never an odd integer), so rounding half
+    up, as the kernel does, gives the same values.
+    """
+    i = np.arange(256, dtype=np.int64)
+    table = (2 * numerator + per * i) // np.maximum(2 * per * i, 1)
+    table[0] = 0
+    return table
+
+
+_SDIV = _div_table(255 << HSV_SHIFT, 1)  # saturation: diff * 255 / v
+_HDIV = _div_table(180 << HSV_SHIFT, 6)  # hue: (hue sector offset) * 180 / (6 diff)
+
+
+def rgb_to_hsv(image: np.ndarray, *, out: np.ndarray | None = None) -> np.ndarray:
+    """RgbToHsv: cv2.cvtColor(image, cv2.COLOR_RGB2HSV), bit-exact (8-bit: hue 0..179).
+
+    v = max(r, g, b), diff = v - min(r, g, b), s = (diff * round(255 * 4096 / v) + 2048)
+    >> 12, and the hue from the channel that is the maximum (r first, then g), scaled by
+    round(180 * 4096 / (6 diff)) and rounded the same way, 180 added when negative.
+    """
+    _check_image("RgbToHsv", "image", image, 3)
+    r, g, b = (image[..., i].astype(np.int32) for i in range(3))
+    v = np.maximum(np.maximum(r, g), b)
+    diff = v - np.minimum(np.minimum(r, g), b)
+    half = 1 << (HSV_SHIFT - 1)
+    s = (diff * _SDIV[v] + half) >> HSV_SHIFT
+    h = np.where(v == r, g - b, np.where(v == g, b - r + 2 * diff, r - g + 4 * diff))
+    h = (h * _HDIV[diff] + half) >> HSV_SHIFT
+    h += np.where(h < 0, 180, 0)
+    hsv = _output(out, image.shape, "RgbToHsv", "hsv")
+    hsv[..., 0], hsv[..., 1], hsv[..., 2] = h, s, v
+    return hsv
+
+
+def in_range(image: np.ndarray, *, out: np.ndarray | None = None, **bounds: int) -> np.ndarray:
+    """InRange / InRangeGray: cv2.inRange, bit-exact: 255 where every channel c has
+    lowerb_c <= value <= upperb_c, else 0; the mask is height x width.
+
+    Bounds as keywords: lowerb_0, lowerb_1, lowerb_2, upperb_0, upperb_1, upperb_2 for
+    three channels, lowerb and upperb for one.
+    """
+    planes = _planes("InRange", "image", image)
+    n = planes.shape[2]
+    names = ["lowerb", "upperb"] if n == 1 else [f"{w}_{c}" for w in ("lowerb", "upperb")
+                                                 for c in range(3)]
+    if sorted(bounds) != sorted(names):
+        raise TypeError(f"InRange: give the bounds {', '.join(names)}, not {sorted(bounds)}")
+    lower = [int(bounds[names[c]]) for c in range(n)]
+    upper = [int(bounds[names[n + c]]) for c in range(n)]
+    hit = np.ones(planes.shape[:2], bool)
+    for c in range(n):
+        hit &= (planes[..., c] >= lower[c]) & (planes[..., c] <= upper[c])
+    mask = _output(out, planes.shape[:2], "InRange", "mask")
+    return np.multiply(hit.view(np.uint8), 255, out=mask)
+
+
+def threshold(image: np.ndarray, *, thresh: int, maxval: int, thresh_type: int,
+              out: np.ndarray | None = None) -> np.ndarray:
+    """Threshold / ThresholdGray: cv2.threshold(image, thresh, maxval, thresh_type)[1],
+    bit-exact, every channel on its own; thresh_type is OpenCV's code: 0 BINARY
+    (p > thresh ? maxval : 0), 1 BINARY_INV, 2 TRUNC (min(p, thresh)), 3 TOZERO
+    (p > thresh ? p : 0), 4 TOZERO_INV."""
+    _planes("Threshold", "image", image)
+    thresh, maxval, kind = int(thresh), int(maxval), int(thresh_type)
+    if kind not in range(5):
+        raise ValueError(f"Threshold: thresh_type must be 0..4, not {kind}")
+    above = image > thresh
+    zero = np.zeros_like(image)
+    values = {THRESH_BINARY: np.where(above, np.uint8(maxval), zero),
+              THRESH_BINARY_INV: np.where(above, zero, np.uint8(maxval)),
+              THRESH_TRUNC: np.where(above, np.uint8(max(thresh, 0)), image),
+              THRESH_TOZERO: np.where(above, image, zero),
+              THRESH_TOZERO_INV: np.where(above, zero, image)}[kind]
+    return _store(values, out, "Threshold", "thresholded")
+
+
+def convert_scale(image: np.ndarray, *, alpha: float, beta: float,
+                  out: np.ndarray | None = None) -> np.ndarray:
+    """ConvertScale / ConvertScaleGray: cv2.convertScaleAbs(image, alpha=, beta=).
+
+    |fma(p, alpha, beta)| in float32 (one rounding, as OpenCV's vector code and the
+    kernel's fma compute it), rounded half to even and saturated to 0..255.
+    """
+    _planes("ConvertScale", "image", image)
+    return _store(_saturate(np.abs(_fma32(image, alpha, beta))), out, "ConvertScale", "scaled")
+
+
+def add_weighted(src1: np.ndarray, src2: np.ndarray, *, alpha: float, beta: float,
+                 gamma: float, out: np.ndarray | None = None) -> np.ndarray:
+    """AddWeighted / AddWeightedGray: cv2.addWeighted(src1, alpha, src2, beta, gamma).
+
+    fma(src1, alpha, fma(src2, beta, gamma)) in float32 (as OpenCV's vector code and the
+    kernel compute it), rounded half to even and saturated to 0..255.
+    """
+    _same_shape("AddWeighted", src1, src2)
+    inner = _fma32(src2, beta, gamma)
+    return _store(_saturate(_fma32(src1, alpha, inner)), out, "AddWeighted", "blended")
+
+
+def _fma32(a: np.ndarray, b: float, c) -> np.ndarray:
+    """fma(a, b, c) in float32 for uint8 a, float32 b and c: the exact a * b + c rounded
+    once to float32 (OpenCL's fma, correctly rounded).
+
+    a * b is exact in float64 (8 + 24 bits); the sum is rounded to float64 with "round to
+    odd" (a rounded sum that is not exact gets an odd last bit), after which rounding to
+    float32 is the correct rounding of the exact value (Boldo and Melquiond, 2008).
+    """
+    product = a.astype(np.float64) * np.float64(np.float32(b))
+    addend = np.asarray(c, np.float32).astype(np.float64)
+    total = product + addend
+    # the sum's rounding error (Knuth's TwoSum, exact in float64)
+    back = total - product
+    error = (product - (total - back)) + (addend - back)
+    bits = total.view(np.int64)
+    inexact_even = (error != 0) & (bits & 1 == 0)
+    toward = np.where(error > 0, np.inf, -np.inf)
+    total = np.where(inexact_even, np.nextafter(total, toward), total)
+    return total.astype(np.float32)
+
+
+def absdiff(src1: np.ndarray, src2: np.ndarray, *,
+            out: np.ndarray | None = None) -> np.ndarray:
+    """AbsDiff / AbsDiffGray: cv2.absdiff(src1, src2), bit-exact: |src1 - src2|."""
+    _same_shape("AbsDiff", src1, src2)
+    return _store(np.maximum(src1, src2) - np.minimum(src1, src2), out, "AbsDiff", "diff")
+
+
+def resize(image: np.ndarray, *, width: int, height: int, interpolation: int,
+           out: np.ndarray | None = None) -> np.ndarray:
+    """Resize / ResizeGray with 0 INTER_NEAREST: output column x reads column
+    floor(x * (1 / (width / image width))) computed in double, as OpenCV does (the exact
+    x * w / width differs where the double rounds an integer down), at most the last
+    column; rows alike.  (Bilinear Resize is numpy in the library itself.)"""
+    planes = _planes("Resize", "image", image)
+    assert int(interpolation) == INTER_NEAREST
+    rows = _nearest(int(height), planes.shape[0])
+    cols = _nearest(int(width), planes.shape[1])
+    return _store(_unplanes(planes[rows][:, cols], image), out, "Resize", "resized")
+
+
+def _nearest(dst: int, src: int) -> np.ndarray:
+    """OpenCV's INTER_NEAREST source index of each output index (double arithmetic)."""
+    scale = 1.0 / (dst / src)
+    return np.minimum(np.floor(np.arange(dst) * scale).astype(np.int64), src - 1)
+
+
+def flip_horizontal(image: np.ndarray, *, out: np.ndarray | None = None) -> np.ndarray:
+    """FlipHorizontal / FlipHorizontalGray: cv2.flip(image, 1), bit-exact."""
+    _planes("FlipHorizontal", "image", image)
+    return _store(image[:, ::-1], out, "FlipHorizontal", "flipped")
+
+
+def rotate180(image: np.ndarray, *, out: np.ndarray | None = None) -> np.ndarray:
+    """Rotate180 / Rotate180Gray: cv2.rotate(image, cv2.ROTATE_180), bit-exact."""
+    _planes("Rotate180", "image", image)
+    return _store(image[::-1, ::-1], out, "Rotate180", "rotated")
+
+
+GAUSSIAN_WEIGHTS = {3: (1, 2, 1), 5: (1, 4, 6, 4, 1)}  # OpenCV's fixed kernels, sigma 0
+
+
+def gaussian_blur(image: np.ndarray, *, ksize: int,
+                  out: np.ndarray | None = None) -> np.ndarray:
+    """GaussianBlur / GaussianBlurGray: cv2.GaussianBlur(image, (ksize, ksize), 0).
+
+    ksize 3 or 5: the binomial weights (1 2 1)/4 or (1 4 6 4 1)/16 along both axes,
+    borders BORDER_REFLECT_101 (OpenCV's default), the weighted sum rounded half up:
+    (sum + 8) >> 4 or (sum + 128) >> 8 (OpenCV's bit-exact fixed-point blur gives the
+    same).
+    """
+    planes = _planes("GaussianBlur", "image", image)
+    ksize = int(ksize)
+    if ksize not in GAUSSIAN_WEIGHTS:
+        raise ValueError(f"GaussianBlur: ksize must be 3 or 5, not {ksize}")
+    weights = GAUSSIAN_WEIGHTS[ksize]
+    total = _separable(planes, weights, weights, reflect101=True)
+    shift = 2 * (ksize - 1)  # the weights sum to 4 or 16 per axis
+    return _store(_unplanes((total + (1 << (shift - 1))) >> shift, image), out,
+                  "GaussianBlur", "blurred")
+
+
+def sobel(image: np.ndarray, *, dx: int, dy: int, out: np.ndarray | None = None) -> np.ndarray:
+    """Sobel / SobelGray: cv2.Sobel(image, cv2.CV_16S, dx, dy, ksize=3), bit-exact.
+
+    dx=1, dy=0: (-1 0 1) along rows times (1 2 1) down columns; dx=0, dy=1 the transpose;
+    borders BORDER_REFLECT_101.  Returns int16 (values -1020..1020).
+    """
+    planes = _planes("Sobel", "image", image)
+    dx, dy = int(dx), int(dy)
+    if (dx, dy) not in ((1, 0), (0, 1)):
+        raise ValueError(f"Sobel: give dx=1, dy=0 or dx=0, dy=1, not dx={dx}, dy={dy}")
+    derivative, smooth = (-1, 0, 1), (1, 2, 1)
+    kx, ky = (derivative, smooth) if dx else (smooth, derivative)
+    values = _unplanes(_separable(planes, kx, ky, reflect101=True), image)
+    if out is None:
+        return values.astype(np.int16)
+    if out.shape != values.shape or out.dtype != np.int16:
+        raise ValueError(f"Sobel: out= for 'gradient' must be int16 of shape "
+                         f"{values.shape}, not {out.dtype} {out.shape}")
+    np.copyto(out, values, casting="unsafe")
+    return out
+
+
+def erode(image: np.ndarray, *, out: np.ndarray | None = None) -> np.ndarray:
+    """Erode / ErodeGray: cv2.erode(image, np.ones((3, 3), np.uint8)), bit-exact: the
+    minimum of the 3x3 window, pixels outside the frame ignored (OpenCV's default border
+    for morphology), which is the same as repeating the edge."""
+    return _window(image, "Erode", "eroded", np.min, out)
+
+
+def dilate(image: np.ndarray, *, out: np.ndarray | None = None) -> np.ndarray:
+    """Dilate / DilateGray: cv2.dilate(image, np.ones((3, 3), np.uint8)), bit-exact: the
+    maximum of the 3x3 window, pixels outside the frame ignored."""
+    return _window(image, "Dilate", "dilated", np.max, out)
+
+
+def median_blur(image: np.ndarray, *, out: np.ndarray | None = None) -> np.ndarray:
+    """MedianBlur / MedianBlurGray: cv2.medianBlur(image, 3), bit-exact: the median of the
+    3x3 window, edges repeated (BORDER_REPLICATE, as OpenCV's medianBlur)."""
+    return _window(image, "MedianBlur", "median",
+                   lambda w, axis: np.sort(w, axis=axis).take(4, axis=axis), out)
+
+
+def _window(image, type_name, port, reduce, out=None) -> np.ndarray:
+    """reduce over the 3x3 window of every pixel, edges repeated."""
+    planes = _planes(type_name, "image", image)
+    height, width = planes.shape[:2]
+    padded = np.pad(planes, ((1, 1), (1, 1), (0, 0)), mode="edge")
+    stack = np.stack([padded[dy:dy + height, dx:dx + width]
+                      for dy in range(3) for dx in range(3)])
+    return _store(_unplanes(reduce(stack, axis=0), image), out, type_name, port)
+
+
+def _reflect101(index: np.ndarray, n: int) -> np.ndarray:
+    """OpenCV's borderInterpolate for BORDER_REFLECT_101 (gfedcb|abcdefgh|gfedcba)."""
+    if n == 1:
+        return np.zeros_like(index)
+    index = index.copy()
+    while True:
+        low, high = index < 0, index >= n
+        if not (low.any() or high.any()):
+            return index
+        index[low] = -index[low]
+        index[high] = 2 * (n - 1) - index[high]
+
+
+def _separable(planes: np.ndarray, kx, ky, reflect101: bool) -> np.ndarray:
+    """Sum of w_y * w_x * pixel over the window (int32), borders reflected (101)."""
+    height, width = planes.shape[:2]
+    r = len(kx) // 2
+    rows = _reflect101(np.arange(-r, height + r), height)
+    cols = _reflect101(np.arange(-r, width + r), width)
+    padded = planes.astype(np.int32)[rows][:, cols]
+    across = sum(w * padded[:, i:i + width] for i, w in enumerate(kx) if w)
+    return sum(w * across[i:i + height] for i, w in enumerate(ky) if w)
+
+
+def _saturate(values: np.ndarray) -> np.ndarray:
+    """float32 -> uint8 as OpenCV's saturate_cast: round half to even, clamp to 0..255."""
+    return np.clip(np.rint(values), 0, 255).astype(np.uint8)
+
+
+def _planes(type_name: str, port: str, array: np.ndarray) -> np.ndarray:
+    """A one-channel (height x width) or three-channel image as height x width x c."""
+    if not isinstance(array, np.ndarray) or array.dtype != np.uint8:
+        dtype = getattr(array, "dtype", type(array).__name__)
+        raise TypeError(f"{type_name}: '{port}' must be a uint8 numpy array, not {dtype}")
+    if array.ndim == 2 and 0 not in array.shape:
+        return array[..., None]
+    _check_image(type_name, port, array, 3)
+    return array
+
+
+def _unplanes(values: np.ndarray, like: np.ndarray) -> np.ndarray:
+    return values[..., 0] if like.ndim == 2 else values
+
+
+def _same_shape(type_name: str, src1: np.ndarray, src2: np.ndarray) -> None:
+    _planes(type_name, "src1", src1)
+    _planes(type_name, "src2", src2)
+    if src1.shape != src2.shape:
+        raise ValueError(f"{type_name}: src1 and src2 must have the same size, not "
+                         f"{src1.shape} and {src2.shape}")
+
+
+# -- helpers --------------------------------------------------------------------------
+def _check_image(type_name: str, port: str, array: np.ndarray, channels: int) -> None:
+    if not isinstance(array, np.ndarray) or array.dtype != np.uint8:
+        raise TypeError(f"{type_name}: '{port}' must be a uint8 numpy array")
+    if array.ndim != 3 or array.shape[2] != channels or 0 in array.shape:
+        raise ValueError(f"{type_name}: '{port}' must be height x width x {channels}")
+
+
+def _output(out, shape, type_name, port):
+    return np.empty(shape, np.uint8) if out is None else out
+
+
+def _store(values, out, type_name, port):
+    if out is None:
+        return np.ascontiguousarray(values, dtype=np.uint8)
+    np.copyto(out, values, casting="unsafe")
+    return out
+
+
+REFERENCES = {
+    "RgbToGray": rgb_to_gray,
+    "RgbToHsv": rgb_to_hsv,
+    **{f"{name}{suffix}": function for suffix in ("", "Gray") for name, function in (
+        ("InRange", in_range), ("Threshold", threshold), ("ConvertScale", convert_scale),
+        ("Resize", resize), ("FlipHorizontal", flip_horizontal),
+        ("Rotate180", rotate180), ("GaussianBlur", gaussian_blur), ("Sobel", sobel),
+        ("Erode", erode), ("Dilate", dilate), ("MedianBlur", median_blur),
+        ("AbsDiff", absdiff), ("AddWeighted", add_weighted))},
+}

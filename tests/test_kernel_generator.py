@@ -1,0 +1,225 @@
+"""The kernel generator (backend/opencl/fused.py) and the fusion cost model (passes/fuse.py).
+
+- Names: whatever the model calls its components (like a port, like the generated
+  kernel's own locals and macros, like a snippet's locals), every group kernel compiles
+  and gives the bytes of the unfused program: the generator's names live in their own
+  namespace (a leading underscore, which model names cannot have).  Hypothesis draws the
+  names from a hostile pool.
+- The cost model: every group chosen is estimated cheaper than its members apart, plan
+  reports exactly the groups chosen with their estimate, and a chain of index maps that
+  each read their input many times is refused rather than fused into an explosion.
+"""
+
+from __future__ import annotations
+
+import itertools
+from pathlib import Path
+
+import numpy as np
+import pytest
+from conftest import load_generated, require_opencl
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from gpucompgen.build import compile_model, write
+
+# names the generated kernels used (or use) for themselves, the library snippets' locals,
+# the ports of the types below, OpenCL-ish words a model may use
+HOSTILE = ["image", "row", "tile", "y0", "y1", "x0", "x1", "per", "nx", "x", "y", "c", "a", "b",
+           "GROUP_ARGS", "GROUP_PARAMS", "src1", "src2", "diff", "eroded", "mirrored",
+           "flipped", "rotated", "t", "p4", "r0", "h2", "w1", "shift", "m0", "in0",
+           "out", "reflect101", "thresholded", "only", "group", "m0_a", "a_b"]
+_built = itertools.count()
+
+CHAIN = """\
+system: hostile
+components:
+  {src}: {{type: StillImage, params: {{width: 23, height: 11}}}}
+  {n1}: {{type: FlipHorizontal}}
+  {n2}: {{type: Rotate180}}
+  {n3}: {{type: AbsDiff}}
+  {n4}: {{type: Erode}}
+  {n5}: {{type: VerticalMirror}}
+  {sink}: {{type: FrameSink}}
+connections:
+  - {src}.image -> {n1}.image
+  - {src}.image -> {n2}.image
+  - {n1}.flipped -> {n3}.src1
+  - {n2}.rotated -> {n3}.src2
+  - {n3}.diff -> {n4}.image
+  - {n4}.eroded -> {n5}.image
+  - {n5}.mirrored -> {sink}.image
+"""
+
+
+def _frames(model: Path, out: Path, fusion: str):
+    result = compile_model(model, out, fusion=fusion)
+    write(result, out)
+    module = load_generated(out / "hostile.py", f"hostile_{out.name}_{next(_built)}")
+    got = []
+    original = module.FrameSink.execute
+
+    def spy(self, *data):
+        got.extend(np.array(d, copy=True) for d in data)
+        return original(self, *data)
+
+    module.FrameSink.execute = spy
+    try:
+        module.run(frames=1)
+    finally:
+        module.FrameSink.execute = original
+    return result, got
+
+
+@settings(max_examples=6, deadline=None, suppress_health_check=[HealthCheck.too_slow,
+                                                                 HealthCheck.function_scoped_fixture])
+@given(st.lists(st.sampled_from(HOSTILE), min_size=7, max_size=7, unique=True))
+def test_hostile_component_names_compile_and_fuse_to_the_same_bytes(tmp_path_factory, names):
+    require_opencl()
+    keys = ("src", "n1", "n2", "n3", "n4", "n5", "sink")
+    folder = tmp_path_factory.mktemp("hostile")
+    model = folder / "m.yaml"
+    model.write_text(CHAIN.format(**dict(zip(keys, names))))
+    fused, got = _frames(model, folder / "fused", "auto")
+    assert fused.system.plan.groups, "the chain must fuse somewhere for the test to mean much"
+    _, expected = _frames(model, folder / "unfused", "off")
+    assert len(got) == len(expected) == 1
+    np.testing.assert_array_equal(got[0], expected[0])
+
+
+def test_a_group_is_never_named_like_a_component_of_the_model(tmp_path):
+    """b1 and mirror fuse into a group that would be named b1_mirror; the model has a
+    component b1_mirror elsewhere (itself fused away, into a group of its own)."""
+    model = tmp_path / "m.yaml"
+    model.write_text(
+        "system: s\ncomponents:\n"
+        "  src: {type: StillImage, params: {width: 16, height: 8}}\n"
+        "  b1: {type: Threshold}\n  mirror: {type: VerticalMirror}\n"
+        "  b1_mirror: {type: Threshold}\n  last: {type: VerticalMirror}\n"
+        "  s1: {type: FrameSink}\n  s2: {type: FrameSink}\n"
+        "connections:\n  - src.image -> b1.image\n  - b1.thresholded -> mirror.image\n"
+        "  - mirror.mirrored -> s1.image\n  - src.image -> b1_mirror.image\n"
+        "  - b1_mirror.thresholded -> last.image\n  - last.mirrored -> s2.image\n")
+    plan = compile_model(model, tmp_path / "out").system.plan
+    names = {g.part for g in plan.groups}
+    assert len(names) == 2
+    assert not names & {"b1", "mirror", "b1_mirror", "last", "src", "s1", "s2"}
+
+
+def test_every_group_chosen_is_estimated_cheaper_and_plan_reports_it(tmp_path):
+    from gpucompgen.plan import plan_lines
+
+    root = Path(__file__).resolve().parent.parent
+    for path in sorted((root / "models").glob("*.yaml")):
+        try:
+            result = compile_model(path, tmp_path / path.stem)
+        except Exception:  # noqa: BLE001 - models needing user files or devices
+            continue
+        plan = result.system.plan
+        text = "\n".join(plan_lines(plan))
+        for g in plan.groups:
+            assert g.estimate.startswith("estimate: "), g
+            fused, apart = (int(n.replace(",", "")) for n in
+                            __import__("re").findall(r"([\d,]+) element operations",
+                                                     g.estimate))
+            assert fused < apart, (path.name, g)
+            assert f"{g.part}: one kernel" in text
+        assert text.count(": one kernel (") == len(plan.groups)
+
+
+INDEX_MAP_40 = """\
+component_types:
+  Read40:
+    kind: gpu-aware
+    inputs:
+      image: {{memory: gpu, dtype: uint8, channels: 3}}
+    outputs:
+      out: {{memory: gpu, dtype: uint8, channels: 3}}
+    kernel: {{file: op.cl, function: op}}
+    fusable:
+      form: index_map
+      value: "{value}"
+"""
+
+
+def test_index_maps_that_read_many_times_are_not_fused_into_an_explosion(tmp_path):
+    """Issue 22: five chained index maps each reading their input 40 times fused into a
+    kernel that did not finish a 32x16 frame in 45 s: 40^5 evaluations an element."""
+    reads = " + ".join(f"image(y, (x + {k}) % image_width, c)" for k in range(40))
+    (tmp_path / "t.yaml").write_text(INDEX_MAP_40.format(value=f"({reads}) / 40"))
+    (tmp_path / "op.cl").write_text(
+        "__kernel void op(__global const uchar *image, __global uchar *out,\n"
+        "  const int image_height, const int image_width, const int out_height,\n"
+        "  const int out_width, const int tile) { }\n")
+    names = [f"r{i}" for i in range(5)]
+    model = tmp_path / "m.yaml"
+    model.write_text(
+        "system: s\ntypes: [t.yaml]\ncomponents:\n"
+        "  src: {type: StillImage, params: {width: 32, height: 16}}\n"
+        + "".join(f"  {n}: {{type: Read40}}\n" for n in names)
+        + "  sink: {type: FrameSink}\nconnections:\n  - src.image -> r0.image\n"
+        + "".join(f"  - r{i}.out -> r{i + 1}.image\n" for i in range(4))
+        + "  - r4.out -> sink.image\n")
+    plan = compile_model(model, tmp_path / "out").system.plan
+    assert not plan.groups
+    why = dict(plan.unfused)
+    assert why["r3.out -> r4.image"].startswith("cost model: with r3 ")
+    assert "40 times per output element" in why["r3.out -> r4.image"]
+
+
+@pytest.mark.parametrize("device,expected", [(None, "runs"), ("pocl-cpu", "runs"),
+                                             ("portable", "runs"),
+                                             ("nvidia-hopper", "strided")])
+def test_the_schedule_follows_the_device(device, expected):
+    from gpucompgen.backend.opencl.fused import schedule
+    from gpucompgen.device import PROFILES
+
+    assert schedule(PROFILES.get(device)) == expected
+
+
+STENCIL_CHAIN = """\
+system: hostile
+platform: {{device: {device}}}
+components:
+  src: {{type: StillImage, params: {{width: 23, height: 11}}}}
+  t: {{type: Threshold, params: {{thresh: 120, maxval: 255, thresh_type: 2}}}}
+  e: {{type: Erode}}
+  g: {{type: GaussianBlur, params: {{ksize: 5}}}}
+  sink: {{type: FrameSink}}
+connections:
+  - src.image -> t.image
+  - t.thresholded -> e.image
+  - e.eroded -> g.image
+  - g.blurred -> sink.image
+"""
+
+
+@pytest.mark.parametrize("device", ["portable", "nvidia-hopper"])
+def test_stencil_groups_interior_and_border_paths_give_the_same_bytes(tmp_path, device):
+    """A small frame: launches dominate, so the pointwise step and the stencils fuse, and
+    the group kernel has channel-flat interior and border versions, on both schedules."""
+    require_opencl()
+    model = tmp_path / "m.yaml"
+    model.write_text(STENCIL_CHAIN.format(device=device))
+    fused, got = _frames(model, tmp_path / "fused", "auto")
+    kernels = [p.read_text() for p in (tmp_path / "fused").rglob("group_*.cl")]
+    assert kernels and all("_in(_ARGS" in k for k in kernels)
+    _, expected = _frames(model, tmp_path / "off", "off")
+    np.testing.assert_array_equal(got[0], expected[0])
+
+
+def test_the_gpu_schedule_gives_the_same_bytes(tmp_path):
+    """The strided schedule (adjacent work-items, adjacent elements), built for a GPU's
+    facts, run here on whatever OpenCL device there is: the bytes of the unfused program.
+    The chain has a channel-flat stencil group (interior and border paths)."""
+    require_opencl()
+    names = dict(src="src", n1="n1", n2="n2", n3="n3", n4="n4", n5="n5", sink="sink")
+    text = CHAIN.format(**names).replace(
+        "components:", "platform: {device: nvidia-hopper}\ncomponents:", 1)
+    model = tmp_path / "m.yaml"
+    model.write_text(text)
+    fused, got = _frames(model, tmp_path / "gpu", "auto")
+    kernels = [p.read_text() for p in (tmp_path / "gpu").rglob("group_*.cl")]
+    assert kernels and all("_x += _nx" in k for k in kernels)
+    _, expected = _frames(model, tmp_path / "off", "off")
+    np.testing.assert_array_equal(got[0], expected[0])
