@@ -186,7 +186,7 @@ def _running(pid: int) -> bool:
 def build_inputs(model: SystemModel) -> list[Path]:
     """Every file the build reads (model.inputs: the model, type files, kernel, Python and
     CPU files, the profile once read; the library's files of the types it uses) and every
-    path parameter, resolved."""
+    path or input parameter's file or folder, resolved."""
     paths = list(model.inputs)
     for inst in model.components.values():
         t = inst.type
@@ -194,9 +194,29 @@ def build_inputs(model: SystemModel) -> list[Path]:
                   if f is not None]
         for pname, value in inst.params.items():
             decl = inst.type.params.get(pname)
-            if decl is not None and decl.type == "path" and isinstance(value, str) and value:
-                paths.append((model.file.parent / value).resolve())
+            if decl is not None and decl.type in ("path", "input") and \
+                    isinstance(value, str) and value:
+                local = _local_path(value)
+                if local:
+                    paths.append((model.file.parent / local).resolve())
     return paths
+
+
+FILE_SCHEMES = re.compile(r"(file|mcap|rosbag)://")
+OTHER_URI = re.compile(r"[A-Za-z][A-Za-z0-9+.-]*:")  # device:0, rtsp://, v4l2://...
+
+
+def _local_path(value: str) -> str:
+    """The file or folder a path or input parameter names ('' for a camera, a stream):
+    a file URI's path without its query, a glob's folder."""
+    m = FILE_SCHEMES.match(value)
+    if m:
+        value = value[m.end():].split("?", 1)[0]
+    elif OTHER_URI.match(value):
+        return ""
+    if any(c in value for c in "*?["):
+        value = os.path.dirname(value[:min(value.find(c) for c in "*?[" if c in value)])
+    return value or "."
 
 
 def refuse_replacing_inputs(result: BuildResult, out_dir: Path) -> None:

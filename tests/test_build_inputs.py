@@ -161,10 +161,14 @@ def test_a_build_never_replaces_its_own_inputs(tmp_path, types_at):
     assert {p: p.read_bytes() for p in tmp_path.rglob("*") if p.is_file()} == before
 
 
-def test_a_build_never_replaces_a_path_parameter(tmp_path):
+@pytest.mark.parametrize("folder", ["s_lib/photos", "s_lib/photos/*.png"])
+def test_a_build_never_replaces_a_path_parameter(tmp_path, folder):
+    from PIL import Image
+
     (tmp_path / "s_lib" / "photos").mkdir(parents=True)
+    Image.new("RGB", (16, 16)).save(tmp_path / "s_lib" / "photos" / "01.png")
     (tmp_path / "m.yaml").write_text(
-        "system: s\ncomponents:\n  cam: {type: Camera, params: {folder: s_lib/photos}}\n"
+        f"system: s\ncomponents:\n  cam: {{type: Camera, params: {{folder: '{folder}'}}}}\n"
         "  sink: FrameSink\nconnections: [cam.image -> sink.image]\n")
     proc = gpucompgen("build", "m.yaml", "-o", ".", "--overwrite", cwd=tmp_path)
     assert proc.returncode == 2 and "would replace s_lib/photos" in proc.stderr, proc.stderr
