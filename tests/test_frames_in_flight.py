@@ -388,8 +388,6 @@ def _kept(program: Path, tag: str, frames: int) -> dict[str, list[np.ndarray]]:
             if hasattr(comp, "frames") and isinstance(comp.frames, list)}
 
 
-@pytest.mark.xfail(strict=True, reason="issue 22: stage-frames gives buffer sets per node "
-                   "kind and misses a fused group's output read in a later stage")
 @pytest.mark.parametrize("n,execution", [(2, "parallel"), (3, "parallel"), (3, "sequential")])
 def test_two_fused_branches_each_downloaded_get_their_own_frames(tmp_path, n, execution):
     """Issue 22: each branch fused into a group (InRange -> ErodeGray), each downloaded to
@@ -412,3 +410,24 @@ def test_two_fused_branches_each_downloaded_get_their_own_frames(tmp_path, n, ex
         assert len(got[sink]) == len(want[sink]) == 12
         for f, (a, b) in enumerate(zip(got[sink], want[sink])):
             np.testing.assert_array_equal(a, b, err_msg=f"{sink} frame {f}")
+
+
+@pytest.mark.parametrize("zero_copy", ["off", "on"])
+def test_plan_says_why_every_buffer_has_its_sets_fused_or_not(tmp_path, zero_copy):
+    """The fused group's output read by a download in a later stage keeps N sets, as the
+    unfused component's does; every buffer says why it has its number of sets."""
+    from conftest import write_keep_types
+
+    write_keep_types(tmp_path)
+    model = tmp_path / "branches.yaml"
+    model.write_text(TWO_FUSED_BRANCHES, encoding="utf-8")
+    sets = {}
+    for fusion in ("auto", "off"):
+        result, program = _build(tmp_path, model, 2, zero_copy, fusion=fusion)
+        plan = result.system.plan
+        assert all(b.sets_why for b in plan.buffers), plan.buffers
+        sets[fusion] = {b.what: b.sets for b in plan.buffers}
+        text = program.read_text()
+        assert "buffer sets (2, one a frame in flight" in text
+    assert sets["auto"]["in2_erode2.eroded"] == sets["off"]["erode2.eroded"] == 2
+    assert "written in stage2, read in stage4 by adapter3_gpu2cpu" in text
