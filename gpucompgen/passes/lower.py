@@ -262,6 +262,7 @@ def lower(system: System) -> ProgramPlan:
     sources = [n for n in system.order if isinstance(system.nodes[n], ComponentNode)
                and not system.nodes[n].inputs and not system.nodes[n].on_gpu]
     pending_checks: list[Step] = []
+    head: list[Step] = []  # the sources' steps
     for name in system.order:
         node = system.nodes[name]
         in_vars = tuple(f"{system.input_var(Endpoint(name, p))}_size" for p in node.inputs)
@@ -352,10 +353,12 @@ def lower(system: System) -> ProgramPlan:
                               queue_of(name) if node.on_gpu else None,
                               programs.get(t.name) if node.on_gpu else None, params,
                               tuple(options), init_inputs=in_vars, init_outputs=outs))
-        steps.append(Step("execute", name,
-                          tuple(system.input_var(Endpoint(name, p)) for p in node.inputs),
-                          tuple(system.output_vars[Endpoint(name, p)] for p in node.outputs),
-                          tuple(system.waits.get(name, ())) if not standard else ()))
+        # the sources run first, whatever the schedule: the end of the stream is known
+        # before any part works on the frame (independent chains end together)
+        (head if name in sources else steps).append(Step(
+            "execute", name, tuple(system.input_var(Endpoint(name, p)) for p in node.inputs),
+            tuple(system.output_vars[Endpoint(name, p)] for p in node.outputs),
+            tuple(system.waits.get(name, ())) if not standard else ()))
         # what a CPU component returns is checked where it enters another part (a
         # source's after the end-of-stream test: None ends the stream there)
         checks = [Step("check", name, (system.output_vars[Endpoint(name, p)],),
@@ -370,14 +373,10 @@ def lower(system: System) -> ProgramPlan:
         for a in system.unmap_after.get(name, []):
             steps.append(Step("unmap", a, note=f"the device may write "
                               f"{system.nodes[a].source} again"))
-        if sources and name == sources[-1]:
-            ends = tuple(system.output_vars[Endpoint(s, p)] for s in sources
-                         for p in system.nodes[s].outputs)
-            if ends:
-                steps.append(Step("end_of_stream", inputs=ends))
-            steps += pending_checks
-            pending_checks = []
 
+    ends = tuple(system.output_vars[Endpoint(s, p)] for s in sources
+                 for p in system.nodes[s].outputs)
+    steps = head + ([Step("end_of_stream", inputs=ends)] if ends else []) + pending_checks + steps
     imports, user_classes = [], []
     for t in cpu_used_types(system):
         if t.origin == "library":
