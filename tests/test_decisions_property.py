@@ -57,6 +57,8 @@ DECISIONS = {
 REFERENCE = {"frames_in_flight": 1, "placement": "gpu", "fusion": "off", "zero_copy": "off",
              "staging": "pageable", "execution": "sequential", "mode": "gpu-aware"}
 NIGHTLY = os.environ.get("GPUCOMPGEN_PROPERTY_PROFILE", "") == "nightly"
+# systems drawn: 5 in the suite, 60 nightly (GPUCOMPGEN_PROPERTY_SYSTEMS=N overrides)
+SYSTEMS = int(os.environ.get("GPUCOMPGEN_PROPERTY_SYSTEMS", 60 if NIGHTLY else 5))
 
 
 def valid(row: dict) -> bool:
@@ -257,7 +259,7 @@ RACE_ROWS = [{**REFERENCE, "frames_in_flight": 2, "fusion": "auto", "execution":
              {**REFERENCE, "frames_in_flight": 3, "fusion": "auto"}]
 
 
-@settings(max_examples=60 if NIGHTLY else 5, deadline=None, derandomize=not NIGHTLY,
+@settings(max_examples=SYSTEMS, deadline=None, derandomize=not NIGHTLY,
           suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large,
                                  HealthCheck.function_scoped_fixture])
 @given(system=systems(), extra=extra_rows)

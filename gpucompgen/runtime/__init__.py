@@ -51,6 +51,7 @@ from .devices import (
 from .errors import PipelineError, Stopped
 from .frames import check_frame
 from .lifecycle import (
+    Parts,
     Result,
     component_failure,
     expect_size,
@@ -79,6 +80,7 @@ __all__ = [
     "KernelComponent",
     "KernelLimits",
     "Monitor",
+    "Parts",
     "PipelineError",
     "Profile",
     "Result",
