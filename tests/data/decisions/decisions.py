@@ -4,23 +4,21 @@ import time
 
 import numpy as np
 
-from gpucompgen.runtime import Size
-
 
 class Noise:
     def __init__(self, seed=1, width=8, height=8, frames=0):
-        self.seed, self.shape, self.frames = seed, Size(height, width, 3), frames
+        self.seed, self.shape, self.frames = seed, (height, width, 3), frames
         self.frame = 0
 
     def initialize(self):
-        return self.shape
+        return self.shape  # a plain tuple: the program makes it a Size
 
     def execute(self):
         if self.frames and self.frame >= self.frames:
             return None
         rng = np.random.default_rng([self.seed, self.frame])
         self.frame += 1
-        return rng.integers(0, 256, tuple(self.shape), dtype=np.uint8)
+        return rng.integers(0, 256, self.shape, dtype=np.uint8)
 
     def free_memory(self):
         pass
