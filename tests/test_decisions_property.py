@@ -58,7 +58,7 @@ REFERENCE = {"frames_in_flight": 1, "placement": "gpu", "fusion": "off", "zero_c
              "staging": "pageable", "execution": "sequential", "mode": "gpu-aware"}
 NIGHTLY = os.environ.get("GPUCOMPGEN_PROPERTY_PROFILE", "") == "nightly"
 # systems drawn: 5 in the suite, 60 nightly (GPUCOMPGEN_PROPERTY_SYSTEMS=N overrides)
-SYSTEMS = int(os.environ.get("GPUCOMPGEN_PROPERTY_SYSTEMS", 60 if NIGHTLY else 5))
+SYSTEMS = int(os.environ.get("GPUCOMPGEN_PROPERTY_SYSTEMS") or (60 if NIGHTLY else 5))
 
 
 def valid(row: dict) -> bool:

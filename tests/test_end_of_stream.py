@@ -81,10 +81,10 @@ class Counting:
         pass
 """
 
-VARIANTS = [dict(), dict(execution="sequential"), dict(frames_in_flight=2),
-            dict(frames_in_flight=3, execution="sequential"),
-            dict(frames_in_flight=3, places={"flipA": "cpu", "flipB": "cpu"}),
-            dict(places={"flipA": "cpu"}, frames_in_flight=2)]
+VARIANTS = [{}, {"execution": "sequential"}, {"frames_in_flight": 2},
+            {"frames_in_flight": 3, "execution": "sequential"},
+            {"frames_in_flight": 3, "places": {"flipA": "cpu", "flipB": "cpu"}},
+            {"places": {"flipA": "cpu"}, "frames_in_flight": 2}]
 
 
 def _program(folder: Path, text: str, tag: str, **options):
