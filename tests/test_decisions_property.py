@@ -159,16 +159,17 @@ def systems(draw):
             "frames": draw(st.sampled_from([0, 0, 3]))}}
         streams.append((f"src{i}.image", ("uint8", 3), (h, w)))
     read: set[str] = set()
-    for i in range(draw(st.integers(1, 6))):
+    for i in range(draw(st.integers(1, 7))):
         kinds = {s[1] for s in streams}
         usable = [n for n, t in types.items()
                   if all(_kind(p) in kinds for p in t.inputs.values())]
         tname = draw(st.sampled_from(usable))
         ctype = types[tname]
         feeds = []
-        for port in ctype.inputs.values():
+        for port in ctype.inputs.values():  # the newest stream half the time: chains
             fitting = [s for s in streams if s[1] == _kind(port)]
-            feeds.append(fitting[draw(st.integers(0, len(fitting) - 1))])
+            k = len(fitting) - 1
+            feeds.append(fitting[k if draw(st.booleans()) else draw(st.integers(0, k))])
         sizes = {p: f[2] for p, f in zip(ctype.inputs, feeds)}
         params = _params(draw, ctype)
         ints = {k: v for k, v in params.items() if ctype.params[k].type == "int"}
@@ -191,7 +192,7 @@ def systems(draw):
             read.add(feed[0])
         streams += [(f"{name}.{p}", _kind(decl), size) for p, decl, size in outs]
     for j, (end, (dtype, channels), _) in enumerate(streams):
-        if end not in read or (not end.startswith("src") and draw(st.booleans())):
+        if end not in read or (not end.startswith("src") and draw(st.integers(0, 3)) == 0):
             delay = draw(st.sampled_from([0.0, 0.0, 0.0, 0.002]))
             comps[f"sink{j}"] = {"type": f"Sink_{dtype}x{channels}",
                                  "params": {"delay": delay} if delay else {}}
@@ -239,11 +240,16 @@ def _rows(seed: str) -> list[dict]:
 
 
 # two more rows per system, drawn: across systems they reach combinations of more than two
-# decisions that the covering array leaves out (such as the race's five: 2+ frames in
-# flight, fusion, zero-copy off, GPU placement, GPU-aware mode)
-extra_rows = st.lists(st.fixed_dictionaries({k: st.sampled_from(v)
-                                             for k, v in DECISIONS.items()}).filter(valid),
-                      min_size=2, max_size=2)
+# decisions that the covering array leaves out.  One is any valid row; the other takes the
+# decisions that work on frames together at once — two or three frames in flight, fusion,
+# GPU-aware mode — with the rest drawn (the race of issue 22 needed five decisions at once:
+# frames in flight, fusion, zero-copy off, GPU placement, GPU-aware mode)
+_any_row = st.fixed_dictionaries({k: st.sampled_from(v)
+                                  for k, v in DECISIONS.items()}).filter(valid)
+_together = st.fixed_dictionaries({**{k: st.sampled_from(v) for k, v in DECISIONS.items()},
+                                   "frames_in_flight": st.sampled_from((2, 3)),
+                                   "fusion": st.just("auto"), "mode": st.just("gpu-aware")})
+extra_rows = st.tuples(_any_row, _together).map(list)
 
 # the race of issue 22: two fused branches, each downloaded to its own sink
 RACE = ({"src0": {"type": "Noise", "params": {"seed": 3, "width": 11, "height": 7}},
