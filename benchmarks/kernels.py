@@ -420,7 +420,7 @@ def main(argv=None) -> int:
                     ref(*arrays)
                     samples["cv2"].append(time.perf_counter() - t0)
         print(f"\n{size}: ms per call, median [IQR]; ratio = kernel / cv2")
-        print(f"| operation | cv2 | hand | ratio | generated | ratio |")
+        print("| operation | cv2 | hand | ratio | generated | ratio |")
         print("|---|---:|---:|---:|---:|---:|")
         for name, (variants, _, _, samples) in runs.items():
             c = _stats(samples["cv2"])

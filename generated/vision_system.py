@@ -132,8 +132,9 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
     fused_merger_detector_program = runtime.build_program(
         context, LIB_DIR / 'group_merger_detector.cl', 'merger_detector (FusedMergerDetector)')
 
-    # every component and adapter, filled in as it is constructed; freed in reverse order
-    parts = dict.fromkeys([
+    # every component and adapter, filled in as it is constructed; those initialized are
+    # freed once each, in reverse order
+    parts = runtime.Parts([
         'camera1',
         'camera2',
         'adapter1_cpu2gpu',
@@ -171,14 +172,17 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
         profiler = runtime.Profile(parts) if profile else None
 
         camera1_image_size = camera1.initialize()
-        runtime.expect_size('camera1.image', camera1_image_size, Size(480, 640, 3))
+        camera1_image_size = runtime.expect_size(
+            'camera1.image', camera1_image_size, Size(480, 640, 3))
         camera2_image_size = camera2.initialize()
-        runtime.expect_size('camera2.image', camera2_image_size, Size(480, 640, 3))
+        camera2_image_size = runtime.expect_size(
+            'camera2.image', camera2_image_size, Size(480, 640, 3))
         camera1_image_gpu_size = adapter1_cpu2gpu.initialize(camera1_image_size, np.uint8)
         camera2_image_gpu_size = adapter2_cpu2gpu.initialize(camera2_image_size, np.uint8)
         merger_detector_mask_size = merger_detector.initialize(
             camera1_image_gpu_size, camera2_image_gpu_size)
-        runtime.expect_size('merger_detector.mask', merger_detector_mask_size, Size(480, 1280, 1))
+        merger_detector_mask_size = runtime.expect_size(
+            'merger_detector.mask', merger_detector_mask_size, Size(480, 1280, 1))
         detector_mask_cpu_size = adapter3_gpu2cpu.initialize(merger_detector_mask_size, np.uint8)
         manager.initialize(detector_mask_cpu_size)
 

@@ -222,6 +222,7 @@ class System:
     flight_notes: list[str] = field(default_factory=list)
     flight_end_waits: list[list[str]] = field(default_factory=list)
     buffer_sets: dict[str, str] = field(default_factory=dict)
+    one_set: dict[str, str] = field(default_factory=dict)  # part -> why one set is enough
     plan: Any = None  # lower: the ProgramPlan
     # place: how the flexible components were placed (passes/place.py's Placement)
     placement: Any = None

@@ -26,6 +26,7 @@ class Buffer:
     memory: str  # "device" | "host" | "pinned host"
     data: Data
     sets: int = 1  # one per frame in flight where another stage reads it (stage-frames)
+    sets_why: str = ""  # with frames in flight: why it has that many sets
 
     @property
     def nbytes(self) -> int:
@@ -373,11 +374,12 @@ def flight_lines(plan: ProgramPlan) -> list[str]:
         lines.append(f"  {st.name} ({st.runs}): {', '.join(st.parts)}")
     for note in plan.flight_notes:
         lines.append(f"  merged: {note}")
-    if plan.buffer_sets:
-        lines.append(f"{n} buffer sets (one a frame in flight, used in turn) where a stage "
-                     "writes what another reads:")
-        for part, why in plan.buffer_sets:
-            lines.append(f"  {part}: {why}")
+    lines.append(f"buffer sets ({n}, one a frame in flight, used in turn, where one stage "
+                 "writes what")
+    lines.append("another reads; else 1):")
+    for b in plan.buffers:
+        lines += textwrap.wrap(f"{b.what}: {b.sets} ({b.sets_why})", 88, initial_indent="  ",
+                               subsequent_indent="    ", break_on_hyphens=False)
     lines.append(f"memory {n} frames in flight cost beyond one frame: "
                  f"{plan.extra_set_bytes('device'):,} device bytes, "
                  f"{plan.extra_set_bytes('host'):,} host bytes")

@@ -354,3 +354,80 @@ def test_camera_frames_are_those_of_adding_and_clipping_every_frame(seed, width,
     for frame in range(0, 240, 7):
         np.testing.assert_array_equal(cam.render(frame),
                                       _render_by_adding_and_clipping(cam, frame))
+
+
+# --- buffer sets for every kind of node ---------------------------------------------------
+
+TWO_FUSED_BRANCHES = """\
+system: two_fused_branches
+types: [keep.yaml]
+platform: {device: portable}
+components:
+  camera: {type: Camera, params: {seed: 3, width: 21, height: 17}}
+  in1: {type: InRange, params: {lowerb_0: 100}}
+  erode1: {type: ErodeGray}
+  in2: {type: InRange, params: {lowerb_1: 80}}
+  erode2: {type: ErodeGray}
+  keep1: {type: Keep1}
+  keep2: {type: Keep1}
+connections:
+  - camera.image -> in1.image
+  - camera.image -> in2.image
+  - in1.mask -> erode1.image
+  - in2.mask -> erode2.image
+  - erode1.eroded -> keep1.image
+  - erode2.eroded -> keep2.image
+"""
+
+
+def _kept(program: Path, tag: str, frames: int) -> dict[str, list[np.ndarray]]:
+    """Every frame each Keep sink got, in order (run in this process)."""
+    result = load_generated(program, f"flight_{tag}").run(
+        frames=frames, monitor=Monitor(progress=False, options={"quiet": True}))
+    return {name: comp.frames for name, comp in result.components.items()
+            if hasattr(comp, "frames") and isinstance(comp.frames, list)}
+
+
+@pytest.mark.parametrize("n,execution", [(2, "parallel"), (3, "parallel"), (3, "sequential")])
+def test_two_fused_branches_each_downloaded_get_their_own_frames(tmp_path, n, execution):
+    """Issue 22: each branch fused into a group (InRange -> ErodeGray), each downloaded to
+    its own sink by a copying adapter (no zero-copy: a device without unified memory).  The
+    second group's output is written in the device stage and downloaded in a later one; with
+    one set of it the second sink got frame f+1's mask as frame f."""
+    from conftest import write_keep_types
+
+    require_opencl()
+    write_keep_types(tmp_path)
+    model = tmp_path / "branches.yaml"
+    model.write_text(TWO_FUSED_BRANCHES, encoding="utf-8")
+    _, reference = _build(tmp_path, model, 1, "off", execution="sequential", fusion="off")
+    result, program = _build(tmp_path, model, n, "off", execution=execution)
+    assert len(result.system.plan.groups) == 2
+    want = _kept(reference, f"fused_branches_ref_{n}_{execution}", 12)
+    got = _kept(program, f"fused_branches_{n}_{execution}", 12)
+    assert want.keys() == got.keys() == {"keep1", "keep2"}
+    for sink in want:
+        assert len(got[sink]) == len(want[sink]) == 12
+        for f, (a, b) in enumerate(zip(got[sink], want[sink])):
+            np.testing.assert_array_equal(a, b, err_msg=f"{sink} frame {f}")
+
+
+@pytest.mark.parametrize("zero_copy", ["off", "on"])
+def test_plan_says_why_every_buffer_has_its_sets_fused_or_not(tmp_path, zero_copy):
+    """The fused group's output read by a download in a later stage keeps N sets, as the
+    unfused component's does; every buffer says why it has its number of sets."""
+    from conftest import write_keep_types
+
+    write_keep_types(tmp_path)
+    model = tmp_path / "branches.yaml"
+    model.write_text(TWO_FUSED_BRANCHES, encoding="utf-8")
+    sets = {}
+    for fusion in ("auto", "off"):
+        result, program = _build(tmp_path, model, 2, zero_copy, fusion=fusion)
+        plan = result.system.plan
+        assert all(b.sets_why for b in plan.buffers), plan.buffers
+        sets[fusion] = {b.what: b.sets for b in plan.buffers}
+        text = program.read_text()
+        assert "buffer sets (2, one a frame in flight" in text
+    assert sets["auto"]["in2_erode2.eroded"] == sets["off"]["erode2.eroded"] == 2
+    assert "written in stage2, read in stage4 by adapter3_gpu2cpu" in text

@@ -111,10 +111,7 @@ def test_every_group_chosen_is_estimated_cheaper_and_plan_reports_it(tmp_path):
 
     root = Path(__file__).resolve().parent.parent
     for path in sorted((root / "models").glob("*.yaml")):
-        try:
-            result = compile_model(path, tmp_path / path.stem)
-        except Exception:  # noqa: BLE001 - models needing user files or devices
-            continue
+        result = compile_model(path, tmp_path / path.stem)  # every example model builds
         plan = result.system.plan
         text = "\n".join(plan_lines(plan))
         for g in plan.groups:
@@ -213,7 +210,7 @@ def test_the_gpu_schedule_gives_the_same_bytes(tmp_path):
     facts, run here on whatever OpenCL device there is: the bytes of the unfused program.
     The chain has a channel-flat stencil group (interior and border paths)."""
     require_opencl()
-    names = dict(src="src", n1="n1", n2="n2", n3="n3", n4="n4", n5="n5", sink="sink")
+    names = {name: name for name in ("src", "n1", "n2", "n3", "n4", "n5", "sink")}
     text = CHAIN.format(**names).replace(
         "components:", "platform: {device: nvidia-hopper}\ncomponents:", 1)
     model = tmp_path / "m.yaml"

@@ -90,8 +90,9 @@ def test_a_failing_constructor_is_named_and_what_was_built_is_freed(tmp_path):
     assert ("error: recorder failed while constructing: ValueError: injected failure to "
             "construct") in proc.stderr
     assert "Traceback" not in proc.stderr
-    # flaky (and the camera, detector and adapters) were built before it: freed
-    assert log.read_text().splitlines() == ["free flaky"]
+    # flaky (and the camera, detector and adapters) were built before it, but none was
+    # initialized (that comes after every part is built): nothing to free
+    assert not log.exists()
 
 
 def test_one_failing_free_does_not_stop_the_others(tmp_path):
@@ -293,3 +294,71 @@ def test_gpucompgen_run_forwards_sigterm_to_the_program(tmp_path):
     assert proc.returncode == 143, err
     assert "stopped by SIGTERM" in err and "Traceback" not in err
     assert not list(tmp_path.iterdir())
+
+
+# --- each part freed exactly once, only if initialized (issue 22) --------------------------
+
+def test_a_failure_in_initialize_frees_only_the_parts_initialized(tmp_path):
+    """flaky.initialize() raises: flaky and the recorder after it were never initialized,
+    so neither is freed (before, both were); the error names flaky."""
+    require_opencl()
+    program, log = lifecycle_model(tmp_path)
+    text = program.read_text().replace("fail_initialize=False", "fail_initialize=True")
+    program.write_text(text)
+    assert text.index("flaky.initialize(") < text.index("recorder.initialize(")
+    proc = run_program(program)
+    assert proc.returncode == 1, proc.stderr
+    assert "flaky failed while initializing: RuntimeError: injected failure to initialize" \
+        in proc.stderr
+    assert not log.exists()
+
+
+def test_parts_are_freed_once_whoever_frees_them(tmp_path):
+    """free_all after run(), and the signal path's free_what_can_be_freed after that,
+    free nothing again."""
+    require_opencl()
+    from gpucompgen.runtime.signals import free_what_can_be_freed
+
+    program, log = lifecycle_model(tmp_path, frames=2)
+    module = load_generated(program, "lifecycle_once")
+    result = module.run(monitor=Monitor(progress=False, options={"quiet": True}))
+    assert log.read_text().splitlines() == ["free recorder", "free flaky"]
+    free_all(result.components)
+    assert free_what_can_be_freed(result.components, 0.5) == ([], [])
+    assert log.read_text().splitlines() == ["free recorder", "free flaky"]
+
+
+def test_stats_json_to_a_fifo_nobody_reads_ends_with_an_error(tmp_path):
+    """Before: the run blocked after its frames opening the FIFO, ignored SIGTERM and then
+    freed every component a second time."""
+    require_opencl()
+    program, log = lifecycle_model(tmp_path, frames=2)
+    fifo = tmp_path / "stats.fifo"
+    os.mkfifo(fifo)
+    proc = run_program(program, "--stats-json", str(fifo))
+    assert proc.returncode == 1, proc.stderr
+    assert f"cannot write stats to {fifo}: it is a FIFO that no process reads" in proc.stderr
+    assert "Traceback" not in proc.stderr
+    assert log.read_text().splitlines() == ["free recorder", "free flaky"]
+
+
+def test_stats_json_to_a_fifo_with_a_reader_is_written(tmp_path):
+    require_opencl()
+    import json
+    import threading
+
+    program, _ = lifecycle_model(tmp_path, frames=2)
+    fifo = tmp_path / "stats.fifo"
+    os.mkfifo(fifo)
+    got = []
+
+    def read():
+        with open(fifo, encoding="utf-8") as f:
+            got.append(f.read())
+
+    reader = threading.Thread(target=read, daemon=True)
+    reader.start()
+    proc = run_program(program, "--stats-json", str(fifo))
+    reader.join(30)
+    assert proc.returncode == 0, proc.stderr
+    assert json.loads(got[0])["frames"] == 2

@@ -535,3 +535,41 @@ def test_a_stop_at_any_moment_leaves_every_adapter_freeable(tmp_path, zero_copy)
             err, _ = signal_and_time(proc, signal.SIGINT)
         assert proc.returncode == 130, err
         assert "note:" not in err and "every component was freed" in err, (delay, err)
+
+
+def test_a_stop_while_stats_are_written_to_a_stalled_reader_ends_the_run(tmp_path):
+    """--stats-json names a FIFO whose reader never reads and the document fills the pipe:
+    the write blocks in the run's thread after every part was freed.  SIGTERM gives up on
+    it: the monitor is not closed (written) a second time and no part is freed again."""
+    from gpucompgen.runtime import Parts
+
+    freed = []
+    fifo = tmp_path / "stats.fifo"
+    os.mkfifo(fifo)
+    reader = os.open(fifo, os.O_RDONLY | os.O_NONBLOCK)  # there, but never reads
+    try:
+        monitor = Monitor(progress=False, stats_path=fifo)
+        parts = Parts(["a", "b"])
+        parts["a"], parts["b"] = _Part("a", freed), _Part("b", freed)
+        parts.initialized |= {"a", "b"}
+        monitor.attach(parts)
+        monitor.frame_seconds = [0.125] * 20_000  # far more than a pipe holds
+        stopper, exits, stream = _stopper(monitor, grace=0.5)
+
+        def run():
+            try:
+                return 7
+            finally:
+                free_all(parts)
+                monitor.close()  # blocks writing
+
+        timer = _later(0.3, lambda: stopper.request_stop(signal.SIGTERM))
+        done = threading.Event()
+        threading.Thread(target=lambda: (stopper.run(run), done.set()), daemon=True).start()
+        assert done.wait(20), "the stop did not end the run"
+        timer.join()
+    finally:
+        os.close(reader)
+    assert exits == [128 + signal.SIGTERM]
+    assert freed == ["b", "a"]  # once, by the run; not again by the stop
+    assert "freed: nothing" in stream.text

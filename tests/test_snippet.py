@@ -405,8 +405,7 @@ def _identifiers(text: str) -> list[str]:
 # -- queries the fusion pass and the kernel generator make ------------------------------------
 
 def test_accessor_calls_and_shifted_arguments_are_read_from_the_tree():
-    from gpucompgen.snippet import (accessor_calls, is_name, is_shifted, parse,
-                                    uses_outside_calls)
+    from gpucompgen.snippet import accessor_calls, is_name, is_shifted, parse, uses_outside_calls
 
     tree = parse("// image(0, 0, 0) in a comment is no call\n"
                  "const int a = image(y, (x + w), c), b = image(y, x - 2 * k, c);\n"

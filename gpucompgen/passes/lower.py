@@ -278,11 +278,15 @@ def lower(system: System) -> ProgramPlan:
     def sets(name: str) -> int:
         return n_sets if name in system.buffer_sets else 1
 
+    def sets_why(name: str) -> str:  # stage-frames: why a part's buffers have their sets
+        return system.buffer_sets.get(name) or system.one_set.get(name, "")
+
     pinned = system.staging == "pinned"
     parts, buffers, launches, transfers, steps = [], [], [], [], []
     sources = [n for n in system.order if isinstance(system.nodes[n], ComponentNode)
                and not system.nodes[n].inputs and not system.nodes[n].on_gpu]
     pending_checks: list[Step] = []
+    head: list[Step] = []  # the sources' steps
     for name in system.order:
         node = system.nodes[name]
         in_vars = tuple(f"{system.input_var(Endpoint(name, p))}_size" for p in node.inputs)
@@ -299,16 +303,16 @@ def lower(system: System) -> ProgramPlan:
                 cls = f"ZeroCopy{cls}"
                 if node.direction == "cpu2gpu" and sets(name) > 1:
                     buffers.append(Buffer(name, "output", f"{name} ({node.source}) kept",
-                                          "host", data, sets(name)))
+                                          "host", data, sets(name), sets_why(name)))
             else:
                 side = "device" if node.direction == "cpu2gpu" else "host"
                 if side == "host" and pinned:
                     side = "pinned host"
                 buffers.append(Buffer(name, "output", f"{name} ({node.source})", side, data,
-                                      sets(name)))
+                                      sets(name), sets_why(name)))
                 if node.direction == "cpu2gpu" and pinned:
                     buffers.append(Buffer(name, "staging", f"{name} staging", "pinned host",
-                                          data, sets(name)))
+                                          data, sets(name), sets_why(name)))
             runs = ("copy" if not node.zero_copy else
                     "map" if node.direction == "gpu2cpu" else "in place")
             options = [("nbytes", data.nbytes)]
@@ -341,7 +345,8 @@ def lower(system: System) -> ProgramPlan:
         if node.on_gpu:
             device_ports = ({**node.inputs, **node.outputs} if standard else node.outputs)
             for p, port in device_ports.items():
-                buffers.append(Buffer(name, p, f"{name}.{p}", "device", port.data, sets(name)))
+                buffers.append(Buffer(name, p, f"{name}.{p}", "device", port.data, sets(name),
+                                   sets_why(name)))
             if standard:
                 for p, port in node.outputs.items():
                     buffers.append(Buffer(name, p, f"{name}.{p} (host)", "host", port.data,
@@ -358,7 +363,8 @@ def lower(system: System) -> ProgramPlan:
             launches.append(launch(system, node, programs[t.name]))
         else:
             for p, port in node.outputs.items():
-                buffers.append(Buffer(name, p, f"{name}.{p}", "host", port.data))
+                buffers.append(Buffer(name, p, f"{name}.{p}", "host", port.data,
+                                      sets_why=sets_why(name)))
         if t.flexible and not node.on_gpu:
             parts.append(Part(name, "component", "runtime.CpuFunctionComponent", t.name, "CPU",
                               system.stages[name], params=params, init_inputs=in_vars,
@@ -371,10 +377,12 @@ def lower(system: System) -> ProgramPlan:
                               queue_of(name) if node.on_gpu else None,
                               programs.get(t.name) if node.on_gpu else None, params,
                               tuple(options), init_inputs=in_vars, init_outputs=outs))
-        steps.append(Step("execute", name,
-                          tuple(system.input_var(Endpoint(name, p)) for p in node.inputs),
-                          tuple(system.output_vars[Endpoint(name, p)] for p in node.outputs),
-                          tuple(system.waits.get(name, ())) if not standard else ()))
+        # the sources run first, whatever the schedule: the end of the stream is known
+        # before any part works on the frame (independent chains end together)
+        (head if name in sources else steps).append(Step(
+            "execute", name, tuple(system.input_var(Endpoint(name, p)) for p in node.inputs),
+            tuple(system.output_vars[Endpoint(name, p)] for p in node.outputs),
+            tuple(system.waits.get(name, ())) if not standard else ()))
         # what a CPU component returns is checked where it enters another part (a
         # source's after the end-of-stream test: None ends the stream there)
         checks = [Step("check", name, (system.output_vars[Endpoint(name, p)],),
@@ -389,14 +397,10 @@ def lower(system: System) -> ProgramPlan:
         for a in system.unmap_after.get(name, []):
             steps.append(Step("unmap", a, note=f"the device may write "
                               f"{system.nodes[a].source} again"))
-        if sources and name == sources[-1]:
-            ends = tuple(system.output_vars[Endpoint(s, p)] for s in sources
-                         for p in system.nodes[s].outputs)
-            if ends:
-                steps.append(Step("end_of_stream", inputs=ends))
-            steps += pending_checks
-            pending_checks = []
 
+    ends = tuple(system.output_vars[Endpoint(s, p)] for s in sources
+                 for p in system.nodes[s].outputs)
+    steps = head + ([Step("end_of_stream", inputs=ends)] if ends else []) + pending_checks + steps
     imports, user_classes = [], []
     for t in cpu_used_types(system):
         if t.origin == "library":
@@ -496,6 +500,13 @@ def flight_stages(system: System, steps: list[Step]) -> tuple[FlightStage, ...]:
                 "CPU and device" if len(kinds) > 1 else kinds.pop())
         stages.append(FlightStage(f"stage{i + 1}", tuple(names), tuple(st), inputs,
                                   tuple(carried), tuple(system.flight_end_waits[i]), runs))
+    # what a stage takes from an earlier one is held in a set per frame in flight
+    maker = {v: s.part for s in steps if s.kind in ("execute", "transfer") for v in s.outputs}
+    for st in stages:
+        unsafe = [v for v in st.inputs if maker[v] not in system.buffer_sets]
+        if unsafe:
+            raise AssertionError(f"{st.name} reads {', '.join(unsafe)} of an earlier stage, "
+                                 "held in one buffer set (stage-frames)")
     return tuple(stages)
 
 

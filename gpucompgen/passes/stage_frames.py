@@ -7,25 +7,25 @@ frame after frame (GStreamer's queue, G-API streaming): so each component is sti
 by one thread, in frame order.  The sources, with the CPU-to-GPU adapters that upload their
 frames, form the first stage, so one thread decides where the stream ends.
 
-Which buffers need N sets follows from one rule: a buffer written in one stage and read in
-another is written for frame f + 1 while frame f is read, so it needs a set per frame in
-flight (used in turn; at most N frames are in the pipeline, so a set is rewritten only
-when its frame has left it).  A buffer read only in the stage that writes it needs one set:
-the stage finishes a frame before it starts the next.  That gives:
+Which buffers need N sets follows from one rule, applied to what each stage reads and
+writes, whatever kind of node writes it (a component, a fused group, an adapter, a CPU
+function): a buffer written in one stage and read in another is written for frame f + 1
+while frame f is read, so it needs a set per frame in flight (used in turn; at most N
+frames are in the pipeline, so a set is rewritten only when its frame has left it).  A
+buffer read only in the stage that writes it needs one set: the stage finishes a frame
+before it starts the next.
 
-- a CPU-to-GPU adapter's device buffer (written by the sources' stage, read by the
-  device's); zero-copy: the frame itself, which the producer may overwrite, so the adapter
-  keeps its own copy of each frame (a host copy, no CPU-GPU copy);
-- a GPU-to-CPU adapter's host array (written by the device's stage, read by the sinks');
-  zero-copy: the mapped device buffer of the component that writes it;
-- a GPU-aware component's output read by a GPU-aware component in another stage (and, in
-  standard mode, where components copy their own data, its host outputs).
-
-Standard components own their outputs, one array each, so one read in another stage
-would need a copy the system does not make: the stages from its producer to that reader
-are merged instead (said in the plan).  A stage hands a frame on only once its device
-commands are complete (it waits for the events of its queues' last commands), so no
-command waits for an event of another stage's frame.
+Where the data of an output lives (`holders`) is the one thing that depends on the node:
+its own buffer for a component, a group or a copying adapter; for a zero-copy download
+also the mapped device buffer of the node that wrote it (its reader reads that memory);
+for a zero-copy upload the adapter's own kept copy of the frame (the producer may
+overwrite the frame itself).  A part that can keep sets (a GPU component or group, an
+adapter) gets them; a CPU component (standard, or a flexible one placed on the CPU) owns
+one array per output, so a read of it in another stage would need a copy the system does
+not make: the stages from its producer to that reader are merged instead (said in the
+plan).  A stage hands a frame on only once its device commands are complete (it waits
+for the events of its queues' last commands), so no command waits for an event of another
+stage's frame.
 """
 
 from __future__ import annotations
@@ -41,7 +41,7 @@ class StageFrames(Pass):
 
     def apply(self, system, rep):
         system.flight_stages, system.flight_notes = [], []
-        system.flight_end_waits, system.buffer_sets = [], {}
+        system.flight_end_waits, system.buffer_sets, system.one_set = [], {}, {}
         if system.frames_in_flight < 2:
             return system
         stage_of, notes = _stages(system)
@@ -50,6 +50,7 @@ class StageFrames(Pass):
                                 for s in range(count)]
         system.flight_notes = notes
         system.buffer_sets = _buffer_sets(system, stage_of)
+        system.one_set = one_set_reasons(system, stage_of)
         system.flight_end_waits = [_end_waits(system, names) for names in system.flight_stages]
         return system
 
@@ -85,17 +86,17 @@ def _stages(system: System) -> tuple[dict[str, int], list[str]]:
             current, current_side = current + 1, side(system, n)
         stage[n] = current
     notes: list[str] = []
-    while True:  # a standard component's output read in another stage: merge them
-        crossing = next(((e, stage[e.source.component], stage[e.target.component])
-                         for e in system.edges
-                         if isinstance(system.nodes[e.source.component], ComponentNode)
-                         and not system.nodes[e.source.component].on_gpu
-                         and stage[e.source.component] != stage[e.target.component]), None)
+    while True:  # data that cannot keep sets read in another stage: merge those stages
+        crossing = next(((e, h, stage[h], stage[e.target.component])
+                         for e in system.edges for h in holders(system, e.source)
+                         if not keeps_sets(system, h)
+                         and stage[h] != stage[e.target.component]), None)
         if crossing is None:
             break
-        e, low, high = crossing
-        notes.append(f"{e.source} is read by {e.target.component} in a later stage; a "
-                     "standard component keeps one output array, so those stages are one")
+        e, h, low, high = crossing
+        low, high = min(low, high), max(low, high)
+        notes.append(f"{e.source} is read by {e.target.component} in a later stage; "
+                     f"{h} keeps one array per output, so those stages are one")
         for n, s in stage.items():
             if low <= s <= high:
                 stage[n] = low
@@ -104,28 +105,49 @@ def _stages(system: System) -> tuple[dict[str, int], list[str]]:
     return stage, notes
 
 
+def holders(system: System, end: Endpoint) -> list[str]:
+    """The parts whose memory holds the data of an output endpoint when its readers read
+    it: the endpoint's own node, and for a zero-copy download also the holders of what it
+    maps (the device buffer of the node that wrote it)."""
+    node = system.nodes[end.component]
+    if isinstance(node, AdapterNode) and node.direction == "gpu2cpu" and node.zero_copy:
+        return [end.component, *holders(system, system.writer(Endpoint(end.component,
+                                                                        "input")))]
+    return [end.component]
+
+
+def keeps_sets(system: System, name: str) -> bool:
+    """Whether a part can keep a set of its outputs per frame in flight: GPU components,
+    groups and adapters allocate their buffers from the plan; a CPU component owns one
+    array per output (or returns its own)."""
+    node = system.nodes[name]
+    return isinstance(node, AdapterNode) or bool(node.on_gpu)
+
+
 def _buffer_sets(system: System, stage: dict[str, int]) -> dict[str, str]:
+    """Every part whose outputs are read in a stage other than the one that writes them,
+    with why (the first such read)."""
     sets: dict[str, str] = {}
     for e in system.edges:
-        p, c = e.source.component, e.target.component
-        if stage[p] == stage[c]:
-            continue
-        node = system.nodes[p]
-        if isinstance(node, AdapterNode):
-            if node.direction == "cpu2gpu":
-                sets[p] = (f"{c} reads frame f's copy of {node.source} while the next frame "
-                           "is " + ("kept" if node.zero_copy else "copied"))
-            elif node.zero_copy:
-                sets[p] = f"{c} reads frame f's mapped {node.source} while the next is mapped"
-                # the node that writes it: its component, or the fused group it is in
-                writer = system.writer(Endpoint(p, "input")).component
-                sets[writer] = (f"{node.source} stays mapped for {c} while the next frame "
-                                "is written")
-            else:
-                sets[p] = f"{c} reads frame f's {node.source} while the next is copied"
-        elif isinstance(node, ComponentNode) and node.on_gpu:
-            sets[p] = f"{c} reads frame f's {e.source} while the next frame is written"
+        reader = e.target.component
+        for h in holders(system, e.source):
+            if stage[h] == stage[reader] or h in sets:
+                continue
+            how = "" if h == e.source.component else f", mapped by {e.source.component}"
+            sets[h] = (f"written in stage{stage[h] + 1}, read in stage{stage[reader] + 1} by "
+                       f"{reader}{how}: the next frame is written while this one is read")
     return dict(sorted(sets.items(), key=lambda kv: system.order.index(kv[0])))
+
+
+def one_set_reasons(system: System, stage: dict[str, int]) -> dict[str, str]:
+    """Why each part with outputs that keeps one set of them has one."""
+    why: dict[str, str] = {}
+    for n in system.order:
+        if not system.nodes[n].outputs or n in system.buffer_sets:
+            continue
+        why[n] = f"written and read in stage{stage[n] + 1} only" + (
+            "" if keeps_sets(system, n) else ": a CPU component keeps one array per output")
+    return why
 
 
 def _end_waits(system: System, names: list[str]) -> list[str]:

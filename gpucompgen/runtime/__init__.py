@@ -52,6 +52,7 @@ from .devices import (
 from .errors import PipelineError, Stopped
 from .frames import check_frame
 from .lifecycle import (
+    Parts,
     Result,
     component_failure,
     expect_size,
@@ -82,6 +83,7 @@ __all__ = [
     "KernelLimits",
     "Monitor",
     "Param",
+    "Parts",
     "PipelineError",
     "Profile",
     "Result",

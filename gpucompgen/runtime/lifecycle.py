@@ -5,6 +5,7 @@ from __future__ import annotations
 import contextlib
 import importlib.util
 import sys
+import threading
 import traceback
 from pathlib import Path
 from typing import Any, NamedTuple
@@ -190,17 +191,67 @@ def _device_fault_hint(exc: BaseException) -> str:
             "the culprit: check the index computations of the kernels launched before it")
 
 
+class Parts(dict):
+    """Every component and adapter of a run by name, None until constructed, and where
+    each is in its life: run() stores each part as it constructs it; a part counts as
+    initialized once its initialize() has returned; each initialized part is freed
+    exactly once, by whoever claims it first (free_all at the end of run(), or the main
+    thread freeing what it can of a run blocked past a signal)."""
+
+    def __init__(self, names):
+        super().__init__(dict.fromkeys(names))
+        self.initialized: set[str] = set()
+        self._claimed: set[str] = set()
+        self._lock = threading.Lock()
+
+    def __setitem__(self, name: str, part: Any) -> None:
+        super().__setitem__(name, part)
+        if part is None:
+            return
+        initialize = getattr(part, "initialize", None)
+        if initialize is None:
+            return
+
+        def initialized(*args, **kwargs):
+            result = initialize(*args, **kwargs)
+            self.initialized.add(name)
+            return result
+
+        try:
+            part.initialize = initialized
+        except AttributeError:  # a class with __slots__: initialized once constructed
+            self.initialized.add(name)
+
+    def claim(self, name: str) -> bool:
+        """True once for each initialized part: the caller frees it; False for a part
+        never initialized or already claimed."""
+        with self._lock:
+            if name not in self.initialized or name in self._claimed:
+                return False
+            self._claimed.add(name)
+            return True
+
+
+def claim(parts: dict[str, Any], name: str) -> bool:
+    """Whether to free parts[name] now (a plain dict: every constructed part)."""
+    if isinstance(parts, Parts):
+        return parts.claim(name)
+    return parts[name] is not None
+
+
 def free_all(parts: dict[str, Any]) -> None:
     """free_memory() on every part in reverse order; one failing does not stop the others.
 
-    When run() is already failing, failures to free are printed as notes so the first
-    error stays the one reported; otherwise they raise one PipelineError naming them all.
+    With a Parts (what run() makes), only the parts whose initialize() returned, and each
+    only once: a second free_all frees nothing.  When run() is already failing, failures
+    to free are printed as notes so the first error stays the one reported; otherwise
+    they raise one PipelineError naming them all.
     """
     freeing()  # a signal from now on does not cut freeing short
     failed = []
     escaping: BaseException | None = None  # SystemExit, KeyboardInterrupt: after the rest
     for name in reversed(list(parts)):
-        if parts[name] is None:  # never constructed
+        if not claim(parts, name):  # never constructed or initialized, or freed already
             continue
         try:
             parts[name].free_memory()

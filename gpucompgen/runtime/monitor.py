@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import errno
 import json
+import os
 import sys
 import time
 from collections.abc import Callable
@@ -61,6 +63,7 @@ class Monitor:
         self._shown = False  # whether it is on the screen now
         self._stdout = None  # the real sys.stdout while _ClearsProgress stands in
         self.stop_signal: int | None = None  # set by request_stop (SIGINT, SIGTERM)
+        self._closed = False
         self.tracer = None  # --trace FILE (runtime.trace)
         if trace_path:
             from .trace import Tracer
@@ -158,7 +161,11 @@ class Monitor:
             self.stream.flush()
 
     def close(self) -> None:
-        """Called by run() after everything is freed, whether or not it failed."""
+        """Called by run() after everything is freed, whether or not it failed; once (the
+        main thread giving up on a blocked run calls it too)."""
+        if self._closed:
+            return
+        self._closed = True
         if self._stdout is not None:
             sys.stdout, self._stdout = self._stdout, None
         self.clear_progress()
@@ -212,10 +219,23 @@ class Monitor:
                 if isinstance(getattr(obj, "dropped_frames", None), int)}
 
     def write_stats(self, path: Path) -> None:
+        """Write the --stats-json document.  Opened without blocking: a FIFO that no
+        process reads is an error here, not a run that never ends."""
+        text = json.dumps(self.stats(), indent=2) + "\n"
         try:
-            path.write_text(json.dumps(self.stats(), indent=2) + "\n", encoding="utf-8")
+            fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC | os.O_NONBLOCK, 0o666)
         except OSError as exc:
             self.stats_failed = True  # the run's exit code says so
+            why = ("it is a FIFO that no process reads" if exc.errno == errno.ENXIO
+                   else exc.strerror)
+            print(f"error: cannot write stats to {path}: {why}", file=sys.stderr)
+            return
+        try:
+            os.set_blocking(fd, True)  # a reader is there: it takes the document
+            with os.fdopen(fd, "w", encoding="utf-8") as f:
+                f.write(text)
+        except OSError as exc:
+            self.stats_failed = True
             print(f"error: cannot write stats to {path}: {exc.strerror}", file=sys.stderr)
 
 

@@ -14,8 +14,11 @@ frame f+1 and the sinks decide on frame f.
   a frame and given back when the last stage ends it).  The parts whose outputs cross a
   stage keep N sets of them and use set ``frame % N``, so a set is written again only once
   the frame that used it has left the pipeline.
-- The first failure (an exception in any stage) or a signal stops every stage at its next
-  step; the threads are joined before ``run()`` frees anything.  A failure is raised as
+- The first failure (an exception in any stage) stops that stage and the stages before it
+  at their next step, while the stages after it finish the frames they were handed (which
+  are all older than the failing one: they reach the sinks, as they would one frame at a
+  time); a signal stops every stage at its next step.  The threads are joined before
+  ``run()`` frees anything.  A failure is raised as
   ``FrameFailure`` carrying the frame it happened at, so ``component_failure`` names the
   component and the frame exactly as the one-frame-at-a-time loop does.
 """
@@ -61,7 +64,9 @@ class _Flight:
         self.stages, self.n, self.frames, self.monitor = list(stages), n, frames, monitor
         self.tokens = threading.Semaphore(n)
         self.queues = [queue.Queue(maxsize=n) for _ in self.stages[1:]]
-        self.stop = threading.Event()
+        self.stop = threading.Event()  # a signal: every stage stops
+        # a failure in stage i: stages 0..i stop, the later ones drain what they were handed
+        self.halted = [threading.Event() for _ in self.stages]
         self.lock = threading.Lock()
         self.failure: tuple[int, BaseException] | None = None
         self.done = 0
@@ -69,33 +74,46 @@ class _Flight:
             monitor.frames_in_flight = n
 
     # --- waiting that gives way to a stop ------------------------------------------------
+    def _stopped(self, i: int) -> bool:
+        return self.stop.is_set() or self.halted[i].is_set()
+
     def _acquire(self) -> bool:
-        while not self.stop.is_set():
+        while not self._stopped(0):
             if self.tokens.acquire(timeout=_POLL):
                 return True
         return False
 
-    def _get(self, q: queue.Queue):
-        while not self.stop.is_set():
+    def _get(self, i: int, q: queue.Queue):
+        while not self._stopped(i):
             try:
                 return q.get(timeout=_POLL)
             except queue.Empty:
                 continue
         return _END
 
-    def _put(self, q: queue.Queue, item) -> None:
-        while not self.stop.is_set():
+    def _put(self, i: int, q: queue.Queue, item) -> None:
+        """Stage i hands item to stage i + 1 (the end of the stream even once stage i has
+        stopped, unless stage i + 1 has stopped too)."""
+        while (not self._stopped(i + 1)
+               and (item is _END or not self.halted[i].is_set())):
             try:
                 q.put(item, timeout=_POLL)
                 return
             except queue.Full:
                 continue
 
-    def _fail(self, frame: int, exc: BaseException) -> None:
+    def _fail(self, i: int, frame: int, exc: BaseException) -> None:
+        """Stage i failed at frame: it and the stages before it stop; the later stages get
+        the end of the stream after the frames already handed to them."""
         with self.lock:
             if self.failure is None:
                 self.failure = (frame, exc)
-        self.stop.set()
+        if not isinstance(exc, Exception):  # KeyboardInterrupt, SystemExit: stop at once
+            self.stop.set()
+        for j in range(i + 1):
+            self.halted[j].set()
+        if i < len(self.queues):
+            self._put(i, self.queues[i], _END)
 
     # --- one thread a stage --------------------------------------------------------------
     def _source(self) -> None:
@@ -106,7 +124,7 @@ class _Flight:
                 if self.frames is not None and frame >= self.frames:
                     break
                 if not self._acquire():
-                    return
+                    break
                 start = time.perf_counter()
                 values = stage()
                 if values is None:  # end of stream
@@ -115,12 +133,12 @@ class _Flight:
                 if out is None:
                     self._finish(frame, start)
                 else:
-                    self._put(out, (frame, start, values))
+                    self._put(0, out, (frame, start, values))
                 frame += 1
-            if out is not None:
-                self._put(out, _END)
+            if out is not None and not self._stopped(0):
+                self._put(0, out, _END)
         except BaseException as exc:
-            self._fail(frame, exc)
+            self._fail(0, frame, exc)
 
     def _later(self, i: int) -> None:
         stage = self.stages[i]
@@ -128,20 +146,20 @@ class _Flight:
         out = self.queues[i] if i < len(self.queues) else None
         frame = None
         try:
-            while not self.stop.is_set():
-                item = self._get(into)
+            while not self._stopped(i):
+                item = self._get(i, into)
                 if item is _END:
-                    if out is not None:
-                        self._put(out, _END)
+                    if out is not None and not self._stopped(i):
+                        self._put(i, out, _END)
                     return
                 frame, start, values = item
                 values = stage(*values)
                 if out is None:
                     self._finish(frame, start)
                 else:
-                    self._put(out, (frame, start, values))
+                    self._put(i, out, (frame, start, values))
         except BaseException as exc:
-            self._fail(self.done if frame is None else frame, exc)
+            self._fail(i, self.done if frame is None else frame, exc)
 
     def _finish(self, frame: int, start: float) -> None:
         """The last stage ended a frame: report it, in order, and let one more in."""

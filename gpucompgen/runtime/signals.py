@@ -218,7 +218,7 @@ class StopOnSignals:
     def _give_up(self, worker: threading.Thread) -> None:
         with _LOCK:
             _INTERRUPTIBLE.discard(worker.ident)
-        parts = dict(getattr(self.monitor, "parts", {}) or {})
+        parts = getattr(self.monitor, "parts", None) or {}
         where = blocked_at(worker, parts)
         running = running_kernels(parts)
         freed, not_freed = free_what_can_be_freed(parts, self.free_seconds)
@@ -313,11 +313,14 @@ def free_what_can_be_freed(parts: dict[str, Any], seconds: float
                            ) -> tuple[list[str], list[str]]:
     """free_memory() on each part in reverse order, each in a thread of its own, all within
     about `seconds` (an equal share each, so one that hangs does not keep the others from
-    being freed): (freed, not freed with why)."""
+    being freed): (freed, not freed with why).  Only parts not freed yet (by the run's own
+    free_all) and, with a Parts, initialized."""
+    from .lifecycle import claim  # lifecycle imports this module
+
     freed, not_freed = [], []
-    built = [name for name in parts if parts[name] is not None]
+    built = [name for name in reversed(list(parts)) if claim(parts, name)]
     share = max(seconds / max(len(built), 1), 0.02)
-    for name in reversed(built):
+    for name in built:
         part = parts[name]
         errors: list[BaseException] = []
 

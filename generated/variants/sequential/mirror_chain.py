@@ -119,8 +119,9 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
         context, LIB_DIR / 'group_mirror1_to_mirror5.cl',
         'mirror1_to_mirror5 (FusedMirror1ToMirror5)')
 
-    # every component and adapter, filled in as it is constructed; freed in reverse order
-    parts = dict.fromkeys([
+    # every component and adapter, filled in as it is constructed; those initialized are
+    # freed once each, in reverse order
+    parts = runtime.Parts([
         'source',
         'adapter1_cpu2gpu',
         'mirror1_to_mirror5',
@@ -144,10 +145,11 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
         profiler = runtime.Profile(parts) if profile else None
 
         source_image_size = source.initialize()
-        runtime.expect_size('source.image', source_image_size, Size(864, 1152, 3))
+        source_image_size = runtime.expect_size(
+            'source.image', source_image_size, Size(864, 1152, 3))
         source_image_gpu_size = adapter1_cpu2gpu.initialize(source_image_size, np.uint8)
         mirror1_to_mirror5_mirrored_size = mirror1_to_mirror5.initialize(source_image_gpu_size)
-        runtime.expect_size(
+        mirror1_to_mirror5_mirrored_size = runtime.expect_size(
             'mirror1_to_mirror5.mirrored', mirror1_to_mirror5_mirrored_size, Size(864, 1152, 3))
         mirror5_mirrored_cpu_size = adapter2_gpu2cpu.initialize(
             mirror1_to_mirror5_mirrored_size, np.uint8)

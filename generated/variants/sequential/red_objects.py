@@ -185,8 +185,9 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
     fused_hsv_red_program = runtime.build_program(
         context, LIB_DIR / 'group_hsv_red.cl', 'hsv_red (FusedHsvRed)')
 
-    # every component and adapter, filled in as it is constructed; freed in reverse order
-    parts = dict.fromkeys([
+    # every component and adapter, filled in as it is constructed; those initialized are
+    # freed once each, in reverse order
+    parts = runtime.Parts([
         'camera',
         'adapter1_cpu2gpu',
         'hsv_red',
@@ -217,14 +218,18 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
         profiler = runtime.Profile(parts) if profile else None
 
         camera_image_size = camera.initialize()
-        runtime.expect_size('camera.image', camera_image_size, Size(200, 301, 3))
+        camera_image_size = runtime.expect_size(
+            'camera.image', camera_image_size, Size(200, 301, 3))
         camera_image_gpu_size = adapter1_cpu2gpu.initialize(camera_image_size, np.uint8)
         hsv_red_mask_size = hsv_red.initialize(camera_image_gpu_size)
-        runtime.expect_size('hsv_red.mask', hsv_red_mask_size, Size(200, 301, 1))
+        hsv_red_mask_size = runtime.expect_size(
+            'hsv_red.mask', hsv_red_mask_size, Size(200, 301, 1))
         erode_eroded_size = erode.initialize(hsv_red_mask_size)
-        runtime.expect_size('erode.eroded', erode_eroded_size, Size(200, 301, 1))
+        erode_eroded_size = runtime.expect_size(
+            'erode.eroded', erode_eroded_size, Size(200, 301, 1))
         dilate_dilated_size = dilate.initialize(erode_eroded_size)
-        runtime.expect_size('dilate.dilated', dilate_dilated_size, Size(200, 301, 1))
+        dilate_dilated_size = runtime.expect_size(
+            'dilate.dilated', dilate_dilated_size, Size(200, 301, 1))
         dilate_dilated_cpu_size = adapter2_gpu2cpu.initialize(dilate_dilated_size, np.uint8)
         writer.initialize(camera_image_size, dilate_dilated_cpu_size)
 

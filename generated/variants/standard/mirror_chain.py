@@ -142,8 +142,9 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
         context, LIB_DIR / 'vertical_mirror.cl',
         'mirror1, mirror2, mirror3 and 2 more (VerticalMirror)')
 
-    # every component and adapter, filled in as it is constructed; freed in reverse order
-    parts = dict.fromkeys([
+    # every component and adapter, filled in as it is constructed; those initialized are
+    # freed once each, in reverse order
+    parts = runtime.Parts([
         'source',
         'mirror1',
         'mirror2',
@@ -171,17 +172,23 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
         profiler = runtime.Profile(parts) if profile else None
 
         source_image_size = source.initialize()
-        runtime.expect_size('source.image', source_image_size, Size(864, 1152, 3))
+        source_image_size = runtime.expect_size(
+            'source.image', source_image_size, Size(864, 1152, 3))
         mirror1_mirrored_size = mirror1.initialize(source_image_size)
-        runtime.expect_size('mirror1.mirrored', mirror1_mirrored_size, Size(864, 1152, 3))
+        mirror1_mirrored_size = runtime.expect_size(
+            'mirror1.mirrored', mirror1_mirrored_size, Size(864, 1152, 3))
         mirror2_mirrored_size = mirror2.initialize(mirror1_mirrored_size)
-        runtime.expect_size('mirror2.mirrored', mirror2_mirrored_size, Size(864, 1152, 3))
+        mirror2_mirrored_size = runtime.expect_size(
+            'mirror2.mirrored', mirror2_mirrored_size, Size(864, 1152, 3))
         mirror3_mirrored_size = mirror3.initialize(mirror2_mirrored_size)
-        runtime.expect_size('mirror3.mirrored', mirror3_mirrored_size, Size(864, 1152, 3))
+        mirror3_mirrored_size = runtime.expect_size(
+            'mirror3.mirrored', mirror3_mirrored_size, Size(864, 1152, 3))
         mirror4_mirrored_size = mirror4.initialize(mirror3_mirrored_size)
-        runtime.expect_size('mirror4.mirrored', mirror4_mirrored_size, Size(864, 1152, 3))
+        mirror4_mirrored_size = runtime.expect_size(
+            'mirror4.mirrored', mirror4_mirrored_size, Size(864, 1152, 3))
         mirror5_mirrored_size = mirror5.initialize(mirror4_mirrored_size)
-        runtime.expect_size('mirror5.mirrored', mirror5_mirrored_size, Size(864, 1152, 3))
+        mirror5_mirrored_size = runtime.expect_size(
+            'mirror5.mirrored', mirror5_mirrored_size, Size(864, 1152, 3))
         sink.initialize(mirror5_mirrored_size)
 
         # mirror1: settings component's own, 1,728 resident threads; kernel arguments in the calling

@@ -191,8 +191,9 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
     object_detector_program = runtime.build_program(
         context, LIB_DIR / 'object_detector.cl', 'detector (ObjectDetector)')
 
-    # every component and adapter, filled in as it is constructed; freed in reverse order
-    parts = dict.fromkeys([
+    # every component and adapter, filled in as it is constructed; those initialized are
+    # freed once each, in reverse order
+    parts = runtime.Parts([
         'camera1',
         'camera2',
         'blur1',
@@ -228,17 +229,23 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
         profiler = runtime.Profile(parts) if profile else None
 
         camera1_image_size = camera1.initialize()
-        runtime.expect_size('camera1.image', camera1_image_size, Size(480, 640, 3))
+        camera1_image_size = runtime.expect_size(
+            'camera1.image', camera1_image_size, Size(480, 640, 3))
         camera2_image_size = camera2.initialize()
-        runtime.expect_size('camera2.image', camera2_image_size, Size(480, 640, 3))
+        camera2_image_size = runtime.expect_size(
+            'camera2.image', camera2_image_size, Size(480, 640, 3))
         blur1_smooth_size = blur1.initialize(camera1_image_size)
-        runtime.expect_size('blur1.smooth', blur1_smooth_size, Size(480, 640, 3))
+        blur1_smooth_size = runtime.expect_size(
+            'blur1.smooth', blur1_smooth_size, Size(480, 640, 3))
         blur2_smooth_size = blur2.initialize(camera2_image_size)
-        runtime.expect_size('blur2.smooth', blur2_smooth_size, Size(480, 640, 3))
+        blur2_smooth_size = runtime.expect_size(
+            'blur2.smooth', blur2_smooth_size, Size(480, 640, 3))
         merger_merged_size = merger.initialize(blur1_smooth_size, blur2_smooth_size)
-        runtime.expect_size('merger.merged', merger_merged_size, Size(480, 1280, 3))
+        merger_merged_size = runtime.expect_size(
+            'merger.merged', merger_merged_size, Size(480, 1280, 3))
         detector_mask_size = detector.initialize(merger_merged_size)
-        runtime.expect_size('detector.mask', detector_mask_size, Size(480, 1280, 1))
+        detector_mask_size = runtime.expect_size(
+            'detector.mask', detector_mask_size, Size(480, 1280, 1))
         manager.initialize(detector_mask_size)
 
         # blur1: settings shrunk to share the thread budget, 5,120 resident threads; kernel

@@ -208,8 +208,9 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
     in_range_program = runtime.build_program(context, LIB_DIR / 'in_range.cl', 'red (InRange)')
     rgb_to_hsv_program = runtime.build_program(context, LIB_DIR / 'color.cl', 'hsv (RgbToHsv)')
 
-    # every component and adapter, filled in as it is constructed; freed in reverse order
-    parts = dict.fromkeys([
+    # every component and adapter, filled in as it is constructed; those initialized are
+    # freed once each, in reverse order
+    parts = runtime.Parts([
         'camera',
         'hsv',
         'red',
@@ -238,15 +239,18 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
         profiler = runtime.Profile(parts) if profile else None
 
         camera_image_size = camera.initialize()
-        runtime.expect_size('camera.image', camera_image_size, Size(200, 301, 3))
+        camera_image_size = runtime.expect_size(
+            'camera.image', camera_image_size, Size(200, 301, 3))
         hsv_hsv_size = hsv.initialize(camera_image_size)
-        runtime.expect_size('hsv.hsv', hsv_hsv_size, Size(200, 301, 3))
+        hsv_hsv_size = runtime.expect_size('hsv.hsv', hsv_hsv_size, Size(200, 301, 3))
         red_mask_size = red.initialize(hsv_hsv_size)
-        runtime.expect_size('red.mask', red_mask_size, Size(200, 301, 1))
+        red_mask_size = runtime.expect_size('red.mask', red_mask_size, Size(200, 301, 1))
         erode_eroded_size = erode.initialize(red_mask_size)
-        runtime.expect_size('erode.eroded', erode_eroded_size, Size(200, 301, 1))
+        erode_eroded_size = runtime.expect_size(
+            'erode.eroded', erode_eroded_size, Size(200, 301, 1))
         dilate_dilated_size = dilate.initialize(erode_eroded_size)
-        runtime.expect_size('dilate.dilated', dilate_dilated_size, Size(200, 301, 1))
+        dilate_dilated_size = runtime.expect_size(
+            'dilate.dilated', dilate_dilated_size, Size(200, 301, 1))
         writer.initialize(camera_image_size, dilate_dilated_size)
 
         # hsv: settings component's own, 16,384 resident threads; kernel arguments in the calling

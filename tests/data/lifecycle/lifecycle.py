@@ -9,11 +9,13 @@ def _log(path, line):
 
 
 class Flaky:
-    def __init__(self, fail_at=-1, log=""):
-        self.fail_at, self.log = fail_at, log
+    def __init__(self, fail_at=-1, log="", fail_initialize=False):
+        self.fail_at, self.log, self.fail_initialize = fail_at, log, fail_initialize
         self.frame = 0
 
     def initialize(self, image):
+        if self.fail_initialize:
+            raise RuntimeError("injected failure to initialize")
         return image
 
     def execute(self, image):
