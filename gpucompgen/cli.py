@@ -341,8 +341,10 @@ def cmd_run(args) -> int:
             if tmp is not None:
                 shutil.rmtree(tmp, ignore_errors=True)
         # a signal held above lands here: SIGINT as KeyboardInterrupt, SIGTERM in
-        # stop_building; both end the command with the folder gone
-        signal.signal(signal.SIGTERM, previous)
+        # stop_building; both end the command with the folder gone (after a run stopped by
+        # a signal, run_program leaves both ignored)
+        if signal.getsignal(signal.SIGTERM) is not signal.SIG_IGN:
+            signal.signal(signal.SIGTERM, previous)
 
 
 @contextlib.contextmanager
@@ -467,7 +469,9 @@ def run_program(cmd: list[str], kill_after: float = KILL_AFTER_SECONDS) -> int:
                         proc.send_signal(received[0])
         finally:
             for s, h in previous.items():
-                signal.signal(s, h)
+                # stopping on a signal: a repeat (a second Ctrl-C) is ignored to the end, as
+                # the program ignores it; restored, it would kill this process on its way out
+                signal.signal(s, signal.SIG_IGN if received else h)
     if killed:
         print(f"gpucompgen run: error: the program did not stop within {kill_after:g} s of "
               f"{signal.Signals(received[0]).name}; killed it", file=sys.stderr)
