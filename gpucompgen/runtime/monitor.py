@@ -60,11 +60,23 @@ class Monitor:
         self._shown = False  # whether it is on the screen now
         self._stdout = None  # the real sys.stdout while _ClearsProgress stands in
         self.stop_signal: int | None = None  # set by request_stop (SIGINT, SIGTERM)
+        self.digests = None  # a DigestRecorder with the 'digests' option (--digests FILE)
 
     def attach(self, parts: dict[str, Any]) -> None:
         """Called by run() once every component and adapter is constructed."""
         self.parts = parts
         self._give_options(parts)
+        if self.options.get("digests"):
+            from .digests import DigestRecorder
+
+            self.digests = DigestRecorder(self.options["digests"])
+            try:
+                self.digests.open()
+            except OSError as exc:
+                self.digests = None
+                raise PipelineError(f"cannot write digests to {self.options['digests']}: "
+                                    f"{exc.strerror}") from None
+            self.digests.wrap(parts)
         if self.progress and self._stdout is None:
             self._stdout = sys.stdout
             sys.stdout = _ClearsProgress(sys.stdout, self)
@@ -84,7 +96,7 @@ class Monitor:
             if wanted:
                 obj.runtime_options({k: v for k, v in self.options.items() if k in wanted})
                 taken |= wanted
-        unused = sorted(set(given) - taken - {"quiet"})
+        unused = sorted(set(given) - taken - {"quiet", "digests"})  # the runtime's own
         if unused:
             raise PipelineError(
                 f"no component of this system takes --{unused[0].replace('_', '-')}")
@@ -154,6 +166,8 @@ class Monitor:
         if self._stdout is not None:
             sys.stdout, self._stdout = self._stdout, None
         self.clear_progress()
+        if self.digests is not None:
+            self.digests.close()
         if self.stats_path is not None:
             self.write_stats(self.stats_path)
 
