@@ -233,6 +233,9 @@ def _reason(outcome: Outcome) -> str:
     if outcome.interrupted:
         return "stopped by Ctrl-C"
     lines = [line for line in outcome.stderr.splitlines() if line.strip()]
+    first_error = next((i for i, line in enumerate(lines) if line.startswith("error:")), None)
+    if first_error is not None:  # the program's own message, not native libraries' chatter
+        lines = lines[first_error:]
     text = "\n".join(lines[-8:])[-MAX_REASON:]
     if outcome.returncode is not None and outcome.returncode < 0:
         name = signal.Signals(-outcome.returncode).name if -outcome.returncode in \
