@@ -21,6 +21,7 @@ from . import __version__
 from .errors import GpucompgenError, OutputError, UsageError
 from .ir import MODES
 from .model import EXECUTIONS, FUSION, MAX_FRAMES_IN_FLIGHT, STAGING, ZERO_COPY
+from .replay.cli import add_replay_parser, cmd_replay
 from .runtime import add_program_options
 
 EPILOG = """\
@@ -216,6 +217,8 @@ def parser() -> argparse.ArgumentParser:
     ty.add_argument("--model", type=Path, metavar="MODEL",
                     help="also the types this system model declares (its 'types:' files)")
 
+    add_replay_parser(sub, _sub, _common)
+
     sc = sub.add_parser("schema", help="print the JSON Schema of model files",
                         description="Print the JSON Schema of system models (or, with "
                                     "--types, of component-type files) for editors and tools.")
@@ -367,7 +370,7 @@ def _build_and_run(args, out: Path) -> int:
     for flag, value in (("--frames", args.frames), ("--stats-json", args.stats_json),
                         ("--trace", args.trace),
                         ("--decisions", args.decisions),
-                        ("--save-images", args.save_images)):
+                        ("--save-images", args.save_images), ("--digests", args.digests)):
         if value is not None:
             cmd += [flag, str(value)]
     for flag, values in (("--input", args.input), ("--output", args.output),
@@ -629,4 +632,5 @@ def cmd_types(args) -> int:
 
 COMMANDS = {"build": cmd_build, "run": cmd_run, "check": cmd_check, "plan": cmd_plan,
             "tune": cmd_tune, "types": cmd_types,
-            "graph": cmd_graph, "bench": cmd_bench, "devices": cmd_devices, "schema": cmd_schema}
+            "graph": cmd_graph, "bench": cmd_bench, "devices": cmd_devices, "schema": cmd_schema,
+            "replay": lambda args: cmd_replay(args, _compile)}
