@@ -19,7 +19,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 from conftest import IN_CI, require_opencl
 
 cv2 = pytest.importorskip("cv2")

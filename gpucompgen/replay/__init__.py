@@ -98,7 +98,7 @@ class Progress:
 
 
 def _clock(seconds: float) -> str:
-    seconds = int(round(seconds))
+    seconds = round(seconds)
     return f"{seconds // 3600}:{seconds // 60 % 60:02d}:{seconds % 60:02d}"
 
 
@@ -185,8 +185,7 @@ def _report(run: dict, divergences: list, stream: TextIO) -> None:
             reason = row["reason"].splitlines()
             stream.write(f"{row['recording']}: {row['status']}"
                          + (f": {reason[-1]}" if reason else "") + "\n")
-    for d in divergences:
-        stream.write(f"diverged: {d.line()}\n")
+    stream.writelines(f"diverged: {d.line()}\n" for d in divergences)
     stream.write(f"replayed {totals['recordings']} recording(s) in {totals['seconds']:.1f} s: "
                  f"{totals['complete']} complete, {totals['partial']} partial, "
                  f"{totals['failed']} failed, {totals['frames']:,} frames"
