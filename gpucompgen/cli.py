@@ -22,6 +22,7 @@ from . import __version__
 from .errors import GpucompgenError, OutputError, UsageError
 from .ir import MODES
 from .model import EXECUTIONS, FUSION, MAX_FRAMES_IN_FLIGHT, STAGING, ZERO_COPY
+from .replay.cli import add_replay_parser, cmd_replay
 from .runtime import add_program_options
 
 EPILOG = """\
@@ -218,6 +219,8 @@ def parser() -> argparse.ArgumentParser:
     ty.add_argument("--model", type=Path, metavar="MODEL",
                     help="also the types this system model declares (its 'types:' files)")
 
+    add_replay_parser(sub, _sub, _common)
+
     sc = sub.add_parser("schema", help="print the JSON Schema of model files",
                         description="Print the JSON Schema of system models (or, with "
                                     "--types, of component-type files) for editors and tools.")
@@ -367,8 +370,10 @@ def cmd_run(args) -> int:
             if tmp is not None:
                 shutil.rmtree(tmp, ignore_errors=True)
         # a signal held above lands here: SIGINT as KeyboardInterrupt, SIGTERM in
-        # stop_building; both end the command with the folder gone
-        signal.signal(signal.SIGTERM, previous)
+        # stop_building; both end the command with the folder gone (after a run stopped by
+        # a signal, run_program leaves both ignored)
+        if signal.getsignal(signal.SIGTERM) is not signal.SIG_IGN:
+            signal.signal(signal.SIGTERM, previous)
 
 
 @contextlib.contextmanager
@@ -391,7 +396,7 @@ def _build_and_run(args, out: Path) -> int:
     for flag, value in (("--frames", args.frames), ("--stats-json", args.stats_json),
                         ("--trace", args.trace),
                         ("--decisions", args.decisions),
-                        ("--save-images", args.save_images)):
+                        ("--save-images", args.save_images), ("--digests", args.digests)):
         if value is not None:
             cmd += [flag, str(value)]
     for flag, values in (("--input", args.input), ("--output", args.output),
@@ -493,7 +498,9 @@ def run_program(cmd: list[str], kill_after: float = KILL_AFTER_SECONDS) -> int:
                         proc.send_signal(received[0])
         finally:
             for s, h in previous.items():
-                signal.signal(s, h)
+                # stopping on a signal: a repeat (a second Ctrl-C) is ignored to the end, as
+                # the program ignores it; restored, it would kill this process on its way out
+                signal.signal(s, signal.SIG_IGN if received else h)
     if killed:
         print(f"gpucompgen run: error: the program did not stop within {kill_after:g} s of "
               f"{signal.Signals(received[0]).name}; killed it", file=sys.stderr)
@@ -665,4 +672,5 @@ def cmd_types(args) -> int:
 
 COMMANDS = {"build": cmd_build, "run": cmd_run, "check": cmd_check, "plan": cmd_plan,
             "tune": cmd_tune, "types": cmd_types,
-            "graph": cmd_graph, "bench": cmd_bench, "devices": cmd_devices, "schema": cmd_schema}
+            "graph": cmd_graph, "bench": cmd_bench, "devices": cmd_devices, "schema": cmd_schema,
+            "replay": lambda args: cmd_replay(args, _compile)}

@@ -40,14 +40,16 @@ def run_program(program: Path, *args: str) -> subprocess.CompletedProcess:
 
 
 def lifecycle_model(tmp_path: Path, fail_at: int = -1, fail_free: bool = False,
-                    frames: int = 6, fail_init: bool = False) -> tuple[Path, Path]:
+                    frames: int = 6, fail_init: bool = False,
+                    fail_initialize: bool = False) -> tuple[Path, Path]:
     log = tmp_path / "free.log"
     program = build_model(tmp_path, f"""\
         system: lifecycle
         types: [{(DATA / "lifecycle" / "types.yaml").as_posix()}]
         components:
           camera: {{type: Camera, params: {{width: 48, height: 32, frames: {frames}}}}}
-          flaky: {{type: Flaky, params: {{fail_at: {fail_at}, log: "{log.as_posix()}"}}}}
+          flaky: {{type: Flaky, params: {{fail_at: {fail_at}, log: "{log.as_posix()}",
+                                         fail_initialize: {str(fail_initialize).lower()}}}}}
           detector: {{type: ObjectDetector}}
           recorder: {{type: Recorder, params: {{fail_free: {str(fail_free).lower()},
                                                fail_init: {str(fail_init).lower()},
@@ -302,9 +304,8 @@ def test_a_failure_in_initialize_frees_only_the_parts_initialized(tmp_path):
     """flaky.initialize() raises: flaky and the recorder after it were never initialized,
     so neither is freed (before, both were); the error names flaky."""
     require_opencl()
-    program, log = lifecycle_model(tmp_path)
-    text = program.read_text().replace("fail_initialize=False", "fail_initialize=True")
-    program.write_text(text)
+    program, log = lifecycle_model(tmp_path, fail_initialize=True)
+    text = program.read_text()
     assert text.index("flaky.initialize(") < text.index("recorder.initialize(")
     proc = run_program(program)
     assert proc.returncode == 1, proc.stderr

@@ -230,6 +230,10 @@ class VisionManager:
             self._save_images(mask, decision)
         self.frame += 1
 
+    def report(self) -> dict | None:
+        """The decision of the last frame, for --digests (gpucompgen replay compares them)."""
+        return asdict(self.history[-1]) if self.history else None
+
     def free_memory(self) -> None:
         if self._out is not None:
             out, self._out = self._out, None

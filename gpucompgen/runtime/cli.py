@@ -35,6 +35,10 @@ def add_program_options(parser: argparse.ArgumentParser) -> None:
                              ".jsonl or .json, else one text line per frame")
     parser.add_argument("--save-images", metavar="DIR", type=_file_name,
                         help="write the sinks' images (masks, annotated frames) as PNG to DIR")
+    parser.add_argument("--digests", metavar="FILE",
+                        help="write, per frame, a digest of what every sink received and "
+                             "what it reported, as JSON lines to FILE (gpucompgen replay "
+                             "compares runs with them)")
     parser.add_argument("--profile", action="store_true",
                         help="time every kernel and copy with OpenCL profiling events and "
                              "count the bytes moved between CPU and GPU (printed at the end)")
@@ -107,7 +111,8 @@ def main(run: Callable[..., Result], description: str, argv: list[str] | None = 
     args = parser.parse_args(argv)
     if args.frames is not None and args.frames < 0:
         parser.error("--frames must be 0 or more")
-    for flag, value in (("--stats-json", args.stats_json), ("--trace", args.trace)):
+    for flag, value in (("--stats-json", args.stats_json), ("--trace", args.trace),
+                        ("--digests", args.digests)):
         if value is not None:  # found out before the run, not after it
             problem = output_file_problem(Path(value))
             if problem:
@@ -118,7 +123,8 @@ def main(run: Callable[..., Result], description: str, argv: list[str] | None = 
         parser.error(str(exc))
     monitor = Monitor(progress=False if args.quiet else None, stats_path=args.stats_json,
                       options={"decisions": args.decisions, "save_images": args.save_images,
-                               "quiet": args.quiet, "drop": args.drop},
+                               "quiet": args.quiet, "drop": args.drop,
+                               "digests": args.digests},
                       trace_path=args.trace)
     if args.debug:
         faulthandler.enable()  # a crash (SIGSEGV in a kernel) prints where the host was

@@ -69,11 +69,23 @@ class Monitor:
             from .trace import Tracer
 
             self.tracer = Tracer(trace_path)
+        self.digests = None  # a DigestRecorder with the 'digests' option (--digests FILE)
 
     def attach(self, parts: dict[str, Any]) -> None:
         """Called by run() once every component and adapter is constructed."""
         self.parts = parts
         self._give_options(parts)
+        if self.options.get("digests"):
+            from .digests import DigestRecorder
+
+            self.digests = DigestRecorder(self.options["digests"])
+            try:
+                self.digests.open()
+            except OSError as exc:
+                self.digests = None
+                raise PipelineError(f"cannot write digests to {self.options['digests']}: "
+                                    f"{exc.strerror}") from None
+            self.digests.wrap(parts)
         if self.progress and self._stdout is None:
             self._stdout = sys.stdout
             sys.stdout = _ClearsProgress(sys.stdout, self)
@@ -95,7 +107,7 @@ class Monitor:
             if wanted:
                 obj.runtime_options({k: v for k, v in self.options.items() if k in wanted})
                 taken |= wanted
-        unused = sorted(set(given) - taken - {"quiet"})
+        unused = sorted(set(given) - taken - {"quiet", "digests"})  # the runtime's own
         if unused:
             raise PipelineError(
                 f"no component of this system takes --{unused[0].replace('_', '-')}")
@@ -169,6 +181,8 @@ class Monitor:
         if self._stdout is not None:
             sys.stdout, self._stdout = self._stdout, None
         self.clear_progress()
+        if self.digests is not None:
+            self.digests.close()
         if self.stats_path is not None:
             self.write_stats(self.stats_path)
         if self.tracer is not None:
