@@ -319,8 +319,8 @@ def _compile(args, out_dir: Path):
                            verify=True if args.debug else None, places=places(args),
                            fusion=getattr(args, "fusion", None),
                            # planned for the device at hand: its compiler checks every
-                           # kernel file (a run's program builds them itself)
-                           compile_kernels=args.command != "run")
+                           # kernel file (the programs run and replay start build them)
+                           compile_kernels=args.command in ("check", "build", "plan"))
     for w in result.warnings:
         print(w.format(), file=sys.stderr)
     return result
