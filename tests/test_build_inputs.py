@@ -104,13 +104,17 @@ def test_a_kernel_not_launched_is_still_in_the_program_and_built(tmp_path):
         "f1 (Flip; fused: built only to check it)')" in program
 
 
+def project_with_a_typo(tmp_path: Path) -> Path:
+    """The project with 'imgae' for 'image' in Flip's kernel (line 5, column 14)."""
+    model = project(tmp_path)
+    kernel = tmp_path / "flip.cl"
+    kernel.write_text(KERNEL.replace("out[i] = image[i];", "out[i] = imgae[i];", 1))
+    return model
+
+
 def test_a_typo_in_a_fused_types_kernel_fails_the_run(tmp_path):
     require_opencl()
-    model = project(tmp_path)
-    (tmp_path / "flip.cl").write_text(KERNEL.replace("out[i] = image[i];\n}\n\n__kernel "
-                                                     "void brighten",
-                                                     "out[i] = imgae[i];\n}\n\n__kernel "
-                                                     "void brighten"))
+    model = project_with_a_typo(tmp_path)
     assert gpucompgen("check", model, cwd=tmp_path).returncode == 0  # check needs no device
     proc = gpucompgen("run", model, "--frames", "1", cwd=tmp_path)
     assert proc.returncode == 1, proc.stderr
@@ -121,11 +125,7 @@ def test_a_typo_in_a_fused_types_kernel_fails_the_run(tmp_path):
 @pytest.mark.parametrize("command", ["check", "build", "plan"])
 def test_planned_for_the_device_every_kernel_is_built_at_check_time(tmp_path, command):
     require_opencl()
-    model = project(tmp_path)
-    (tmp_path / "flip.cl").write_text(KERNEL.replace("out[i] = image[i];\n}\n\n__kernel "
-                                                     "void brighten",
-                                                     "out[i] = imgae[i];\n}\n\n__kernel "
-                                                     "void brighten"))
+    model = project_with_a_typo(tmp_path)
     proc = gpucompgen(command, model, "--device", "auto", cwd=tmp_path)
     assert proc.returncode == 1, proc.stderr
     assert "t.yaml:2:3: error: Flip: kernel file flip.cl failed to build:\n" \
