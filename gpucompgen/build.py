@@ -20,9 +20,9 @@ from pathlib import Path
 
 from . import device as device_mod
 from .backend.opencl.render import HEADER_PREFIX, OutputFile, render, source_path
-from .errors import Diagnostic, GpucompgenError, OutputError, Reporter
+from .errors import Diagnostic, OutputError, Reporter
 from .ir import MODES, System
-from .model import load_system
+from .model import SystemModel, load_system
 from .passes import run_passes
 from .passes.lower import lib_dir_name
 
@@ -39,7 +39,8 @@ def compile_model(model_path: Path, out_dir: Path, mode: str = "gpu-aware",
                   display: str | None = None, execution: str | None = None,
                   zero_copy: str | None = None, verify: bool | None = None,
                   places: dict[str, str] | None = None, frames_in_flight: int | None = None,
-                  staging: str | None = None, fusion: str | None = None) -> BuildResult:
+                  staging: str | None = None, fusion: str | None = None,
+                  compile_kernels: bool = False) -> BuildResult:
     """Everything but writing: raises GpucompgenError with all problems found.
 
     execution ("parallel" | "sequential") and zero_copy ("auto" | "on" | "off") override
@@ -47,6 +48,9 @@ def compile_model(model_path: Path, out_dir: Path, mode: str = "gpu-aware",
     platform.fusion, frames_in_flight (1 or more) and staging ("auto" | "pinned" |
     "pageable") its platform.frames_in_flight and platform.staging; None keeps the model's.
     places (--place COMPONENT=gpu|cpu|auto) overrides flexible components' placements.
+    compile_kernels (check, build, plan with --device auto): every kernel file of the user's
+    that the model names is built on that device, fused or not, and what its compiler says
+    is reported with the model's problems.
     verify: check the IR's invariants after every pass (--debug; the test suite sets
     GPUCOMPGEN_VERIFY=1 so that None verifies there too).
     """
@@ -57,6 +61,8 @@ def compile_model(model_path: Path, out_dir: Path, mode: str = "gpu-aware",
     spec = device if device is not None else model.device
     facts = device_mod.resolve(spec, model.device_pos, rep,
                                model.device_positions if device is None else None)
+    if compile_kernels and spec == "auto" and not rep.has_errors:
+        compile_on_device(model, rep)
     rep.raise_if_errors()
     system, warnings = run_passes(model, facts, mode, dump, execution, zero_copy, verify,
                                   places, frames_in_flight, staging, fusion)
@@ -64,6 +70,29 @@ def compile_model(model_path: Path, out_dir: Path, mode: str = "gpu-aware",
     files = render(system, source_path(model_path, out_dir), model_dir)
     _must_compile(files[0])
     return BuildResult(system, files, warnings)
+
+
+def compile_on_device(model: SystemModel, rep: Reporter) -> None:
+    """Build every kernel file of the user's that a component's type names on the device
+    programs use, as the program does at start-up (the library's are the test suite's)."""
+    from .runtime import PipelineError, build_program, create_context
+
+    try:
+        context = create_context()
+    except PipelineError as exc:
+        rep.error(model.device_pos, f"device 'auto': {exc}")
+        return
+    built: set[Path] = set()
+    for inst in model.components.values():
+        t = inst.type
+        if not t.gpu_aware or t.origin != "user" or t.kernel_file in built:
+            continue
+        built.add(t.kernel_file)
+        try:
+            build_program(context, t.kernel_file, f"{t.name}")
+        except PipelineError as exc:
+            rep.error(t.pos, str(exc), "every kernel a model names is built on the device, "
+                      "also that of a type whose components are fused or on the CPU")
 
 
 def _must_compile(program: OutputFile) -> None:
@@ -82,6 +111,7 @@ def owned_paths(system_name: str, out_dir: Path) -> tuple[Path, Path]:
 
 def check_ownership(result: BuildResult, out_dir: Path) -> None:
     """Refuse to replace files that gpucompgen did not write."""
+    refuse_replacing_inputs(result, out_dir)  # never to be replaced, even with --overwrite
     program, lib = owned_paths(result.system.name, out_dir)
     foreign = []
     if program.exists() and not _generated(program):
@@ -91,11 +121,10 @@ def check_ownership(result: BuildResult, out_dir: Path) -> None:
             foreign.append(lib)
         else:
             foreign += [p for p in sorted(lib.rglob("*")) if p.is_file() and not _generated(p)]
-    if foreign:
-        raise GpucompgenError([Diagnostic(
-            str(foreign[0]), 0, 0, "error",
-            f"refusing to overwrite {len(foreign)} file(s) that gpucompgen did not generate",
-            "choose another output folder with -o, or pass --overwrite")])
+    if foreign:  # an output problem, a usage error (exit 2) like the others
+        raise OutputError(
+            f"{foreign[0]}: refusing to overwrite {len(foreign)} file(s) that gpucompgen did "
+            "not generate\n  hint: choose another output folder with -o, or pass --overwrite")
 
 
 def _generated(path: Path) -> bool:
@@ -154,6 +183,58 @@ def _running(pid: int) -> bool:
     return True
 
 
+def build_inputs(model: SystemModel) -> list[Path]:
+    """Every file the build reads (model.inputs: the model, type files, kernel, Python and
+    CPU files, the profile once read; the library's files of the types it uses) and every
+    path or input parameter's file or folder, resolved."""
+    paths = list(model.inputs)
+    for inst in model.components.values():
+        t = inst.type
+        paths += [f.resolve() for f in (t.decl_file, t.kernel_file, t.python_file, t.cpu_file)
+                  if f is not None]
+        for pname, value in inst.params.items():
+            decl = inst.type.params.get(pname)
+            if decl is not None and decl.type in ("path", "input") and \
+                    isinstance(value, str) and value:
+                local = _local_path(value)
+                if local:
+                    paths.append((model.file.parent / local).resolve())
+    return paths
+
+
+FILE_SCHEMES = re.compile(r"(file|mcap|rosbag)://")
+OTHER_URI = re.compile(r"[A-Za-z][A-Za-z0-9+.-]*:")  # device:0, rtsp://, v4l2://...
+
+
+def _local_path(value: str) -> str:
+    """The file or folder a path or input parameter names ('' for a camera, a stream):
+    a file URI's path without its query, a glob's folder."""
+    m = FILE_SCHEMES.match(value)
+    if m:
+        value = value[m.end():].split("?", 1)[0]
+    elif OTHER_URI.match(value):
+        return ""
+    if any(c in value for c in "*?["):
+        value = os.path.dirname(value[:min(value.find(c) for c in "*?[" if c in value)])
+    return value or "."
+
+
+def refuse_replacing_inputs(result: BuildResult, out_dir: Path) -> None:
+    """A build replaces <system>.py and the whole <system>_lib/: refuse (a usage error)
+    when an input of the build is one of them or lies inside, whatever --overwrite says."""
+    program, lib = (p.resolve() for p in owned_paths(result.system.name, out_dir))
+    for path in build_inputs(result.system.model):
+        if path == program or path == lib or lib in path.parents:
+            try:
+                shown = os.path.relpath(path)
+            except ValueError:
+                shown = str(path)
+            raise OutputError(
+                f"building into {out_dir} would replace {shown}, an input of the build "
+                f"(the build owns {program.name} and {lib.name}/ there); choose another "
+                "output folder with -o, or move the file")
+
+
 def write(result: BuildResult, out_dir: Path) -> list[Path]:
     """Write all files, all or nothing: everything is staged first, then the lib folder and
     the program replace the old ones; if that fails, the old lib folder is put back.
@@ -162,6 +243,7 @@ def write(result: BuildResult, out_dir: Path) -> list[Path]:
     previous/, so no system name can make them collide."""
     name = result.system.name
     program, lib = owned_paths(name, out_dir)
+    refuse_replacing_inputs(result, out_dir)
     if out_dir.exists() and not out_dir.is_dir():
         raise OutputError(f"output folder {out_dir} is a file")
     if program.is_dir():
@@ -200,19 +282,83 @@ def write(result: BuildResult, out_dir: Path) -> list[Path]:
     return [out_dir / f.path for f in result.files]
 
 
+MAX_DIFF_FILE_BYTES = 1 << 20  # a file larger than this is compared, never shown line by line
+MAX_DIFF_LINES = 5000  # lines of diff printed at most (the rest are counted)
+
+
 def diff(result: BuildResult, out_dir: Path) -> str:
-    """Unified diff from what is in out_dir to what a build would write ('' when current)."""
+    """Unified diff from what is in out_dir to what a build would write ('' when current).
+
+    Files are compared by size, then streamed in blocks: whatever lies in the folder, no
+    more than MAX_DIFF_FILE_BYTES of one file is ever held in memory, a larger (or binary)
+    file is named with its size instead of shown, and the diff stops after MAX_DIFF_LINES
+    lines."""
     program, lib = owned_paths(result.system.name, out_dir)
-    wanted = {out_dir / f.path: f.text for f in result.files}
+    wanted = {out_dir / f.path: f.text.encode("utf-8") for f in result.files}
     existing = {program} | ({p for p in lib.rglob("*") if p.is_file()} if lib.is_dir() else set())
-    chunks = []
+    lines: list[str] = []
     for path in sorted(set(wanted) | existing):
-        old = path.read_text(encoding="utf-8", errors="replace") if path.is_file() else ""
-        new = wanted.get(path, "")
-        if old != new:
-            rel = path.relative_to(out_dir).as_posix()
-            chunks.append("".join(difflib.unified_diff(
-                old.splitlines(keepends=True), new.splitlines(keepends=True),
-                fromfile=f"a/{rel}" if path.is_file() else "/dev/null",
-                tofile=f"b/{rel}" if path in wanted else "/dev/null")))
-    return "".join(chunks)
+        new = wanted.get(path)
+        if _same(path, new):
+            continue
+        rel = path.relative_to(out_dir).as_posix()
+        old = _small_text(path)
+        fromfile = f"a/{rel}" if path.is_file() else "/dev/null"
+        tofile = f"b/{rel}" if new is not None else "/dev/null"
+        if old is None:  # too large or not text: say so in place of its lines
+            size = _size(path)
+            lines += [f"--- {fromfile}\n", f"+++ {tofile}\n",
+                      f"@@ {rel}: {size:,} bytes, not shown (larger than "
+                      f"{MAX_DIFF_FILE_BYTES:,} bytes or not UTF-8 text); a build "
+                      + ("replaces it" if new is not None else "removes it") + " @@\n"]
+            continue
+        lines += difflib.unified_diff(old.splitlines(keepends=True),
+                                      (new or b"").decode("utf-8").splitlines(keepends=True),
+                                      fromfile=fromfile, tofile=tofile)
+    if len(lines) > MAX_DIFF_LINES:
+        more = len(lines) - MAX_DIFF_LINES
+        lines = lines[:MAX_DIFF_LINES] + [f"... {more:,} more lines of diff not shown\n"]
+    return "".join(line if line.endswith("\n") else line + "\n\\ No newline at end of file\n"
+                   for line in lines)
+
+
+def _size(path: Path) -> int:
+    try:
+        return path.stat().st_size
+    except OSError:
+        return 0
+
+
+def _same(path: Path, new: bytes | None) -> bool:
+    """The file at path holds exactly new (None: a file no build writes), read in blocks."""
+    if new is None or not path.is_file() or _size(path) != len(new):
+        return False
+    try:
+        with path.open("rb") as f:
+            offset = 0
+            while block := f.read(1 << 16):
+                if block != new[offset:offset + len(block)]:
+                    return False
+                offset += len(block)
+            return offset == len(new)
+    except OSError:
+        return False
+
+
+def _small_text(path: Path) -> str | None:
+    """The file's text for a diff: '' when there is none, None when too large or binary."""
+    if not path.is_file():
+        return ""
+    if _size(path) > MAX_DIFF_FILE_BYTES:
+        return None
+    try:
+        with path.open("rb") as f:
+            data = f.read(MAX_DIFF_FILE_BYTES + 1)
+    except OSError:
+        return None
+    if len(data) > MAX_DIFF_FILE_BYTES or b"\0" in data:
+        return None
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError:
+        return None

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import errno
 import os
 import shutil
 import signal
@@ -26,7 +27,8 @@ from .runtime import add_program_options
 
 EPILOG = """\
 exit codes: 0 ok; 1 problems in the model, stale output with --check, or a failed run;
-2 usage or internal error (and a missing Graphviz for graph).
+2 usage, output (a folder or file that cannot take the output) or internal error (and a
+missing Graphviz for graph).
 A run stopped by SIGINT or SIGTERM exits 130 or 143; a program killed by a signal
 exits 128 + its number (139 for SIGSEGV), and 'run' names the signal.
 
@@ -238,7 +240,9 @@ def main(argv: list[str] | None = None) -> int:
                 "not a regular file" if model.exists() else "no such file"
             print(f"gpucompgen {args.command}: error: {model}: {what}", file=sys.stderr)
             return 2
-        return COMMANDS[args.command](args)
+        code = COMMANDS[args.command](args)
+        sys.stdout.flush()  # a full disk or closed pipe is found here, not at exit
+        return code
     except (OutputError, UsageError) as exc:
         print(f"gpucompgen {args.command}: error: {exc}", file=sys.stderr)
         return 2
@@ -258,12 +262,31 @@ def main(argv: list[str] | None = None) -> int:
         devnull = os.open(os.devnull, os.O_WRONLY)
         os.dup2(devnull, sys.stdout.fileno())  # so that exiting does not flush into it
         return 0
-    except Exception as exc:  # an internal error: a bug in gpucompgen
-        if args.debug:
-            traceback.print_exc()
-        print(f"gpucompgen: internal error: {type(exc).__name__}: {exc}\n"
-              "  rerun with --debug for the traceback and please report it", file=sys.stderr)
+    except OSError as exc:
+        if exc.errno not in OUTPUT_ERRNOS or exc.filename is not None:
+            return _internal_error(args, exc)
+        # `gpucompgen schema > /dev/full`: an output problem, like any other (exit 2); the
+        # writes that fail so are standard output's (files are written through OutputError)
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())  # so that exiting does not flush into it
+        print(f"gpucompgen {args.command}: error: cannot write the output: "
+              f"{exc.strerror or exc}", file=sys.stderr)
         return 2
+    except Exception as exc:  # an internal error: a bug in gpucompgen
+        return _internal_error(args, exc)
+
+
+# what writing to a full, over-quota or failing file or device raises
+OUTPUT_ERRNOS = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EIO)
+
+
+def _internal_error(args, exc: BaseException) -> int:
+    """An internal error: a bug in gpucompgen (the traceback with --debug)."""
+    if args.debug:
+        traceback.print_exc()
+    print(f"gpucompgen: internal error: {type(exc).__name__}: {exc}\n"
+          "  rerun with --debug for the traceback and please report it", file=sys.stderr)
+    return 2
 
 
 MAX_SHOWN = 200  # diagnostics printed at most (a file stops at 100); the count line counts all
@@ -294,7 +317,10 @@ def _compile(args, out_dir: Path):
                            execution=args.execution, zero_copy=args.zero_copy,
                            frames_in_flight=args.frames_in_flight, staging=args.staging,
                            verify=True if args.debug else None, places=places(args),
-                           fusion=getattr(args, "fusion", None))
+                           fusion=getattr(args, "fusion", None),
+                           # planned for the device at hand: its compiler checks every
+                           # kernel file (the programs run and replay start build them)
+                           compile_kernels=args.command in ("check", "build", "plan"))
     for w in result.warnings:
         print(w.format(), file=sys.stderr)
     return result
@@ -497,6 +523,8 @@ def cmd_check(args) -> int:
     from .plan import summary_lines
 
     result = _compile(args, Path("generated"))
+    for note in result.system.model.notes:
+        print(note.format(), file=sys.stderr)
     status = "ok" if not result.warnings else "ok with warnings"
     print(f"{args.model}: {status}: system '{result.system.name}'")
     for line in summary_lines(result.system.plan):
@@ -521,19 +549,21 @@ def cmd_plan(args) -> int:
 def cmd_tune(args) -> int:
     from .model import load_system
     from .runtime import PipelineError
-    from .tune import default_profile_path, tune
+    from .tune import FunctionFailed, output_path, tune, write_profile
 
     if args.frames < 1:
         print("gpucompgen tune: error: --frames must be 1 or more", file=sys.stderr)
         return 2
+    out = output_path(args.model, load_system(args.model), args.output)  # before measuring
     try:
         text, rows = tune(args.model, args.frames, str(args.model))
+    except FunctionFailed as exc:  # the user's code failed, as in a failed run
+        print(f"gpucompgen tune: error: {exc}", file=sys.stderr)
+        return 1
     except PipelineError as exc:
         print(f"gpucompgen tune: error: {exc}", file=sys.stderr)
         return 2
-    out = args.output or default_profile_path(args.model, load_system(args.model))
-    out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(text, encoding="utf-8")
+    write_profile(out, text)
     width = max([len(r[0]) for r in rows] + [9])
     print(f"{'component':<{width}}  {'CPU us':>10}  {'GPU us':>10}")
     for name, _, _, cpu_us, gpu_us in rows:
@@ -610,20 +640,30 @@ def cmd_schema(args) -> int:
 def cmd_types(args) -> int:
     """The types available (library, and the model's own with --model), or one in full."""
     from .errors import did_you_mean
-    from .model import library_types, load_system
+    from .model import LIBRARY_PREFIX, library_types, load_system
     from .typeinfo import details, listing
 
-    types = load_system(args.model).types if args.model else library_types()
-    if args.name is None:
+    library = library_types()
+    types = load_system(args.model).types if args.model else library
+    # a library type the model's own shadows is listed as the model writes it: lib.Name
+    types = {**types, **{f"{LIBRARY_PREFIX}{n}": t for n, t in library.items()
+                         if types.get(n) is not t}}
+    name = args.name
+    if name is not None and name.startswith(LIBRARY_PREFIX) and \
+            name[len(LIBRARY_PREFIX):] in library:
+        name = name[len(LIBRARY_PREFIX):]
+        types = library  # the library's type, even where a model's own one shadows it
+    if name is None:
         lines = listing(types)
-    elif args.name in types:
-        lines = details(types[args.name])
+    elif name in types:
+        lines = details(types[name])
     else:
         where = f"available to {args.model}" if args.model else "in the library"
-        hint = did_you_mean(args.name, types)
+        # the name as Python writes it: escape sequences and line breaks stay visible
+        hint = did_you_mean(name, types)
         if not args.model:
             hint += " (a model's own types are listed with --model MODEL)"
-        print(f"gpucompgen types: error: no component type '{args.name}' {where}\n"
+        print(f"gpucompgen types: error: no component type {name!r} {where}\n"
               f"  hint: {hint}", file=sys.stderr)
         return 1
     print("\n".join(lines))

@@ -8,6 +8,7 @@ shows all problems at once.
 from __future__ import annotations
 
 import ast
+import hashlib
 import math
 import re
 from dataclasses import dataclass, field
@@ -144,6 +145,7 @@ class ComponentType:
     # by the generator: checked with ast)
     cpu_file: Path | None = None
     cpu_function: str = ""
+    cpu_text: str = ""
 
     @property
     def gpu_aware(self) -> bool:
@@ -225,6 +227,17 @@ class SystemModel:
     placement_pos: Pos | None = None
     profile: Path | None = None
     profile_pos: Pos | None = None
+    # things check says that are no problem: a user's type shadowing a library type
+    notes: list[Diagnostic] = field(default_factory=list)
+    # every file of the user's that feeds the build (resolved path -> sha256 of the text
+    # read): the model, its type files, their kernel, Python and CPU files, and the profile
+    # once read.  The generated program records them, so that 'build --check' is stale when
+    # any changes; build and tune never write over one.
+    inputs: dict[Path, str] = field(default_factory=dict)
+
+    def add_input(self, path: Path, text: str | bytes) -> None:
+        data = text.encode("utf-8", "surrogatepass") if isinstance(text, str) else text
+        self.inputs[path.resolve()] = hashlib.sha256(data).hexdigest()
     # warnings found while loading (an input that is missing but not needed for sizes)
     load_warnings: list = field(default_factory=list)
 
@@ -913,6 +926,7 @@ def _load_cpu(doc, rep, base, ctype: ComponentType, spec) -> None:
     cpu_text = ""
     if found is not None:
         ctype.cpu_file, cpu_text = found
+        ctype.cpu_text = cpu_text
     function = cspec.get("function", ctype.snake)
     fpos = doc.pos(*path, "function") if "function" in cspec else doc.key_pos(*path)
     problem = name_problem(function, "function name")
@@ -1000,10 +1014,12 @@ CONNECTION_RE = re.compile(r"^\s*([^\s.]+)\.([^\s.]+)\s*->\s*([^\s.]+)\.([^\s.]+
 
 
 TYPE_FILE_SUFFIXES = (".yaml", ".yml")
+# a model names a library type shadowed by its own type of the same name as lib.Name
+LIBRARY_PREFIX = "lib."
 
 
 def _load_user_types(doc: Document, rep: Reporter, path: Path, display: str, i: int,
-                     rel: Any, read: dict[Path, tuple[int, int]]
+                     rel: Any, read: dict[Path, tuple[int, int]], texts: dict[Path, str]
                      ) -> dict[str, ComponentType] | None:
     """The types of entry i of the model's 'types:' list, or None after reporting why not.
 
@@ -1050,6 +1066,7 @@ def _load_user_types(doc: Document, rep: Reporter, path: Path, display: str, i: 
                   f"{MAX_TYPE_BYTES:,} are allowed", "keep only the types the model uses")
         return None
     read[tpath.resolve()] = (i, size)
+    texts[tpath.resolve()] = text
     if not starts_with_key(text, "component_types"):
         rep.error(pos, f"{what} is not a component-type file",
                   "a component-type file starts with 'component_types:' (its content is "
@@ -1064,8 +1081,6 @@ def _load_user_types(doc: Document, rep: Reporter, path: Path, display: str, i: 
 
 def load_system(path: Path, display: str | None = None) -> SystemModel:
     """Load a system model and everything it refers to; raise GpucompgenError on problems."""
-    import hashlib
-
     display = display or str(path)
     doc = load_file(path, display)
     rep = Reporter()
@@ -1099,17 +1114,27 @@ def load_system(path: Path, display: str | None = None) -> SystemModel:
                   f"at most {MAX_TYPE_FILES} are allowed", "put related types in one file")
         rep.raise_if_errors()
     types_failed = False  # a type file could not be read: its types are not "unknown"
+    library = dict(types)
     folded_types = {fold(t): t for t in types}
+    notes: list[Diagnostic] = []
     read: dict[Path, tuple[int, int]] = {}  # type file read -> (index in the list, bytes)
+    texts: dict[Path, str] = {}  # type file read -> its text
     for i, rel in enumerate(type_files):
-        user = _load_user_types(doc, rep, path, display, i, rel, read)
+        user = _load_user_types(doc, rep, path, display, i, rel, read, texts)
         types_failed |= user is None
         user = user or {}
         for tname, ctype in user.items():
             clash = folded_types.get(fold(tname))
-            if clash is not None:
-                where = "by the library" if types[clash].origin == "library" else "elsewhere"
-                rep.error(ctype.pos, f"component type '{tname}' is already defined {where}"
+            if clash is not None and types[clash].origin == "library":
+                # The user's own type is the one their model gets: a type the library adds
+                # later never breaks a model that worked before.
+                del types[clash]
+                notes.append(Diagnostic(ctype.pos.file, ctype.pos.line, ctype.pos.col, "note",
+                                        f"component type '{tname}' shadows the library's "
+                                        f"'{clash}'", f"the model gets this file's '{tname}'; "
+                                        f"write '{LIBRARY_PREFIX}{clash}' for the library's"))
+            elif clash is not None:
+                rep.error(ctype.pos, f"component type '{tname}' is already defined elsewhere"
                           + ("" if clash == tname else f" as '{clash}'"),
                           "give your type another name (case and underscores do not count)")
                 continue
@@ -1200,10 +1225,6 @@ def load_system(path: Path, display: str | None = None) -> SystemModel:
                   "are allowed", "split it into several systems")
         rep.raise_if_errors()
     folded: dict[str, str] = {}
-    # a component is a variable of run(): it must not hide a class the program defines or
-    # imports (a GPU-aware type's own class, or a standard type's Python class)
-    class_names = {t.python_class or t.name: t.name for t in types.values()}
-    class_names.update({t.name: t.name for t in types.values()})
     for order, (cname, written) in enumerate(comps.items()):
         cpath = ("components", cname)
         problem = name_problem(cname, "component name", top_level=True)
@@ -1220,23 +1241,18 @@ def load_system(path: Path, display: str | None = None) -> SystemModel:
                             else written, f"component '{cname}'")
         _unknown_keys(doc, rep, cpath, cspec, INSTANCE_KEYS, f"component '{cname}'")
         tname = cspec.get("type")
-        if not _named(tname, types):
+        if isinstance(tname, str) and tname.startswith(LIBRARY_PREFIX) and \
+                tname[len(LIBRARY_PREFIX):] in library:
+            ctype = library[tname[len(LIBRARY_PREFIX):]]  # the library's, even if shadowed
+        elif not _named(tname, types):
             if types_failed and isinstance(tname, str):
                 continue
             rep.error(doc.pos(*cpath, "type") if "type" in cspec else doc.key_pos(*cpath),
                       f"unknown component type {tname!r} for '{cname}'",
                       did_you_mean(str(tname), types))
             continue
-        ctype = types[tname]
-        clash = class_names.get(cname)  # `Camera = Camera()` would shadow the class
-        if clash is not None:
-            rep.error(doc.key_pos(*cpath),
-                      f"component name '{cname}' collides with "
-                      + (f"component type '{clash}'" if clash == cname else
-                         f"the Python class of component type '{clash}'"),
-                      "the generated program uses type names as class names: name the "
-                      f"component after its role, e.g. '{snake(clash)}1'")
-            continue
+        else:
+            ctype = types[tname]
         params = _instance_params(doc, rep, cpath, ctype, cspec.get("params"))
         _sizes_from_input(doc, rep, cpath, ctype, params, cspec.get("params"), path.parent)
         fuse = cspec.get("fuse", True)
@@ -1250,6 +1266,7 @@ def load_system(path: Path, display: str | None = None) -> SystemModel:
             where = placement_problem(rep, where_pos, cname, ctype, where)
         components[cname] = Instance(cname, ctype, params, doc.key_pos(*cpath), order,
                                      where, where_pos, fuse=fuse)
+    _check_class_names(doc, rep, components)
     for cname, (_, pos) in overrides.items():
         if cname not in components and cname in comps:
             continue
@@ -1276,8 +1293,9 @@ def load_system(path: Path, display: str | None = None) -> SystemModel:
         if conn is not None:
             connections.append(conn)
     rep.raise_if_errors()
-    return SystemModel(name=name, description=description, file=path, display=display,
-                       text_sha256=hashlib.sha256(path.read_bytes()).hexdigest(),
+    model_bytes = path.read_bytes()
+    model = SystemModel(name=name, description=description, file=path, display=display,
+                       text_sha256=hashlib.sha256(model_bytes).hexdigest(),
                        components=components, connections=connections, device=device,
                        device_pos=doc.pos("platform", "device"), gpu_overrides=overrides,
                        thread_budget=budget,
@@ -1286,11 +1304,56 @@ def load_system(path: Path, display: str | None = None) -> SystemModel:
                        staging=staging, platform_pos=doc.pos("platform"), fusion=fusion,
                        placement=placement, placement_pos=doc.pos("platform", "placement"),
                        profile=profile, profile_pos=doc.pos("platform", "profile"),
+                       notes=notes,
                        load_warnings=rep.warnings,
                        device_positions={k: (doc.key_pos("platform", "device", k),
                                              doc.pos("platform", "device", k))
                                          for k in (device if isinstance(device, dict) else {})
                                          if isinstance(k, str)})
+    model.add_input(path, model_bytes)
+    for tpath, text in texts.items():
+        model.add_input(tpath, text)
+    for t in types.values():
+        if t.origin != "user":
+            continue
+        for source, text in ((t.kernel_file, t.kernel_text), (t.python_file, t.python_text),
+                             (t.cpu_file, t.cpu_text)):
+            if source is not None:
+                model.add_input(source, text)
+    return model
+
+
+def _check_class_names(doc: Document, rep: Reporter, components: dict[str, Instance]) -> None:
+    """Names the generated program gives classes: those of the types the model uses.
+
+    A component is a variable of run(): it must not hide a class the program defines or
+    imports (a GPU-aware type's own class, or a standard type's Python class).  Only the
+    types used count, so a type the library adds can never collide with a model's names.
+    Two types used under names that differ only by case and underscores (the user's own
+    'AbsDiff' and the library's 'lib.AbsDiff') would be two classes of one name.
+    """
+    used: dict[str, ComponentType] = {}
+    for inst in components.values():
+        first = used.setdefault(fold(inst.type.name), inst.type)
+        if first is not inst.type:
+            rep.error(inst.pos, f"component '{inst.name}' uses the library's type "
+                      f"'{LIBRARY_PREFIX}{inst.type.name}' and the model also uses its own "
+                      f"'{first.name}'" if inst.type.origin == "library" else
+                      f"component '{inst.name}' uses the model's own type '{inst.type.name}' "
+                      f"and the model also uses the library's '{LIBRARY_PREFIX}{first.name}'",
+                      "the generated program names a class after each type: rename your own "
+                      "type to use both")
+    class_names = {t.python_class or t.name: t.name for t in used.values()}
+    class_names.update({t.name: t.name for t in used.values()})
+    for inst in components.values():
+        clash = class_names.get(inst.name)  # `Camera = Camera()` would shadow the class
+        if clash is not None:
+            rep.error(doc.key_pos("components", inst.name),
+                      f"component name '{inst.name}' collides with "
+                      + (f"component type '{clash}'" if clash == inst.name else
+                         f"the Python class of component type '{clash}'"),
+                      "the generated program uses type names as class names: name the "
+                      f"component after its role, e.g. '{snake(clash)}1'")
 
 
 def placement_problem(rep: Reporter, pos: Pos, cname: str, ctype: ComponentType,

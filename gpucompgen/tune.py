@@ -17,9 +17,13 @@ the types' CPU functions.
 
 from __future__ import annotations
 
+import contextlib
 import importlib
+import os
 import statistics
+import tempfile
 import time
+import traceback
 from pathlib import Path
 
 from .ir import ComponentNode
@@ -32,6 +36,62 @@ def default_profile_path(model_path: Path, model) -> Path:
     """The model's platform.profile, else tune/<system>.yaml beside the model: the file
     placement: auto reads without platform.profile (passes/place.py profile_path)."""
     return model.profile or default_profile(model)
+
+
+class FunctionFailed(Exception):
+    """A component's own CPU function raised while being timed (the user's code, exit 1)."""
+
+
+def output_path(model_path: Path, model, asked: Path | None) -> Path:
+    """Where the profile goes, checked before anything is measured: OutputError when it is
+    an input of the build (the model, its type, kernel, Python or CPU files, a path
+    parameter: a profile written there replaced it), a folder, or no regular file."""
+    from .build import build_inputs
+    from .errors import OutputError
+
+    out = asked or default_profile_path(model_path, model)
+    try:
+        resolved = out.resolve()
+    except (OSError, RuntimeError) as exc:
+        raise OutputError(f"{out}: cannot use it for the profile: {exc}") from None
+    if resolved in build_inputs(model):
+        raise OutputError(f"{out} is an input of the build of {model_path}; writing the "
+                          "profile there would replace it\n  hint: give platform.profile "
+                          "(or -o) a file of its own, e.g. tune/"
+                          f"{model.name}.yaml")
+    if out.is_dir():
+        raise OutputError(f"{out} is a folder\n  hint: give the path of the profile file, "
+                          f"e.g. {out / (model.name + '.yaml')}")
+    if out.exists() and not out.is_file():
+        raise OutputError(f"{out} is not a regular file\n  hint: give the path of a .yaml "
+                          "file; the profile is written to a temporary file and renamed")
+    parent = out.parent
+    if parent.exists() and not parent.is_dir():
+        raise OutputError(f"{parent} is a file, where the profile's folder would go")
+    if parent.exists() and not os.access(parent, os.W_OK | os.X_OK):
+        raise OutputError(f"cannot write into {parent}: permission denied")
+    return out
+
+
+def write_profile(out: Path, text: str) -> None:
+    """Write the profile whole or not at all (a temporary file beside it, then renamed);
+    a failure is an OutputError."""
+    from .errors import OutputError
+
+    tmp = None
+    try:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{out.name}.", dir=out.parent)
+        with os.fdopen(fd, "w", encoding="utf-8") as f:
+            f.write(text)
+        os.replace(tmp, out)
+        tmp = None
+    except OSError as exc:
+        raise OutputError(f"cannot write the profile {out}: {exc.strerror or exc}") from None
+    finally:
+        if tmp is not None:
+            with contextlib.suppress(OSError):
+                os.unlink(tmp)
 
 
 def tune(model_path: Path, frames: int = 20, display: str | None = None) -> tuple[str, list]:
@@ -61,7 +121,7 @@ def tune(model_path: Path, frames: int = 20, display: str | None = None) -> tupl
         inputs = {p: camera_frame(port.data.size.shape, port.data.dtype, i)
                   for i, (p, port) in enumerate(node.inputs.items())}
         function, kwargs = _cpu_function(t), {**inputs, **node.params}
-        cpu_s = _median(frames, lambda f=function, k=kwargs: f(**k))
+        cpu_s = _median(frames, lambda f=function, k=kwargs, n=name, t=t: _call(n, t, f, k))
         gpu_s = _gpu_time(context, queue, system, plan, node, inputs, frames)
         rows.append((name, t.name, sizes_text(system, node), cpu_s * 1e6, gpu_s * 1e6))
     biggest = max((p.data.nbytes for n in flexible for p in system.nodes[n].ports), default=1)
@@ -124,6 +184,20 @@ def _cpu_function(t):
         return getattr(module, t.cpu_function)
     from .runtime import load_function
     return load_function(t.cpu_file, t.cpu_function)
+
+
+def _call(name: str, t, function, kwargs):
+    """Call a component's CPU function; its exception becomes FunctionFailed, naming the
+    component, the function and the line of its file that raised."""
+    try:
+        return function(**kwargs)
+    except Exception as exc:
+        where = str(t.cpu_file)
+        line = next((f.lineno for f in reversed(traceback.extract_tb(exc.__traceback__))
+                     if Path(f.filename).resolve() == Path(where).resolve()), None)
+        place = f"{t.cpu_file.name}:{line}" if line else t.cpu_file.name
+        raise FunctionFailed(f"{name} ({t.name}): its CPU function '{t.cpu_function}' "
+                             f"raised {type(exc).__name__}: {exc} (at {place})") from exc
 
 
 def _median(frames: int, call, finish=None) -> float:

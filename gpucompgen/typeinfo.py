@@ -29,16 +29,16 @@ def summary(ctype: ComponentType) -> str:
 
 def listing(types: Mapping[str, ComponentType]) -> list[str]:
     """Every type, grouped by declaring file (the library's first), one line each."""
-    groups: dict[tuple[int, str], list[ComponentType]] = {}
-    for ctype in types.values():
+    groups: dict[tuple[int, str], list[tuple[str, ComponentType]]] = {}
+    for name, ctype in types.items():  # by the name a model writes (lib.Name: shadowed)
         key = (0 if ctype.origin == "library" else 1, _source(ctype))
-        groups.setdefault(key, []).append(ctype)
+        groups.setdefault(key, []).append((name, ctype))
     name_width = max((len(n) for n in types), default=0) + 2
     lines: list[str] = []
     for (_, source), members in sorted(groups.items()):
         lines.append(f"{source}:")
-        for ctype in sorted(members, key=lambda t: t.name):
-            head = f"  {ctype.name:<{name_width}}{ctype.kind:<11}"
+        for name, ctype in sorted(members, key=lambda m: m[1].name):
+            head = f"  {name:<{name_width}}{ctype.kind:<11}"
             text = summary(ctype)
             room = WIDTH - len(head)
             if len(text) > room:

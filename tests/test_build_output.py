@@ -66,7 +66,7 @@ def test_refuses_a_foreign_file_in_the_lib_folder(tmp_path):
     mine = out / "vision_system_lib" / "notes.txt"
     mine.write_text("my notes\n")
     proc = _gpucompgen("build", MODEL, "-o", out)
-    assert proc.returncode == 1, proc.stderr
+    assert proc.returncode == 2, proc.stderr  # an output problem: a usage error
     assert "refusing to overwrite 1 file(s) that gpucompgen did not generate" in proc.stderr
     assert "--overwrite" in proc.stderr and "Traceback" not in proc.stderr
     assert mine.read_text() == "my notes\n"

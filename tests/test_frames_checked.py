@@ -106,11 +106,13 @@ def test_check_frame_directly():
     from gpucompgen.runtime import PipelineError, check_frame
 
     good = np.zeros((4, 5), np.uint8)
-    assert check_frame("a.b", good, (4, 5), np.uint8) is good
+    checked = check_frame("a.b", good, (4, 5), np.uint8)
+    assert checked.base is good and not checked.flags.writeable  # a read-only view
     # one channel as height x width x 1 (issue 22): handed on as height x width, a view
     deep = np.arange(20, dtype=np.uint8).reshape(4, 5, 1)
     flat = check_frame("a.b", deep, (4, 5), np.uint8)
     assert flat.shape == (4, 5) and np.shares_memory(flat, deep)
+    assert not flat.flags.writeable
     np.testing.assert_array_equal(flat, deep[..., 0])
     strided = np.zeros((4, 10, 1), np.uint8)[:, ::2]  # not contiguous: still no copy
     assert np.shares_memory(check_frame("a.b", strided, (4, 5), np.uint8), strided)

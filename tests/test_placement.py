@@ -271,7 +271,8 @@ def test_profile_problems_are_reported_in_place(tmp_path):
     with pytest.raises(GpucompgenError) as exc:
         _passes(path)
     text = str(exc.value)
-    assert "prof.yaml:1:24: error: transfer.latency_us must be a number, 0 or more" in text
+    assert "prof.yaml:1:24: error: transfer.latency_us must be a number from 0 to 1e+12, " \
+        "not 'fast'" in text
     path = _auto_model(tmp_path, """\
         components:
           merger: {cpu_us: 1, gpu_us: 2, sizes: "1x1x3 -> 1x2x3"}
@@ -281,6 +282,99 @@ def test_profile_problems_are_reported_in_place(tmp_path):
     text = "\n".join(w.format() for w in warnings)
     assert "prof.yaml:2:41: warning: 'merger' was timed at 1x1x3 -> 1x2x3" in text
     assert "prof.yaml:3:3: warning: the profile times 'nobody'" in text
+
+
+def _tree(tmp_path: Path, n: int, profile: str = "") -> Path:
+    """A source feeding a binary tree of n VerticalMirrors placed auto (fan-out at every
+    level), each leaf into a sink."""
+    comps = [f"  m{i}: {{type: VerticalMirror, placement: auto}}" for i in range(n)]
+    conns = [f"  - {'source.image' if i == 0 else f'm{(i - 1) // 2}.mirrored'} -> m{i}.image"
+             for i in range(n)]
+    leaves = [i for i in range(n) if 2 * i + 1 >= n]
+    comps += [f"  sink{i}: FrameSink" for i in leaves]
+    conns += [f"  - m{i}.mirrored -> sink{i}.image" for i in leaves]
+    if profile:
+        (tmp_path / "prof.yaml").write_text(profile)
+    path = tmp_path / "tree.yaml"
+    path.write_text("system: tree\n" + ("platform: {profile: prof.yaml}\n" if profile else "")
+                    + "components:\n  source: {type: StillImage, params: {width: 4096, "
+                    "height: 4096}}\n" + "\n".join(comps) + "\nconnections:\n"
+                    + "\n".join(conns) + "\n")
+    return path
+
+
+def test_sixteen_auto_components_are_placed_without_calling_frame_per_placement(
+        tmp_path, monkeypatch):
+    """2^16 placements are summed at once: frame() runs for the near-best few only (it
+    rescanned every edge for each of the 65,536 placements: ~210 s)."""
+    import random
+    import time
+
+    rng = random.Random(16)
+    profile = "transfer: {latency_us: 30, bandwidth_mb_s: 9000}\ncomponents:\n" + "".join(
+        f"  m{i}: {{cpu_us: {rng.randint(1, 9000)}, gpu_us: {rng.randint(1, 9000)}}}\n"
+        for i in range(16))
+    calls = []
+    frame = place_mod.CostModel.frame
+    monkeypatch.setattr(place_mod.CostModel, "frame",
+                        lambda self, sides: calls.append(1) or frame(self, sides))
+    start = time.perf_counter()
+    system, _ = _passes(_tree(tmp_path, 16, profile))
+    took = time.perf_counter() - start
+    assert system.placement.search == "exhaustive over 65,536 placements"
+    assert len(calls) < 100, len(calls)
+    assert took < 30, took  # generous: about a second on a loaded laptop
+
+
+def test_the_summed_search_picks_what_calling_frame_for_each_placement_picks(tmp_path):
+    """choose() against the plain definition: min over itertools.product of frame()."""
+    import random
+
+    system, _ = _passes(_tree(tmp_path, 7))
+    names = [f"m{i}" for i in range(7)]
+    rng = random.Random(7)
+    for trial in range(40):
+        components = {n: (rng.choice([1, 2, 5, 50, 500]) * 1e-6,
+                          rng.choice([1, 2, 5, 50, 500]) * 1e-6) for n in names}
+        transfer = (rng.choice([0, 1e-6, 3e-5]), rng.choice([1e8, 1e9, 1e11]))
+        for zero_copy in (False, True):
+            system.zero_copy = zero_copy
+            model = place_mod.CostModel(system, {"components": components,
+                                                 "transfer": transfer})
+
+            def key(sides, model=model):
+                return (round(model.frame(sides), 12), sum(s == "cpu" for s in sides.values()))
+
+            brute = min((dict(zip(names, combo)) for combo in
+                         itertools.product(("gpu", "cpu"), repeat=len(names))), key=key)
+            assert place_mod.choose(model, names)[0] == brute, (trial, zero_copy)
+
+
+def test_profile_numbers_too_large_for_a_float_are_reported_in_place(tmp_path):
+    path = _auto_model(tmp_path, f"""\
+        transfer: {{latency_us: 1, bandwidth_mb_s: 1000}}
+        components:
+          merger: {{cpu_us: {"9" * 400}, gpu_us: 2}}
+          detector: {{cpu_us: 1.0e+400, gpu_us: -1}}
+        """)
+    with pytest.raises(GpucompgenError) as exc:
+        _passes(path)
+    text = str(exc.value)
+    assert "prof.yaml:3:20: error: cpu_us must be a number from 0 to 1e+12, not a number " \
+        "over 1e+20" in text
+    assert "prof.yaml:4:22: error: cpu_us must be a number from 0 to 1e+12, not inf" in text
+    assert "error: gpu_us must be a number from 0 to 1e+12, not -1" in text
+    assert proc_free(path)
+
+
+def proc_free(path: Path) -> bool:
+    """check says the same, with no internal error."""
+    import subprocess
+    import sys
+
+    proc = subprocess.run([sys.executable, "-m", "gpucompgen", "check", str(path)],
+                          capture_output=True, text=True, check=False)
+    return proc.returncode == 1 and "internal error" not in proc.stderr
 
 
 # --------------------------------------------------------------------------- runs

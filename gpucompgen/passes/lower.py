@@ -85,6 +85,8 @@ def lib_files(system: System) -> dict[str, str]:
             keys.append((str(t.python_file.resolve()), t.python_file.name))
         for key, wanted in keys:
             _name_lib_file(names, taken, key, wanted)
+    for t in checked_kernel_types(system):
+        _name_lib_file(names, taken, kernel_key(t), t.kernel_file.name)
     for g in system.groups:
         _name_lib_file(names, taken, lib_key(g.type), f"group_{g.type.kernel_function}.cl")
     return names
@@ -129,6 +131,27 @@ def used_types(system: System, side: str | None = None) -> list[ComponentType]:
 def gpu_used_types(system: System) -> list[ComponentType]:
     """Types with a kernel that some component runs on the GPU."""
     return [t for t in used_types(system, "gpu") if t.gpu_aware]
+
+
+def checked_kernel_types(system: System) -> list[ComponentType]:
+    """The user's types with a kernel that no component launches: every component of the
+    type is fused into a group (whose generated kernel replaces it) or placed on the CPU.
+
+    The program still builds their kernel files at start-up, so that every kernel a model
+    names is compiled on the device wherever it runs (a typo in a fused type's .cl file
+    would otherwise pass until --fusion off).  The library's kernels are the test suite's
+    to compile; they are left out.  A program with no part on the device (every flexible
+    component on the CPU) opens no OpenCL context and builds none: it runs without one.
+    """
+    if not gpu_used_types(system) and not system.groups:
+        return []
+    launched = {kernel_key(t) for t in gpu_used_types(system)}
+    found: dict[str, ComponentType] = {}
+    for inst in system.model.components.values():
+        t = inst.type
+        if t.gpu_aware and t.origin == "user" and kernel_key(t) not in launched:
+            found.setdefault(t.name, t)
+    return [found[k] for k in sorted(found)]
 
 
 def cpu_used_types(system: System) -> list[ComponentType]:
@@ -228,7 +251,7 @@ def lower(system: System) -> ProgramPlan:
     # (color.cl, filter.cl, ...): the file is compiled once, and each component makes
     # its own kernel object from the program
     sharing: dict[str, list[ComponentType]] = {}
-    for t in gpu_types:
+    for t in gpu_types + checked_kernel_types(system):
         sharing.setdefault(lib_key(t), []).append(t)
     programs: dict[str, str] = {}  # type name -> its program's variable
     for members in sharing.values():
@@ -398,6 +421,15 @@ def lower(system: System) -> ProgramPlan:
                             if isinstance(system.nodes[n], (ComponentNode, GroupNode))
                             and system.nodes[n].type is t and system.nodes[n].on_gpu])
              for t in gpu_types}
+    why: dict[str, str] = {}  # a type whose kernel is built only to check it -> why
+    for t in checked_kernel_types(system):
+        fused = [m.name for g in system.groups for m in g.members if m.type is t]
+        on_cpu = [n for n in system.order if isinstance(system.nodes[n], ComponentNode)
+                  and system.nodes[n].type is t]
+        users[t.name] = _some(fused + on_cpu)
+        why[t.name] = "; " + " and ".join(
+            w for w, names in (("fused", fused), ("on the CPU", on_cpu)) if names) + \
+            ": built only to check it"
     groups = {g.type.name: g for g in system.groups}
     asked = model.thread_budget
     budget_source = ("platform.thread_budget" if asked and asked <= system.thread_budget else
@@ -408,7 +440,8 @@ def lower(system: System) -> ProgramPlan:
         device_name=system.device.name, zero_copy=system.zero_copy,
         zero_copy_reason=system.zero_copy_reason, queues=queues if n_lanes or gpu_types else (),
         programs=tuple(Program(programs[m[0].name], files[lib_key(m[0])],
-                               ", ".join(f"{users[t.name]} ({t.name})" for t in m))
+                               ", ".join(f"{users[t.name]} ({t.name}{why.get(t.name, '')})"
+                                         for t in m))
                        for m in sharing.values()),
         imports=tuple(sorted(imports)), user_classes=tuple(user_classes),
         kernel_classes=tuple(kernel_class(t, files[lib_key(t)], groups.get(t.name))

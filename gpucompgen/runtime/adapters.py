@@ -9,6 +9,7 @@ adapters, on devices with unified host memory, let the other side use the memory
 from __future__ import annotations
 
 from .errors import PipelineError
+from .frames import read_only
 from .sizes import Size
 
 
@@ -231,7 +232,7 @@ class GpuToCpuAdapter(_Adapter):
         self.event = cl.enqueue_copy(self.queue, self.host, buffer, wait_for=wait_for)
         if self.profile is not None:
             self.profile.copy(self, "gpu2cpu", self.event, self.nbytes)
-        return self.host
+        return read_only(self.host)  # every reader gets the same frame: none may write it
 
     def free_memory(self):
         self.hosts, self.host = [], None
@@ -279,7 +280,7 @@ class ZeroCopyGpuToCpuAdapter(_Adapter):
         self.views.append(view)
         if self.profile is not None:
             self.profile.mapping(self, "map", self.event)
-        return view
+        return read_only(view)  # mapped for reading: every reader gets the same frame
 
     def unmap(self):
         if self.views:

@@ -9,6 +9,7 @@ import os
 import sys
 import threading
 import traceback
+import warnings
 from collections.abc import Callable
 from pathlib import Path
 
@@ -23,15 +24,16 @@ def add_program_options(parser: argparse.ArgumentParser) -> None:
     """The generated program's options; 'gpucompgen run' offers the same and passes them on."""
     parser.add_argument("--frames", type=int, default=None, metavar="N",
                         help="stop after N frames (default: until a source ends its stream)")
-    parser.add_argument("-q", "--quiet", action="store_true",
-                        help="print nothing but errors (no progress, decisions or summary)")
-    parser.add_argument("--stats-json", metavar="FILE",
+    parser.add_argument("-q", "--quiet", action=_Quiet, nargs=0, default=False,
+                        help="print nothing but errors (no progress, decisions, summary "
+                             "or warnings)")
+    parser.add_argument("--stats-json", metavar="FILE", type=_file_name,
                         help="time every execute() and transfer() and write frames, "
                              "per-frame and per-component timings to FILE as JSON")
-    parser.add_argument("--decisions", metavar="FILE",
+    parser.add_argument("--decisions", metavar="FILE", type=_file_name,
                         help="write the sinks' decisions to FILE: JSON lines if it ends in "
                              ".jsonl or .json, else one text line per frame")
-    parser.add_argument("--save-images", metavar="DIR",
+    parser.add_argument("--save-images", metavar="DIR", type=_file_name,
                         help="write the sinks' images (masks, annotated frames) as PNG to DIR")
     parser.add_argument("--digests", metavar="FILE",
                         help="write, per frame, a digest of what every sink received and "
@@ -59,6 +61,23 @@ def add_program_options(parser: argparse.ArgumentParser) -> None:
                         dest="set_params",
                         help="change a parameter that no size depends on (a threshold) "
                              "without a rebuild, checked against its type; repeatable")
+
+
+class _Quiet(argparse.Action):
+    """-q: print nothing but errors, so also no Python warnings (numpy's RuntimeWarning of
+    a component's arithmetic printed under -q); set as the option is read."""
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        warnings.simplefilter("ignore")
+        setattr(namespace, self.dest, True)
+
+
+def _file_name(text: str) -> str:
+    """A file or folder name given to an option: an empty one names nothing (Path('') is
+    the current folder, which was then refused as 'is a folder')."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError("an empty name; name a file")
+    return text
 
 
 def output_file_problem(path: Path) -> str:

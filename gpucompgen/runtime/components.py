@@ -12,6 +12,7 @@ from __future__ import annotations
 from typing import Any, ClassVar
 
 from .devices import check_work_group
+from .frames import read_only
 from .sizes import Size
 
 
@@ -240,7 +241,8 @@ class CpuFunctionComponent:
         return results
 
     def execute(self, *inputs):
-        results = self._call(dict(zip(self._ports, inputs)))
+        # inputs are read-only: another reader of the producer gets the same frame
+        results = self._call({p: read_only(x) for p, x in zip(self._ports, inputs)})
         checked = [self._checked(result, *expected)
                    for result, expected in zip(results, self._expected)]
         return checked[0] if len(checked) == 1 else tuple(checked)
@@ -253,7 +255,9 @@ class CpuFunctionComponent:
             if result.shape != want and len(want) == 2 and result.shape == (*want, 1):
                 result = result.reshape(want)  # one channel as height x width x 1: a view
             if result.shape == want:
-                return result if result.flags.c_contiguous else np.ascontiguousarray(result)
+                # every reader gets the same array: none may write it
+                return read_only(result if result.flags.c_contiguous
+                                 else np.ascontiguousarray(result))
         got = (f"{result.dtype} {result.shape}" if isinstance(result, np.ndarray)
                else type(result).__name__)
         raise ValueError(f"{self.name}.{port}: the CPU function "

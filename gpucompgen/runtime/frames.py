@@ -36,13 +36,14 @@ def check_frame(what: str, value: Any, shape: tuple[int, ...], dtype: Any) -> An
     returned as the height x width view of the same memory, never copied.
 
     Called once a frame for every frame a CPU part hands on: the accepted case costs a
-    type test and two comparisons; the message is composed only for a wrong frame.
+    type test, two comparisons and a read-only view (read_only); the message is composed
+    only for a wrong frame.
     """
     if type(value) is _ndarray() and value.dtype == dtype:
         if value.shape == shape:
-            return value
+            return read_only(value)  # every reader gets the same frame: none may write it
         if len(shape) == 2 and value.shape == (*shape, 1):
-            return value.reshape(shape)  # drops a length-1 axis: always a view
+            return read_only(value.reshape(shape))  # drops a length-1 axis: a view
     return _refuse(what, value, shape, dtype)
 
 
@@ -66,9 +67,9 @@ def _refuse(what: str, value: Any, shape: tuple[int, ...], dtype: Any) -> Any:
     shape = tuple(shape)
     if isinstance(value, np.ndarray) and value.dtype == np.dtype(dtype):
         if value.shape == shape:
-            return value
+            return read_only(value)
         if len(shape) == 2 and value.shape == (*shape, 1):
-            return value.reshape(shape)
+            return read_only(value.reshape(shape))
     expected = f"{_shown(shape)} {np.dtype(dtype).name}"
     if len(shape) == 2:
         expected += " (or " + _shown((*shape, 1)) + ")"
@@ -89,3 +90,20 @@ def _refuse(what: str, value: Any, shape: tuple[int, ...], dtype: Any) -> Any:
         hint = f" (convert with .astype(np.{np.dtype(dtype).name}))"
     raise FrameError(what, f"execute() returned a {got} frame where the system was "
                            f"built for {expected}{hint}")
+
+
+def read_only(array: Any) -> Any:
+    """A view of array that cannot be written: what every component gets as an input.
+
+    Several readers of one producer get the same frame; one that wrote into it would
+    change what the others read.  A write raises ValueError ('assignment destination is
+    read-only'), reported as that component's failure with READ_ONLY_HINT.  The producer
+    keeps its own (writable) array; the view costs no copy."""
+    view = array.view()
+    view.flags.writeable = False
+    return view
+
+
+READ_ONLY_HINT = ("inputs are read-only to components (another reader gets the same "
+                  "frame): copy it first (image = image.copy()) or write into an array of "
+                  "your own")

@@ -11,6 +11,7 @@ from pathlib import Path
 from typing import Any, NamedTuple
 
 from .errors import PipelineError
+from .frames import READ_ONLY_HINT
 from .pipeline import FrameFailure
 from .profiling import Profile
 from .signals import freeing
@@ -165,7 +166,14 @@ def component_failure(exc: BaseException, frame: int | None,
             return exc
         return PipelineError(f"{who} failed {when}: {text}")
     return PipelineError(f"{who or 'a component'} failed {when}: {type(exc).__name__}: {exc}"
-                         + _device_fault_hint(exc))
+                         + _device_fault_hint(exc) + _read_only_hint(exc))
+
+
+def _read_only_hint(exc: BaseException) -> str:
+    """A component wrote into a frame it was given (runtime.frames.read_only)."""
+    if isinstance(exc, ValueError) and "read-only" in str(exc):
+        return f"\n  hint: {READ_ONLY_HINT}"
+    return ""
 
 
 # OpenCL errors a GPU gives at the command after a kernel that faulted (NVIDIA:

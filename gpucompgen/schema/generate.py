@@ -14,6 +14,7 @@ tests/test_schema.py checks that they equal what this module generates.
 from __future__ import annotations
 
 import json
+import re
 import sys
 from pathlib import Path
 from typing import Any
@@ -113,7 +114,12 @@ def model_schema() -> dict[str, Any]:
         "fusion": _enum(model.FUSION, "auto: chains of fusable GPU components run as one "
                         "kernel (default); off: one kernel per component"),
     })
-    type_name = dict(NAME, description="component type")
+    # a type name, or lib.Name for a library type a model's own type shadows
+    type_name = dict(NAME, pattern="^(" + re.escape(model.LIBRARY_PREFIX) + ")?"
+                     + NAME["pattern"].removeprefix("^"),
+                     maxLength=MAX_NAME + len(model.LIBRARY_PREFIX),
+                     description="component type (lib.Name: the library's, where a type of "
+                                 "the model's own shadows it)")
     instance = _object(model.INSTANCE_KEYS, {
         "type": type_name, "params": _named_map(VALUE), "description": TEXT,
         "placement": _enum(model.PLACEMENTS, "where a flexible component runs"),

@@ -21,6 +21,7 @@ import jinja2
 
 from ...ir import ComponentNode, System
 from ...passes.lower import (
+    checked_kernel_types,
     cpu_lib_key,
     cpu_used_types,
     gpu_used_types,
@@ -331,13 +332,25 @@ def render(system: System, source: str, model_dir: str = ".") -> list[OutputFile
         files.append(OutputFile(PurePosixPath(lib, name),
                                 f"# {header}\n# Copied from the component type file of "
                                 f"{', '.join(users)}.\n\n{text}"))
+    for t in checked_kernel_types(system):
+        name = plan.lib_files_of(kernel_key(t))
+        if name not in written:
+            written.add(name)
+            files.append(OutputFile(PurePosixPath(lib, name),
+                                    f"// {header}\n// Kernel of component type {t.name}, not "
+                                    "launched (its components are fused or on the CPU):\n"
+                                    "// built at start-up to check it.\n\n" + t.kernel_text))
     for g in system.groups:
         name = plan.lib_files_of(lib_key(g.type))
         files.append(OutputFile(PurePosixPath(lib, name), group_kernel(g, header, system.device)))
     from ...plan import plan_lines
 
+    model_folder = model.file.resolve().parent
+    inputs = sorted((comment_text(Path(os.path.relpath(p, model_folder)).as_posix()), digest)
+                    for p, digest in model.inputs.items() if p != model.file.resolve())
     program = env.get_template("program.py.j2").render(
-        header=header, sha256=model.text_sha256, description=model.description, lib=lib,
+        header=header, sha256=model.text_sha256, inputs=inputs,
+        description=model.description, lib=lib,
         plan=plan, plan_lines=plan_lines(plan), settable=settable,
         sources=[n for n in system.order if isinstance(system.nodes[n], ComponentNode)])
     files.insert(0, OutputFile(PurePosixPath(f"{system.name}.py"), program))
