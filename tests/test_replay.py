@@ -337,3 +337,23 @@ def test_compare_names_the_first_frame_of_each_kind_of_change():
         "r", _summary("partial(2)", inputs="ab", reports="xy"), _summary())]
     assert lines == ["r: status changed: complete -> partial(2)",
                      "r: sink s: frame count changed from frame 2: 3 -> 2 frames"]
+
+
+def test_digests_of_a_sink_are_the_same_whatever_the_placement(tmp_path):
+    """--digests on the red-objects example: the MaskWriter's inputs and the objects it
+    reports, frame by frame, are the same on the GPU, on the CPU and unfused."""
+    require_opencl()
+    model = Path(__file__).resolve().parent.parent / "models" / "red_objects.yaml"
+    found = {}
+    for name, extra in (("default", []), ("cpu", ["--place", "*=cpu"]),
+                        ("unfused", ["--fusion", "off"])):
+        digests = tmp_path / f"{name}.jsonl"
+        proc = subprocess.run([sys.executable, "-m", "gpucompgen", "run", str(model), *extra,
+                               "--frames", "3", "-q", "--digests", str(digests)],
+                              capture_output=True, text=True, timeout=300, check=False,
+                              env=dict(os.environ), cwd=tmp_path)
+        assert proc.returncode == 0, proc.stderr
+        found[name] = [json.loads(line) for line in digests.read_text().splitlines()]
+    assert len(found["default"]) == 3
+    assert any(line["report"]["objects"] for line in found["default"])
+    assert found["cpu"] == found["default"] == found["unfused"]

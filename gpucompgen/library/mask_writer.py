@@ -14,7 +14,7 @@ and the masks go there too, as the outputs ``annotated`` and ``mask``.
 from __future__ import annotations
 
 from collections import deque
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
@@ -129,6 +129,12 @@ class MaskWriter:
             except OSError as exc:
                 raise PipelineError(f"cannot save images in {self.folder}: {exc}") from None
         self.frame += 1
+
+    def report(self) -> dict | None:
+        """The objects of the last frame, for --digests (gpucompgen replay compares them)."""
+        if not self.history:
+            return None
+        return {"frame": self.frame - 1, "objects": [asdict(b) for b in self.history[-1]]}
 
     def free_memory(self) -> None:
         if self.sink is not None:
