@@ -19,7 +19,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from . import device as device_mod
-from .backend.opencl.render import HEADER_PREFIX, OutputFile, render, source_path
+from .backend import device_query, renderer
+from .backend.opencl.render import HEADER_PREFIX, OutputFile, source_path
 from .errors import Diagnostic, GpucompgenError, OutputError, Reporter
 from .ir import MODES, System
 from .model import load_system
@@ -39,7 +40,8 @@ def compile_model(model_path: Path, out_dir: Path, mode: str = "gpu-aware",
                   display: str | None = None, execution: str | None = None,
                   zero_copy: str | None = None, verify: bool | None = None,
                   places: dict[str, str] | None = None, frames_in_flight: int | None = None,
-                  staging: str | None = None, fusion: str | None = None) -> BuildResult:
+                  staging: str | None = None, fusion: str | None = None,
+                  backend: str | None = None) -> BuildResult:
     """Everything but writing: raises GpucompgenError with all problems found.
 
     execution ("parallel" | "sequential") and zero_copy ("auto" | "on" | "off") override
@@ -47,6 +49,7 @@ def compile_model(model_path: Path, out_dir: Path, mode: str = "gpu-aware",
     platform.fusion, frames_in_flight (1 or more) and staging ("auto" | "pinned" |
     "pageable") its platform.frames_in_flight and platform.staging; None keeps the model's.
     places (--place COMPONENT=gpu|cpu|auto) overrides flexible components' placements.
+    backend ("opencl" | "cuda", None: opencl) picks the printer (gpucompgen.backend).
     verify: check the IR's invariants after every pass (--debug; the test suite sets
     GPUCOMPGEN_VERIFY=1 so that None verifies there too).
     """
@@ -56,12 +59,13 @@ def compile_model(model_path: Path, out_dir: Path, mode: str = "gpu-aware",
     rep = Reporter()
     spec = device if device is not None else model.device
     facts = device_mod.resolve(spec, model.device_pos, rep,
-                               model.device_positions if device is None else None)
+                               model.device_positions if device is None else None,
+                               query=device_query(backend))
     rep.raise_if_errors()
     system, warnings = run_passes(model, facts, mode, dump, execution, zero_copy, verify,
                                   places, frames_in_flight, staging, fusion)
     model_dir = Path(os.path.relpath(model_path.resolve().parent, out_dir.resolve())).as_posix()
-    files = render(system, source_path(model_path, out_dir), model_dir)
+    files = renderer(backend)(system, source_path(model_path, out_dir), model_dir)
     _must_compile(files[0])
     return BuildResult(system, files, warnings)
 
