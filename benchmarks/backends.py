@@ -12,11 +12,9 @@ so both backends drive the same GPU:
 from __future__ import annotations
 
 import argparse
-import contextlib
-import os
+import subprocess
 import sys
 import tempfile
-import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -27,17 +25,26 @@ CASES = [
 ]
 
 
-def timed(program: Path, name: str, frames: int) -> float:
-    """Seconds per frame of one program run (after a warm-up run of 5 frames)."""
-    from gpucompgen.runtime import Monitor, load_module
-
-    module = load_module(program, name)
-    with open(os.devnull, "w") as quiet, contextlib.redirect_stdout(quiet):
-        module.run(frames=5, monitor=Monitor(progress=False))
-        start = time.perf_counter()
-        result = module.run(frames=frames, monitor=Monitor(progress=False))
-        elapsed = time.perf_counter() - start
-    return elapsed / max(result.frames, 1)
+def timed(program: Path, frames: int) -> float:
+    """Seconds per frame of one program run (after a warm-up run of 5 frames), in a
+    process of its own (PoCL's and NVRTC's LLVMs in one process can crash)."""
+    code = (
+        "import contextlib, os, sys, time\n"
+        "from pathlib import Path\n"
+        "from gpucompgen.runtime import Monitor, load_module\n"
+        "m = load_module(Path(sys.argv[1]), 'program')\n"
+        "with open(os.devnull, 'w') as q, contextlib.redirect_stdout(q):\n"
+        "    m.run(frames=5, monitor=Monitor(progress=False))\n"
+        "    t = time.perf_counter()\n"
+        "    r = m.run(frames=int(sys.argv[2]), monitor=Monitor(progress=False))\n"
+        "    t = time.perf_counter() - t\n"
+        "print(t / max(r.frames, 1))\n")
+    proc = subprocess.run([sys.executable, "-c", code, str(program), str(frames)],
+                          capture_output=True, text=True, check=False)
+    if proc.returncode != 0:
+        print(proc.stderr[-2000:], file=sys.stderr)
+        return float("nan")
+    return float(proc.stdout.strip().splitlines()[-1])
 
 
 def main(argv=None) -> int:
@@ -54,8 +61,7 @@ def main(argv=None) -> int:
                 out = Path(tmp) / f"{model}-{backend}-{len(rows)}"
                 write(compile_model(ROOT / "models" / f"{model}.yaml", out, backend=backend,
                                     **options), out)
-                times.append(timed(out / f"{model}.py", f"{model}_{backend}_{len(rows)}",
-                                   args.frames))
+                times.append(timed(out / f"{model}.py", args.frames))
             label = ",".join(f"{k}={v}" for k, v in options.items()) or "-"
             rows.append((model, label, f"{times[0] * 1e3:.3f}", f"{times[1] * 1e3:.3f}",
                          f"{times[1] / times[0]:.2f}"))

@@ -20,7 +20,7 @@ import re
 
 import numpy as np
 import pytest
-from conftest import ROOT
+from conftest import ROOT, require_opencl
 
 from gpucompgen.backend.cuda import nvrtc, prelude
 from gpucompgen.build import compile_model, write
@@ -164,7 +164,7 @@ def test_a_user_type_with_opencl_only_code_is_a_clear_error(tmp_path):
     compile_model(dst / "bright.yaml", tmp_path / "out")  # OpenCL still builds it
 
 
-def Path_name(file: str) -> str:  # noqa: N802
+def Path_name(file: str) -> str:
     return file.replace("\\", "/").rsplit("/", 1)[-1]
 
 
@@ -245,7 +245,7 @@ class CudaKernels:
 
         component = One(self.context, self.queue, self.programs[path])
         uploads = []
-        for port, array in inputs.items():
+        for array in inputs.values():
             size = cuda.Size(array.shape[0], array.shape[1],
                              array.shape[2] if array.ndim == 3 else 1)
             adapter = cuda.CpuToGpuAdapter(self.context, self.queue, array.nbytes)
@@ -266,10 +266,12 @@ class CudaKernels:
         return result
 
 
-def test_every_library_operation_on_cuda_equals_opencl_cpu_and_opencv(
-        cuda_runtime, tmp_path, kernels):
-    """Each imgproc type on the photographs: the CUDA kernel equals the OpenCL kernel
-    and the CPU form byte for byte (which test_imgproc holds against OpenCV)."""
+def test_every_library_operation_on_cuda_equals_cpu_and_opencv(cuda_runtime, tmp_path):
+    """Each imgproc type on the photographs, two parameter sets and two GPU settings: the
+    CUDA kernel equals the CPU form byte for byte, within the documented difference of
+    OpenCV (0 but for bilinear Resize).  test_imgproc holds the OpenCL kernel equal to
+    the same CPU form, so CUDA equals OpenCL (not compared in one process: see
+    frames_of_program.py)."""
     import test_imgproc as ti
 
     from gpucompgen.library import cpu_kernels
@@ -287,68 +289,36 @@ def test_every_library_operation_on_cuda_equals_opencl_cpu_and_opencv(
                 for setting in ((16, 16, 16), (7, 4, 2)):
                     gpu = ours.run(type_name, arrays, params, setting)
                     np.testing.assert_array_equal(gpu, cpu, f"{type_name} {name} {params}")
-                opencl = kernels.run(type_name, arrays, params)
-                np.testing.assert_array_equal(gpu, opencl, f"{type_name} {name} {params}")
                 assert ti.largest_difference(cpu, spec.opencv(*arrays, **params)) \
                     <= spec.max_diff
 
 
-@pytest.fixture(scope="module")
-def kernels(cl_context, cl_queue):
-    import test_imgproc as ti
+def _frames_of(program, frames: int, out) -> dict:
+    """The frames of one program run in a process of its own (tests/frames_of_program.py)."""
+    import subprocess
+    import sys
 
-    return ti.Kernels(cl_context, cl_queue)
-
-
-def _frames_of(program_path, name, frames):
-    """Run a generated program; every frame its GPU parts hand to the CPU, by part."""
-    from conftest import load_generated
-
-    module = load_generated(program_path, name)
-    runtime = module.runtime
-    seen: dict[tuple[str, int], list[np.ndarray]] = {}
-    order: list = []
-    classes = [runtime.GpuToCpuAdapter, runtime.ZeroCopyGpuToCpuAdapter,
-               runtime.KernelComponent]
-    saved = {}
-    for cls in classes:
-        method = "transfer" if "Adapter" in cls.__name__ else "execute"
-        original = getattr(cls, method)
-        saved[cls] = (method, original)
-
-        def wrapped(self, *args, _original=original, **kwargs):
-            result = _original(self, *args, **kwargs)
-            if id(self) not in order:
-                order.append(id(self))
-            for r in result if isinstance(result, tuple) else (result,):
-                if isinstance(r, np.ndarray):
-                    seen.setdefault((type(self).__name__, order.index(id(self))),
-                                    []).append(r.copy())
-            return result
-
-        setattr(cls, method, wrapped)
-    try:
-        module.run(frames=frames)
-    finally:
-        for cls, (method, original) in saved.items():
-            setattr(cls, method, original)
-    return seen
+    proc = subprocess.run([sys.executable, str(ROOT / "tests" / "frames_of_program.py"),
+                           str(program), str(frames), str(out)],
+                          capture_output=True, text=True, check=False, timeout=300)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    with np.load(out) as saved:
+        return dict(saved)
 
 
 @pytest.mark.parametrize("variant", sorted(VARIANTS))
 @pytest.mark.parametrize("model", MODELS, ids=lambda p: p.stem)
-def test_every_model_on_cuda_gives_the_opencl_frames(cuda_runtime, cl_context, model,
-                                                     variant, tmp_path):
-    frames = 4
+def test_every_model_on_cuda_gives_the_opencl_frames(cuda_runtime, model, variant, tmp_path):
+    """Each model and variant built for both backends, each run for 4 frames in its own
+    process: every frame handed to the CPU is the same, byte for byte."""
+    require_opencl()
     runs = []
     for backend in ("opencl", "cuda"):
         out = tmp_path / backend
         write(compile_model(model, out, backend=backend, **VARIANTS[variant]), out)
-        runs.append(_frames_of(out / f"{model.stem}.py", f"{model.stem}_{backend}", frames))
+        runs.append(_frames_of(out / f"{model.stem}.py", 4, tmp_path / f"{backend}.npz"))
     opencl, cuda = runs
     assert opencl, "the program hands no frames to the CPU"
     assert sorted(opencl) == sorted(cuda)
-    for key in opencl:
-        assert len(opencl[key]) == len(cuda[key]) == frames or variant == "in-flight"
-        for i, (a, b) in enumerate(zip(opencl[key], cuda[key])):
-            np.testing.assert_array_equal(b, a, f"{model.stem} {variant} {key} frame {i}")
+    for key, frame in opencl.items():
+        np.testing.assert_array_equal(cuda[key], frame, f"{model.stem} {variant} {key}")

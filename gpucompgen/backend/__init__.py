@@ -10,7 +10,7 @@ Each backend package has a ``render`` module with ``render(system, source, model
 from __future__ import annotations
 
 import importlib
-from typing import Callable
+from collections.abc import Callable
 
 BACKENDS = ("opencl", "cuda")
 DEFAULT = "opencl"

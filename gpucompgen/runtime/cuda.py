@@ -24,6 +24,7 @@ How the OpenCL model maps:
 
 from __future__ import annotations
 
+import contextlib
 import ctypes
 import hashlib
 import os
@@ -101,12 +102,10 @@ def _ok(result, what: str):
     if int(err) != 0:
         name = getattr(err, "name", str(err))
         with_text = ""
-        try:
+        with contextlib.suppress(Exception):  # the name alone is still a message
             e2, text = cu.cuGetErrorString(err)
             if int(e2) == 0 and text:
                 with_text = f": {text.decode() if isinstance(text, bytes) else text}"
-        except Exception:  # noqa: BLE001 - the name alone is still a message
-            pass
         raise PipelineError(f"CUDA {what} failed ({name}{with_text})")
     if not values:
         return None
@@ -152,7 +151,7 @@ class CudaDevice:
         raw = _ok(cu.cuDeviceGetName(256, self.handle), "device name")
         self.name = (raw.split(b"\0", 1)[0].decode() if isinstance(raw, bytes)
                      else str(raw)).strip()
-        a = lambda n: _attribute(self.handle, n)  # noqa: E731
+        a = lambda n: _attribute(self.handle, n)
         self.compute_capability = (a("COMPUTE_CAPABILITY_MAJOR"), a("COMPUTE_CAPABILITY_MINOR"))
         self.arch = f"sm_{self.compute_capability[0]}{self.compute_capability[1]}"
         self.multiprocessors = a("MULTIPROCESSOR_COUNT")
@@ -583,7 +582,6 @@ class KernelComponent:
         raise NotImplementedError
 
     def initialize(self, *inputs: Size):
-        import numpy as np
 
         self.context.current()
         for port, size in zip(self._inputs, inputs):
@@ -680,8 +678,8 @@ class KernelComponent:
         stream = self.queue.handle
         copied_in = []
         kept = []
-        for port, x in zip(self._inputs, inputs):
-            x = np.ascontiguousarray(x)
+        for port, given in zip(self._inputs, inputs):
+            x = np.ascontiguousarray(given)
             kept.append(x)
             event = self._events.next()
             event.before()

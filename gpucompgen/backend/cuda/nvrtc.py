@@ -17,7 +17,6 @@ import sys
 from dataclasses import dataclass
 from functools import cache
 
-
 # Warnings that say nothing about generated kernels: old architectures deprecated (sm_72),
 # variables a size line declares but a snippet does not use, OpenCL's fp64 pragma.
 QUIET = (b"--diag-suppress=177,161",)

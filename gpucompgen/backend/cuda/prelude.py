@@ -96,8 +96,8 @@ PRELUDE_LINES = [
     _work_item("get_global_id", "(size_t)blockIdx.{c} * blockDim.{c} + threadIdx.{c}"),
     _work_item("get_global_size", "(size_t)gridDim.{c} * blockDim.{c}"),
     "__device__ inline int mad24(const int a, const int b, const int c) { return a * b + c; }",
-    "__device__ inline unsigned int mad24(const unsigned int a, const unsigned int b, "
-    "const unsigned int c) { return a * b + c; }",
+    ("__device__ inline unsigned int mad24(const unsigned int a, const unsigned int b, "
+    "const unsigned int c) { return a * b + c; }"),
     "__device__ inline int mul24(const int a, const int b) { return a * b; }",
     *_clamps(),
     *_saturating(),
@@ -113,8 +113,8 @@ _VECTOR_LITERAL = re.compile(
 # Constructs of OpenCL C with no CUDA mapping in the prelude, and what to write instead.
 _UNPORTABLE = [
     (re.compile(r"\b(__local|local)\b(?=\s+\w)"),
-     "local (shared) memory", "keep per-thread values in registers, or leave the type on "
-     "the OpenCL backend"),
+     "local (shared) memory", ("keep per-thread values in registers, or leave the type on "
+     "the OpenCL backend")),
     (re.compile(r"\b(barrier|mem_fence|work_group_barrier)\s*\("),
      "work-group barriers", "write kernels whose threads do not wait for each other"),
     (re.compile(r"\b(image[123]d\w*_t|sampler_t|read_image\w*|write_image\w*)\b"),
