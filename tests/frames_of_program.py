@@ -52,4 +52,9 @@ def frames_of(program: Path, frames: int) -> dict[str, np.ndarray]:
 
 if __name__ == "__main__":
     program, frames, out = Path(sys.argv[1]), int(sys.argv[2]), sys.argv[3]
-    np.savez(out, **frames_of(program, frames))
+    seen = frames_of(program, frames)
+    np.savez(out, **seen)
+    with np.load(out) as back:  # read back here: a bad file names the process that wrote it
+        for key, frame in seen.items():
+            if not np.array_equal(back[key], frame):
+                sys.exit(f"{out}: {key} differs when read back")

@@ -301,9 +301,12 @@ def _frames_of(program, frames: int, out) -> dict:
     proc = subprocess.run([sys.executable, str(ROOT / "tests" / "frames_of_program.py"),
                            str(program), str(frames), str(out)],
                           capture_output=True, text=True, check=False, timeout=300)
-    assert proc.returncode == 0, proc.stderr[-3000:]
-    with np.load(out) as saved:
-        return dict(saved)
+    assert proc.returncode == 0, f"{program}: " + proc.stderr[-3000:]
+    try:
+        with np.load(out) as saved:
+            return dict(saved)
+    except Exception as exc:  # seen once on an H100 machine: say which run's file it was
+        raise AssertionError(f"{out} (written by {program}) cannot be read: {exc}") from exc
 
 
 @pytest.mark.parametrize("variant", sorted(VARIANTS))
