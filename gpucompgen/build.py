@@ -49,13 +49,14 @@ def compile_model(model_path: Path, out_dir: Path, mode: str = "gpu-aware",
     platform.fusion, frames_in_flight (1 or more) and staging ("auto" | "pinned" |
     "pageable") its platform.frames_in_flight and platform.staging; None keeps the model's.
     places (--place COMPONENT=gpu|cpu|auto) overrides flexible components' placements.
-    backend ("opencl" | "cuda", None: opencl) picks the printer (gpucompgen.backend).
+    backend ("opencl" | "cuda") overrides platform.backend: the printer (gpucompgen.backend).
     verify: check the IR's invariants after every pass (--debug; the test suite sets
     GPUCOMPGEN_VERIFY=1 so that None verifies there too).
     """
     if mode not in MODES:
         raise ValueError(mode)
     model = load_system(model_path, display)
+    backend = backend if backend is not None else model.backend
     rep = Reporter()
     spec = device if device is not None else model.device
     facts = device_mod.resolve(spec, model.device_pos, rep,

@@ -67,9 +67,10 @@ def _common(p: argparse.ArgumentParser,
                         "pageable arrays; auto is pinned when the device has no unified host "
                         "memory (default: the model's platform.staging, else auto)")
     p.add_argument("--backend", choices=BACKENDS,
-                   help="opencl: pyopencl and OpenCL C kernels (default); cuda: cuda-python "
-                        "and the same kernels as CUDA C++, for NVIDIA GPUs without OpenCL "
-                        "(Jetson); see docs/cuda.md")
+                   help="opencl: pyopencl and OpenCL C kernels; cuda: cuda-python and the "
+                        "same kernels as CUDA C++, for NVIDIA GPUs without OpenCL (Jetson); "
+                        "see docs/cuda.md (default: the model's platform.backend, else "
+                        "opencl)")
     p.add_argument("--fusion", choices=FUSION,
                    help="auto: chains of fusable GPU components run as one kernel; off: one "
                         "kernel per component (default: the model's platform.fusion, else auto)")

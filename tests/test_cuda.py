@@ -164,6 +164,22 @@ def test_a_user_type_with_opencl_only_code_is_a_clear_error(tmp_path):
     compile_model(dst / "bright.yaml", tmp_path / "out")  # OpenCL still builds it
 
 
+def test_platform_backend_in_the_model_and_its_override(tmp_path):
+    model = tmp_path / "m.yaml"
+    text = (ROOT / "models" / "mirror_chain.yaml").read_text()
+    model.write_text(text.replace("\ncomponents:", "\nplatform: {backend: cuda}\ncomponents:"))
+    files = compile_model(model, tmp_path / "out").files
+    assert [f.path.suffix for f in files[1:]] == [".cu"]
+    files = compile_model(model, tmp_path / "out", backend="opencl").files
+    assert [f.path.suffix for f in files[1:]] == [".cl"]
+    model.write_text(text.replace("\ncomponents:", "\nplatform: {backend: cdua}\ncomponents:"))
+    with pytest.raises(GpucompgenError) as info:
+        compile_model(model, tmp_path / "out")
+    (d,) = info.value.errors
+    assert d.line > 0 and "platform.backend must be one of opencl, cuda" in d.message
+    assert "cuda" in d.hint
+
+
 def Path_name(file: str) -> str:
     return file.replace("\\", "/").rsplit("/", 1)[-1]
 

@@ -112,6 +112,8 @@ def model_schema() -> dict[str, Any]:
                          "the device has no unified host memory (default)"),
         "fusion": _enum(model.FUSION, "auto: chains of fusable GPU components run as one "
                         "kernel (default); off: one kernel per component"),
+        "backend": _enum(model.BACKENDS, "opencl: pyopencl and OpenCL C kernels (default); "
+                         "cuda: cuda-python and the same kernels as CUDA C++ (docs/cuda.md)"),
     })
     type_name = dict(NAME, description="component type")
     instance = _object(model.INSTANCE_KEYS, {
