@@ -33,6 +33,7 @@ from collections import deque
 from pathlib import Path
 from typing import Any
 
+from . import adapters
 from .cli import add_program_options, main
 from .components import CpuFunctionComponent
 from .devices import check_device_memory
@@ -55,7 +56,7 @@ from .monitor import Monitor
 from .overrides import Param, param_values
 from .pipeline import FrameFailure, stream_in_flight
 from .profiling import Profile
-from .programs import clean_build_log
+from .programs import clean_build_log, read_kernel_file
 from .sizes import Size
 
 __all__ = [
@@ -484,11 +485,7 @@ def build_program(context: CudaContext, path: Path, component: str,
     """Compile one .cu file for the device's architecture (cached on disk) and load it;
     a failure names the component and file and gives NVRTC's messages."""
     path = Path(path)
-    try:
-        source = path.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise PipelineError(f"{component}: cannot read kernel file {path}: {exc.strerror}") \
-            from None
+    source = read_kernel_file(path, component)
     arch = context.device.arch
     version = nvrtc_version()
     key = hashlib.sha256("\0".join([source, arch, f"{version[0]}.{version[1]}",
@@ -716,25 +713,13 @@ class KernelComponent:
 
 # --- adapters ------------------------------------------------------------------------
 
-class _Adapter:
-    def __init__(self, context: CudaContext, queue: CudaQueue, nbytes: int):
-        self.context, self.queue, self.nbytes = context, queue, nbytes
-        self.profile = None
-        self.event = None
+class _Adapter(adapters._Adapter):
+    """The OpenCL adapters' checks of frame sizes, on the CUDA context."""
 
     def initialize(self, size, dtype):
-        size = Size(*size)
-        if size.nbytes(dtype) != self.nbytes:
-            raise PipelineError(f"a frame of {size.nbytes(dtype):,} bytes where the system "
-                                f"was built for {self.nbytes:,}")
-        self.shape, self.dtype = size.shape, dtype
+        size = super().initialize(size, dtype)
         self.context.current()
         return size
-
-    def _check(self, host) -> None:
-        if host.nbytes != self.nbytes:
-            raise PipelineError(f"frame of {host.nbytes:,} bytes where {self.nbytes:,} "
-                                "were expected")
 
 
 class CpuToGpuAdapter(_Adapter):
