@@ -19,7 +19,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from . import device as device_mod
-from .backend.opencl.render import HEADER_PREFIX, OutputFile, render, source_path
+from .backend import device_query, renderer
+from .backend.opencl.render import HEADER_PREFIX, OutputFile, source_path
 from .errors import Diagnostic, OutputError, Reporter
 from .ir import MODES, System
 from .model import SystemModel, load_system
@@ -40,7 +41,7 @@ def compile_model(model_path: Path, out_dir: Path, mode: str = "gpu-aware",
                   zero_copy: str | None = None, verify: bool | None = None,
                   places: dict[str, str] | None = None, frames_in_flight: int | None = None,
                   staging: str | None = None, fusion: str | None = None,
-                  compile_kernels: bool = False) -> BuildResult:
+                  compile_kernels: bool = False, backend: str | None = None) -> BuildResult:
     """Everything but writing: raises GpucompgenError with all problems found.
 
     execution ("parallel" | "sequential") and zero_copy ("auto" | "on" | "off") override
@@ -51,23 +52,27 @@ def compile_model(model_path: Path, out_dir: Path, mode: str = "gpu-aware",
     compile_kernels (check, build, plan with --device auto): every kernel file of the user's
     that the model names is built on that device, fused or not, and what its compiler says
     is reported with the model's problems.
+    backend ("opencl" | "cuda") overrides platform.backend: the printer (gpucompgen.backend).
     verify: check the IR's invariants after every pass (--debug; the test suite sets
     GPUCOMPGEN_VERIFY=1 so that None verifies there too).
     """
     if mode not in MODES:
         raise ValueError(mode)
     model = load_system(model_path, display)
+    backend = backend if backend is not None else model.backend
     rep = Reporter()
     spec = device if device is not None else model.device
     facts = device_mod.resolve(spec, model.device_pos, rep,
-                               model.device_positions if device is None else None)
-    if compile_kernels and spec == "auto" and not rep.has_errors:
+                               model.device_positions if device is None else None,
+                               query=device_query(backend))
+    if compile_kernels and spec == "auto" and not rep.has_errors \
+            and backend == "opencl":
         compile_on_device(model, rep)
     rep.raise_if_errors()
     system, warnings = run_passes(model, facts, mode, dump, execution, zero_copy, verify,
                                   places, frames_in_flight, staging, fusion)
     model_dir = Path(os.path.relpath(model_path.resolve().parent, out_dir.resolve())).as_posix()
-    files = render(system, source_path(model_path, out_dir), model_dir)
+    files = renderer(backend)(system, source_path(model_path, out_dir), model_dir)
     _must_compile(files[0])
     return BuildResult(system, files, warnings)
 

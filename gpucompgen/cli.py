@@ -19,6 +19,7 @@ import traceback
 from pathlib import Path
 
 from . import __version__
+from .backend import BACKENDS
 from .errors import GpucompgenError, OutputError, UsageError
 from .ir import MODES
 from .model import EXECUTIONS, FUSION, MAX_FRAMES_IN_FLIGHT, STAGING, ZERO_COPY
@@ -68,6 +69,11 @@ def _common(p: argparse.ArgumentParser,
                    help="how copying adapters stage host memory: pinned host buffers or "
                         "pageable arrays; auto is pinned when the device has no unified host "
                         "memory (default: the model's platform.staging, else auto)")
+    p.add_argument("--backend", choices=BACKENDS,
+                   help="opencl: pyopencl and OpenCL C kernels; cuda: cuda-python and the "
+                        "same kernels as CUDA C++, for NVIDIA GPUs without OpenCL (Jetson); "
+                        "see docs/cuda.md (default: the model's platform.backend, else "
+                        "opencl)")
     p.add_argument("--fusion", choices=FUSION,
                    help="auto: chains of fusable GPU components run as one kernel; off: one "
                         "kernel per component (default: the model's platform.fusion, else auto)")
@@ -320,7 +326,8 @@ def _compile(args, out_dir: Path):
                            fusion=getattr(args, "fusion", None),
                            # planned for the device at hand: its compiler checks every
                            # kernel file (the programs run and replay start build them)
-                           compile_kernels=args.command in ("check", "build", "plan"))
+                           compile_kernels=args.command in ("check", "build", "plan"),
+                           backend=getattr(args, "backend", None))
     for w in result.warnings:
         print(w.format(), file=sys.stderr)
     return result
@@ -614,6 +621,7 @@ def cmd_devices(args) -> int:
                        f"'{chosen.name.strip()}', which cannot compile kernels: {problem}")
     except PipelineError as exc:
         chosen, problem = None, str(exc)
+    cuda_devices = _cuda_devices()
     if not args.quiet:
         for s in statuses:
             state = "ok" if s.problem is None else f"cannot compile kernels: {s.problem}"
@@ -627,7 +635,22 @@ def cmd_devices(args) -> int:
             print(f"generated programs use '{chosen.name.strip()}' ({how}, marked *)")
         if not statuses:
             print(f"no OpenCL device found; {NO_DEVICE_HINT}", file=sys.stderr)
-    return 1 if problem else 0
+        for ordinal, text, cuda_problem in cuda_devices:
+            print(f"  CUDA_DEVICE={ordinal:<3} CUDA / {text}: "
+                  f"{'ok' if cuda_problem is None else cuda_problem}")
+        if cuda_devices:
+            print("programs built with --backend cuda use CUDA_DEVICE (default 0)")
+    usable_cuda = any(p is None for _, _, p in cuda_devices)
+    return 1 if problem and not usable_cuda else 0
+
+
+def _cuda_devices() -> list:
+    """The CUDA devices (for --backend cuda), [] without cuda-python or a driver."""
+    try:
+        from .runtime import cuda
+    except ImportError:
+        return []
+    return cuda.survey_devices()
 
 
 def cmd_schema(args) -> int:

@@ -78,9 +78,11 @@ def _fact_problem(key: str, value: Any) -> str:
 
 
 def resolve(spec: Any, pos: Pos, rep: Reporter,
-            positions: dict[str, tuple[Pos, Pos]] | None = None) -> DeviceFacts | None:
+            positions: dict[str, tuple[Pos, Pos]] | None = None,
+            query=None) -> DeviceFacts | None:
     """Turn a model's ``platform.device`` into facts; report problems at pos, or for a
-    mapping at the (key, value) positions of each fact where given."""
+    mapping at the (key, value) positions of each fact where given.  query: what 'auto'
+    asks (the backend's device query; default the OpenCL device programs use)."""
     positions = positions or {}
     if spec is None:
         spec = "portable"
@@ -89,7 +91,7 @@ def resolve(spec: Any, pos: Pos, rep: Reporter,
             from .runtime import PipelineError
 
             try:
-                return query_device()
+                return (query or query_device)()
             except PipelineError as exc:
                 rep.error(pos, f"device 'auto': {exc}",
                           "name a device profile instead, or see 'gpucompgen devices'")

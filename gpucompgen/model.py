@@ -17,6 +17,8 @@ from typing import Any
 
 from . import fusable as fusable_forms
 from . import sizeexpr
+from .backend import BACKENDS
+from .backend import DEFAULT as DEFAULT_BACKEND
 from .backend.opencl import signature
 from .errors import Diagnostic, GpucompgenError, Pos, Reporter, did_you_mean
 from .loader import (
@@ -221,6 +223,8 @@ class SystemModel:
     platform_pos: Pos = Pos("")
     # platform.fusion: "auto" (chains of fusable GPU components become one kernel) | "off"
     fusion: str = "auto"
+    # platform.backend: "opencl" (default) | "cuda" (gpucompgen.backend, docs/cuda.md)
+    backend: str = "opencl"
     # platform.placement: where flexible components without their own 'placement:' run
     # ("gpu" by default, "cpu", or "auto"); platform.profile: a `gpucompgen tune` file
     placement: str = "gpu"
@@ -1003,7 +1007,7 @@ def library_types() -> dict[str, ComponentType]:
 
 SYSTEM_KEYS = ("system", "description", "types", "platform", "components", "connections")
 PLATFORM_KEYS = ("device", "gpu_settings", "thread_budget", "execution", "zero_copy",
-                 "placement", "profile", "frames_in_flight", "staging", "fusion")
+                 "placement", "profile", "frames_in_flight", "staging", "fusion", "backend")
 FUSION = ("auto", "off")
 EXECUTIONS = ("parallel", "sequential")
 ZERO_COPY = ("auto", "on", "off")
@@ -1180,6 +1184,12 @@ def load_system(path: Path, display: str | None = None) -> SystemModel:
                   f"platform.fusion must be 'auto' or 'off', not {fusion!r}",
                   "auto: chains of fusable GPU components run as one kernel")
         fusion = "auto"
+    backend = platform.get("backend", DEFAULT_BACKEND)
+    if backend not in BACKENDS:
+        rep.error(doc.pos("platform", "backend"),
+                  f"platform.backend must be one of {', '.join(BACKENDS)}, not {backend!r}",
+                  did_you_mean(str(backend), list(BACKENDS)))
+        backend = DEFAULT_BACKEND
     placement = platform.get("placement", "gpu")
     if not _named(placement, PLACEMENTS):
         rep.error(doc.pos("platform", "placement"),
@@ -1302,6 +1312,7 @@ def load_system(path: Path, display: str | None = None) -> SystemModel:
                        thread_budget_pos=doc.pos("platform", "thread_budget"), types=types, execution=execution,
                        zero_copy=zero_copy, frames_in_flight=frames_in_flight,
                        staging=staging, platform_pos=doc.pos("platform"), fusion=fusion,
+                       backend=backend,
                        placement=placement, placement_pos=doc.pos("platform", "placement"),
                        profile=profile, profile_pos=doc.pos("platform", "profile"),
                        notes=notes,

@@ -5,6 +5,7 @@
     generated/variants/standard/   --mode standard (every component copies its own data)
     generated/variants/sequential/ --execution sequential (one queue, blocking copies)
     generated/variants/zero-copy/  --zero-copy on (adapters map host-visible memory)
+    generated/variants/cuda/       --backend cuda (the program on gpucompgen.runtime.cuda, .cu)
 
 Usage: python scripts/regen_golden.py          rebuild them all
        python scripts/regen_golden.py --check  exit 1 and print the diff if any is stale
@@ -23,6 +24,7 @@ VARIANTS: dict[str, list[str]] = {
     "generated/variants/standard": ["--mode", "standard"],
     "generated/variants/sequential": ["--execution", "sequential"],
     "generated/variants/zero-copy": ["--zero-copy", "on"],
+    "generated/variants/cuda": ["--backend", "cuda"],
 }
 
 

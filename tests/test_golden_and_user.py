@@ -24,6 +24,7 @@ VARIANT_OPTIONS = {
     "generated/variants/standard": {"mode": "standard"},
     "generated/variants/sequential": {"execution": "sequential"},
     "generated/variants/zero-copy": {"zero_copy": "on"},
+    "generated/variants/cuda": {"backend": "cuda"},
 }
 
 

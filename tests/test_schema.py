@@ -156,7 +156,7 @@ def test_every_enum_and_closed_mapping_agrees_with_the_loader():
     enums = {frozenset(e) for e in (model.KINDS, model.DTYPES, model.MEMORIES,
                                     model.PARAM_TYPES, model.COVERS, model.EXECUTIONS,
                                     model.ZERO_COPY, model.STAGING, model.PLACEMENTS,
-                                    model.FUSION, fusable.FORMS, fusable.BORDERS, PROFILES,
+                                    model.FUSION, model.BACKENDS, fusable.FORMS, fusable.BORDERS, PROFILES,
                                     [*PROFILES, "auto"])}
     tables = {frozenset(t) for t in (
         model.SYSTEM_KEYS, model.PLATFORM_KEYS, model.INSTANCE_KEYS, model.TYPE_KEYS,

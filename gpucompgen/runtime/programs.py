@@ -118,6 +118,18 @@ def _name_unnamed_source(lines: list[str], name: str, offset: int) -> list[str]:
     return [_UNNAMED.sub(rename, line) for line in lines]
 
 
+def read_kernel_file(path: Path, component: str) -> str:
+    """A kernel file's text; a file that cannot be read names the component."""
+    try:
+        return path.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise PipelineError(f"{component}: cannot read kernel file {path}: {exc.strerror}") \
+            from None
+    except UnicodeDecodeError as exc:
+        raise PipelineError(f"{component}: kernel file {path} is not UTF-8 text "
+                            f"(byte {exc.start:,})") from None
+
+
 def build_program(context, path: Path, component: str, options: tuple[str, ...] = ()):
     """Build one kernel file once; a failure names the component and file and gives the
     compiler's messages once, as file:line:col (a #line directive makes the compiler
@@ -125,14 +137,7 @@ def build_program(context, path: Path, component: str, options: tuple[str, ...] 
     import pyopencl as cl
 
     path = Path(path)
-    try:
-        source = path.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise PipelineError(f"{component}: cannot read kernel file {path}: {exc.strerror}") \
-            from None
-    except UnicodeDecodeError as exc:
-        raise PipelineError(f"{component}: kernel file {path} is not UTF-8 text "
-                            f"(byte {exc.start:,})") from None
+    source = read_kernel_file(path, component)
     header, body = _split_header(source)
     name = path.name.replace("\\", "\\\\").replace('"', '\\"')
     program = cl.Program(context, f'{header}#line 1 "{name}"\n{body}')
