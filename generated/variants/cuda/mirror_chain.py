@@ -56,10 +56,10 @@ from pathlib import Path
 
 import numpy as np
 
-from gpucompgen.runtime import cuda as runtime
 from gpucompgen.library.frame_sink import FrameSink
 from gpucompgen.library.still_image import StillImage
 from gpucompgen.runtime import Size
+from gpucompgen.runtime import cuda as runtime
 
 DESCRIPTION = (
     "The paper's evaluation (Section V): one 1152x864 frame through a chain of five VerticalMirror "

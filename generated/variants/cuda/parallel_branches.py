@@ -70,10 +70,10 @@ from pathlib import Path
 
 import numpy as np
 
-from gpucompgen.runtime import cuda as runtime
 from gpucompgen.library.camera import Camera
 from gpucompgen.library.vision_manager import VisionManager
 from gpucompgen.runtime import Size
+from gpucompgen.runtime import cuda as runtime
 
 DESCRIPTION = 'Two cameras, each filtered on its own GPU branch, merged and searched for buoys'
 LIB_DIR = Path(__file__).resolve().with_name('parallel_branches_lib')

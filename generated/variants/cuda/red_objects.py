@@ -66,10 +66,10 @@ from pathlib import Path
 
 import numpy as np
 
-from gpucompgen.runtime import cuda as runtime
 from gpucompgen.library.camera import Camera
 from gpucompgen.library.mask_writer import MaskWriter
 from gpucompgen.runtime import Size
+from gpucompgen.runtime import cuda as runtime
 
 DESCRIPTION = (
     'Finds red objects in a folder of photographs (HSV range, 3x3 opening) and saves masks and '

@@ -55,10 +55,10 @@ from pathlib import Path
 
 import numpy as np
 
-from gpucompgen.runtime import cuda as runtime
 from gpucompgen.library.camera import Camera
 from gpucompgen.library.vision_manager import VisionManager
 from gpucompgen.runtime import Size
+from gpucompgen.runtime import cuda as runtime
 
 DESCRIPTION = 'Vision system of the underwater robot (Campeanu et al., Figure 3)'
 LIB_DIR = Path(__file__).resolve().with_name('vision_system_lib')

@@ -27,7 +27,10 @@ __all__ = ["HEADER_PREFIX", "OutputFile", "render", "source_path"]
 KERNEL_SUFFIX = ".cu"
 # The lines of the OpenCL program that name OpenCL, and what the CUDA program says.
 _PROGRAM_LINES = (
-    ("from gpucompgen import runtime\n", "from gpucompgen.runtime import cuda as runtime\n"),
+    # the runtime module, where an import sorter puts it (the program passes ruff's isort)
+    ("from gpucompgen import runtime\n", ""),
+    ("from gpucompgen.runtime import Size\n",
+     "from gpucompgen.runtime import Size\nfrom gpucompgen.runtime import cuda as runtime\n"),
     ("select the OpenCL device with\nPYOPENCL_CTX.",
      "select the CUDA device with\nCUDA_DEVICE (default 0)."),
     ("OpenCL profiling events time every kernel and copy",
