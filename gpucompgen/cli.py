@@ -640,8 +640,10 @@ def cmd_devices(args) -> int:
                   f"{'ok' if cuda_problem is None else cuda_problem}")
         if cuda_devices:
             print("programs built with --backend cuda use CUDA_DEVICE (default 0)")
+    # No OpenCL device is fine where CUDA is (a Jetson); a PYOPENCL_CTX that selects nothing
+    # usable is the user's mistake whatever else there is
     usable_cuda = any(p is None for _, _, p in cuda_devices)
-    return 1 if problem and not usable_cuda else 0
+    return 1 if problem and (os.environ.get("PYOPENCL_CTX") or not usable_cuda) else 0
 
 
 def _cuda_devices() -> list:

@@ -88,7 +88,8 @@ def project(folder: Path, types_at: str = "t.yaml", placement: str = "cpu") -> P
 
 
 def gpucompgen(*args, cwd: Path) -> subprocess.CompletedProcess:
-    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(
+        filter(None, [str(ROOT), os.environ.get("PYTHONPATH")]))}
     return subprocess.run([sys.executable, "-m", "gpucompgen", *map(str, args)], cwd=cwd,
                           capture_output=True, text=True, check=False, env=env)
 
@@ -226,7 +227,8 @@ def test_tune_checks_its_output_before_measuring(tmp_path, output, message):
     proc = subprocess.run([sys.executable, "-m", "gpucompgen", "tune", str(model), "-o",
                            output], cwd=tmp_path, capture_output=True, text=True,
                           check=False, env={**os.environ, **env_device,
-                                            "PYTHONPATH": str(ROOT)})
+                                            "PYTHONPATH": os.pathsep.join(
+        filter(None, [str(ROOT), os.environ.get("PYTHONPATH")]))})
     assert proc.returncode == 2, proc.stderr
     assert f"gpucompgen tune: error: {message}" in proc.stderr
     assert "internal error" not in proc.stderr

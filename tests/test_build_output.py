@@ -159,16 +159,16 @@ def test_graph_into_a_missing_folder_is_a_usage_error(tmp_path, target):
 def test_a_generated_program_that_would_not_compile_is_refused_before_writing(tmp_path,
                                                                            monkeypatch):
     """The names checks are the first defence; compiling the program is the last."""
-    real_render = build_mod.render
+    real_renderer = build_mod.renderer
 
     def broken_render(system, source, *args):
-        files = real_render(system, source, *args)
+        files = real_renderer("opencl")(system, source, *args)
         program = files[0]
         files[0] = type(program)(program.path,
                                  program.text.replace("def run(", "def run(frames, frames, ", 1))
         return files
 
-    monkeypatch.setattr(build_mod, "render", broken_render)
+    monkeypatch.setattr(build_mod, "renderer", lambda backend: broken_render)
     with pytest.raises(RuntimeError, match="generated program does not compile: duplicate "
                                            "argument 'frames'"):
         compile_model(MODEL, tmp_path / "gen")

@@ -13,7 +13,8 @@ from conftest import ROOT, require_opencl
 
 
 def gpucompgen(*args, cwd=ROOT, stdout=subprocess.PIPE):
-    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(
+        filter(None, [str(ROOT), os.environ.get("PYTHONPATH")]))}
     return subprocess.run([sys.executable, "-m", "gpucompgen", *map(str, args)], cwd=cwd,
                           stdout=stdout, stderr=subprocess.PIPE, text=True, check=False,
                           env=env)

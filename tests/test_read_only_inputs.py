@@ -84,7 +84,8 @@ def project(tmp_path, consumer: str, producers: tuple[str, ...] = (
 
 
 def run(model, *args):
-    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(
+        filter(None, [str(ROOT), os.environ.get("PYTHONPATH")]))}
     return subprocess.run([sys.executable, "-m", "gpucompgen", "run", str(model), *args],
                           capture_output=True, text=True, check=False, env=env,
                           cwd=model.parent)

@@ -134,7 +134,8 @@ def test_every_tour_command_imports_only_what_the_quick_start_installs(tmp_path)
         log.write_text("")
         env = {**os.environ, "TOUR_IMPORT_LOG": str(log),
                "TOUR_OURS": str(ROOT / "gpucompgen"),
-               "PYTHONPATH": os.pathsep.join([str(tmp_path / "hook"), str(ROOT)])}
+               "PYTHONPATH": os.pathsep.join(
+                   filter(None, [str(tmp_path / "hook"), str(ROOT), os.environ.get("PYTHONPATH")]))}
         proc = subprocess.run([sys.executable, "-m", "gpucompgen", *argv], cwd=ROOT, env=env,
                               capture_output=True, text=True, check=False, timeout=300)
         assert proc.returncode == 0, f"{command}: {proc.stderr[-2000:]}"
