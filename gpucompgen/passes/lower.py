@@ -85,8 +85,9 @@ def lib_files(system: System) -> dict[str, str]:
             keys.append((str(t.python_file.resolve()), t.python_file.name))
         for key, wanted in keys:
             _name_lib_file(names, taken, key, wanted)
-    for g in system.groups:
-        _name_lib_file(names, taken, lib_key(g.type), f"group_{g.type.kernel_function}.cl")
+    for g in system.kernel_groups:  # a group of one: the component's kernel, from its form
+        wanted = f"{g.name}.cl" if len(g.members) == 1 else f"group_{g.type.kernel_function}.cl"
+        _name_lib_file(names, taken, lib_key(g.type), wanted)
     return names
 
 
@@ -215,7 +216,7 @@ def lower(system: System) -> ProgramPlan:
     model = system.model
     files = lib_files(system)
     types = used_types(system)
-    gpu_types = gpu_used_types(system) + [g.type for g in system.groups]
+    gpu_types = gpu_used_types(system) + [g.type for g in system.kernel_groups]
     taken = set(system.nodes)
     functions: dict[str, str] = {}  # flexible type on the CPU -> its function's variable
     for t in cpu_used_types(system):
@@ -349,7 +350,9 @@ def lower(system: System) -> ProgramPlan:
                               ports=tuple(tuple((p, np_name(d.dtype)) for p, d in ports.items())
                                           for ports in (t.inputs, t.outputs))))
         else:
-            parts.append(Part(name, "component", t.name, "fused group" if group else t.name,
+            what = t.name if not group else \
+                node.root.type.name if len(node.members) == 1 else "fused group"
+            parts.append(Part(name, "component", t.name, what,
                               "GPU" if node.on_gpu else "CPU", system.stages[name],
                               queue_of(name) if node.on_gpu else None,
                               programs.get(t.name) if node.on_gpu else None, params,
@@ -398,7 +401,7 @@ def lower(system: System) -> ProgramPlan:
                             if isinstance(system.nodes[n], (ComponentNode, GroupNode))
                             and system.nodes[n].type is t and system.nodes[n].on_gpu])
              for t in gpu_types}
-    groups = {g.type.name: g for g in system.groups}
+    groups = {g.type.name: g for g in system.kernel_groups}
     asked = model.thread_budget
     budget_source = ("platform.thread_budget" if asked and asked <= system.thread_budget else
                      "device total" if not asked else
@@ -420,6 +423,9 @@ def lower(system: System) -> ProgramPlan:
                                      for m in g.members for p, port in m.outputs.items()),
                                g.estimate)
                      for g in system.groups),
+        generated=tuple((g.name, g.root.type.name, g.root.type.fusable.form,
+                         files[lib_key(g.type)])
+                        for g in system.kernel_groups if len(g.members) == 1),
         unfused=tuple(system.unfused.items()), fusion=system.fusion,
         parts=tuple(parts), buffers=tuple(buffers), launches=tuple(launches),
         transfers=tuple(transfers), steps=tuple(steps),

@@ -331,7 +331,7 @@ def render(system: System, source: str, model_dir: str = ".") -> list[OutputFile
         files.append(OutputFile(PurePosixPath(lib, name),
                                 f"# {header}\n# Copied from the component type file of "
                                 f"{', '.join(users)}.\n\n{text}"))
-    for g in system.groups:
+    for g in system.kernel_groups:
         name = plan.lib_files_of(lib_key(g.type))
         files.append(OutputFile(PurePosixPath(lib, name), group_kernel(g, header, system.device)))
     from ...plan import plan_lines
