@@ -325,6 +325,15 @@ def make_group(system: System, names: list[str]) -> GroupNode:
     return group
 
 
+def entry_name(name: str) -> str:
+    """The generated kernel's entry point: the group's (or lone component's) name, unless
+    OpenCL C has a function or word of that name (a component called 'trunc')."""
+    from ..snippet import is_builtin
+    from ..snippet.check import FORBIDDEN
+
+    return f"{name}_kernel" if is_builtin(name) or name in FORBIDDEN else name
+
+
 def group_type(system: System, name: str, members: list[ComponentNode],
                inputs: dict[str, Port]) -> ComponentType:
     """The stand-in type of a group: its class name in generated code, its ports, and the
@@ -361,5 +370,5 @@ def group_type(system: System, name: str, members: list[ComponentNode],
         name=cls, kind="gpu-aware",
         description=description,
         params={}, inputs=ports, outputs={out_name: out_decl}, requires=[],
-        decl_file=rt.decl_file, origin="group", pos=root.pos, kernel_function=name,
+        decl_file=rt.decl_file, origin="group", pos=root.pos, kernel_function=entry_name(name),
         grid=out_name, cover="rows", gpu=group_gpu_decl(system.device))

@@ -86,7 +86,7 @@ def lib_files(system: System) -> dict[str, str]:
         for key, wanted in keys:
             _name_lib_file(names, taken, key, wanted)
     for g in system.kernel_groups:  # a group of one: the component's kernel, from its form
-        wanted = f"{g.name}.cl" if len(g.members) == 1 else f"group_{g.type.kernel_function}.cl"
+        wanted = f"{g.name}.cl" if len(g.members) == 1 else f"group_{g.name}.cl"
         _name_lib_file(names, taken, lib_key(g.type), wanted)
     return names
 

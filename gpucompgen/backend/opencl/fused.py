@@ -135,8 +135,8 @@ def schedule(device) -> str:
 
 
 def kernel_name(group: GroupNode) -> str:
-    """The entry point's name in the group's file."""
-    return group.name
+    """The entry point's name in the group's file (passes/fuse.py entry_name)."""
+    return group.type.kernel_function if group.type is not None else group.name
 
 
 def preferred_settings(group: GroupNode, device) -> tuple[int, int, int, int]:
@@ -347,6 +347,11 @@ def _member(m, feeds: dict[Endpoint, str], producer: dict[Endpoint, Endpoint], i
                      f"{pname}_width = {port.data.width};")
     for pname, pdecl in m.type.params.items():
         c = "float" if pdecl.type == "float" else "int"
+        if decl.form == "stencil" and pname == decl.radius:
+            # the window is fixed at build time (the interior's margin is): a constant, so
+            # that the compiler unrolls a loop over it
+            lines.append(f"    const int {pname} = {_radius(m)};")
+            continue
         lines.append(f"    const {c} {pname} = _m{index[m.name]}_{pname};")
     # printed from the parsed snippet; built-in calls swapped for their inline versions
     for line in inline_builtins("\n".join(decl.lines()), used).splitlines():
@@ -400,7 +405,7 @@ def _kernel(group: GroupNode, out_name: str, out_port, names, flat: bool,
         lines += _comment(f"Elements {edge} or more from every edge read inside the frame: "
                           "the interior version, without border rules, computes them.")
     lines += [
-        f"__kernel void {group.name}(_PARAMS, const int _tile)",
+        f"__kernel void {kernel_name(group)}(_PARAMS, const int _tile)",
         "{",
         "    const int _y0 = get_group_id(1) * _tile;",
         f"    const int _y1 = min(_y0 + _tile, {h});",

@@ -237,12 +237,18 @@ class Settable:
 
 
 def size_names(t) -> set[str]:
-    """The parameters a type's output sizes or requirements name: fixed at build time."""
+    """The parameters a type's output sizes or requirements name, and a stencil's radius
+    parameter (its generated kernel's window and interior are constants): fixed at build
+    time."""
     import ast
 
     exprs = [e for d in t.outputs.values() for e in (d.height, d.width) if e is not None]
     exprs += [check for check, _ in t.requires]
-    return {n.id for e in exprs for n in ast.walk(e) if isinstance(n, ast.Name)}
+    names = {n.id for e in exprs for n in ast.walk(e) if isinstance(n, ast.Name)}
+    decl = getattr(t, "fusable", None)
+    if decl is not None and decl.form == "stencil" and isinstance(decl.radius, str):
+        names.add(decl.radius)
+    return names
 
 
 def with_settable_params(system: System, plan: ProgramPlan) -> tuple[ProgramPlan, list]:
