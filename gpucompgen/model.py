@@ -1254,7 +1254,8 @@ def load_system(path: Path, display: str | None = None) -> SystemModel:
         fuse = cspec.get("fuse", True)
         if not isinstance(fuse, bool):
             rep.error(doc.pos(*cpath, "fuse"), f"fuse of '{cname}' must be true or false, "
-                      f"not {fuse!r}", "'fuse: false' keeps the component's own kernel")
+                      f"not {fuse!r}", "'fuse: false' keeps the component out of every "
+                      "group (it runs its kernel alone)")
             fuse = True
         where, where_pos = cspec.get("placement", ""), None
         if "placement" in cspec:

@@ -103,8 +103,12 @@ def run_generated(context, queue, ctype, params: dict, arrays, out_shape: tuple,
     import numpy as np
     import pyopencl as cl
 
-    from gpucompgen.backend.opencl.convention import group_parameters
-    from gpucompgen.backend.opencl.fused import group_kernel, group_of_one
+    from gpucompgen.backend.opencl.fused import (
+        group_kernel,
+        group_of_one,
+        kernel_name,
+        launch_arguments,
+    )
     from gpucompgen.model import DTYPES
 
     (oname, oport), = ctype.outputs.items()
@@ -117,23 +121,14 @@ def run_generated(context, queue, ctype, params: dict, arrays, out_shape: tuple,
     program, group = _GENERATED[key]
     tile, bx, by, bz = settings
     mf = cl.mem_flags
-    buffers = {f"m_{p}": cl.Buffer(context, mf.READ_ONLY | mf.COPY_HOST_PTR,
-                                   hostbuf=np.ascontiguousarray(a))
+    buffers = {p: cl.Buffer(context, mf.READ_ONLY | mf.COPY_HOST_PTR,
+                            hostbuf=np.ascontiguousarray(a))
                for p, a in zip(ctype.inputs, arrays, strict=True)}
     result = np.empty(out_shape, np.dtype(DTYPES[oport.dtype][0]))
     out = cl.Buffer(context, mf.READ_WRITE, max(result.nbytes, 1))
     cl.enqueue_fill_buffer(queue, out, np.uint8(0xA5), 0, max(result.nbytes, 1))
-    args = []
-    for p in group_parameters(group):
-        if p.kind == "buffer":
-            args.append(out if p.role == "output" else buffers[p.port])
-        elif p.role == "param":
-            value = params[p.param.split(".", 1)[1]]
-            args.append(np.float32(value) if p.c_type == "float" else np.int32(value))
-        else:
-            args.append(np.int32(tile))
-    kernel = cl.Kernel(program, group.name)
-    kernel.set_args(*args)
+    kernel = cl.Kernel(program, kernel_name(group))
+    kernel.set_args(*launch_arguments(group, buffers, out, params, tile))
     rows = -(-shapes[oname][0] // tile)
     cl.enqueue_nd_range_kernel(queue, kernel, (bx, rows * by, bz), (bx, by, bz))
     cl.enqueue_copy(queue, result, out)

@@ -173,6 +173,28 @@ def group_of_one(ctype, params: dict, shapes: dict[str, tuple[int, int]], member
                      members=[node], feeds={f"{member}_{p}": Endpoint(member, p) for p in ins})
 
 
+def launch_arguments(group: GroupNode, inputs: dict, output, params: dict, tile: int) -> list:
+    """The kernel arguments of a group of one (group_of_one) launched by hand, in the
+    calling convention's order (convention.group_parameters): inputs by the member's port
+    name, the output buffer, the member's parameters (params by name) and the tile."""
+    import numpy as np
+
+    from .convention import group_parameters
+
+    assert len(group.members) == 1, group.name
+    args = []
+    for p in group_parameters(group):
+        if p.kind == "buffer":
+            args.append(output if p.role == "output" else
+                        inputs[group.feeds[p.port].port])
+        elif p.role == "param":
+            v = params[p.param.split(".", 1)[1]]
+            args.append(np.float32(v) if p.c_type == "float" else np.int32(v))
+        else:
+            args.append(np.int32(tile))
+    return args
+
+
 def channel_flat(group: GroupNode) -> bool:
     """Every member computes each channel alike, from the same channel of its inputs: a
     row of W pixels of C channels is W x C elements computed alike.  True where every
