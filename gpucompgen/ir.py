@@ -230,7 +230,12 @@ class System:
     # --- queries -----------------------------------------------------------------------
     @property
     def components(self) -> dict[str, ComponentNode]:
-        return {n: node for n, node in self.nodes.items() if isinstance(node, ComponentNode)}
+        """The components that are nodes, and those running a generated kernel alone (a
+        group of one is its component under the component's name)."""
+        return {n: node.root if isinstance(node, GroupNode) else node
+                for n, node in self.nodes.items()
+                if isinstance(node, ComponentNode)
+                or isinstance(node, GroupNode) and len(node.members) == 1}
 
     def component(self, name: str) -> ComponentNode:
         """A component by name, also when a fused group holds it."""

@@ -312,9 +312,12 @@ def make_group(system: System, names: list[str]) -> GroupNode:
     group = GroupNode(name, root.pos, inputs, {out_name: replace(out_port)}, members=members,
                       feeds=feeds, internal=internal,
                       type=group_type(system, name, members, inputs))
-    for n in names:
-        del system.nodes[n]
-    system.add_node(group)
+    if single:  # the component's place among the nodes, under its name
+        system.nodes = {n: group if n == name else node for n, node in system.nodes.items()}
+    else:
+        for n in names:
+            del system.nodes[n]
+        system.add_node(group)
     system.edges = edges
     stage = system.stages[root.name]
     system.order = [n for n in system.order if n not in inside or n == root.name]

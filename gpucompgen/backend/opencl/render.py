@@ -280,7 +280,8 @@ def with_settable_params(system: System, plan: ProgramPlan) -> tuple[ProgramPlan
         for a in la.arguments:
             if a.param:
                 owner, pname = a.param.split(".", 1)
-                member = node if owner == la.part else node.member(owner)
+                # a group's parameters are its members' (a group of one: the component's)
+                member = node.member(owner) if hasattr(node, "members") else node
                 if declare(a.param, member.type, pname, a.value):
                     a = dataclasses.replace(a, value=ParamRef(a.param))  # noqa: PLW2901
             args.append(a)
