@@ -114,7 +114,9 @@ def run_generated(context, queue, ctype, params: dict, arrays, out_shape: tuple,
     (oname, oport), = ctype.outputs.items()
     shapes = {p: a.shape[:2] for p, a in zip(ctype.inputs, arrays, strict=True)}
     shapes[oname] = tuple(out_shape[:2])
-    key = (ctype.name, tuple(sorted(shapes.items())))
+    # sizes and a stencil's radius are constants of the kernel; other parameters arguments
+    radius = ctype.fusable.radius
+    key = (ctype.name, tuple(sorted(shapes.items())), params.get(radius, radius))
     if key not in _GENERATED:
         group = group_of_one(ctype, params, shapes)
         _GENERATED[key] = cl.Program(context, group_kernel(group, "test")).build(), group

@@ -328,13 +328,17 @@ def make_group(system: System, names: list[str]) -> GroupNode:
     return group
 
 
-def entry_name(name: str) -> str:
+def entry_name(name: str, members: list[ComponentNode]) -> str:
     """The generated kernel's entry point: the group's (or lone component's) name, unless
-    OpenCL C has a function or word of that name (a component called 'trunc')."""
+    OpenCL C has a function or word of that name (a component called 'trunc') or a
+    member's snippet uses it (a ThresholdGray called 'thresh', its parameter's name)."""
     from ..snippet import is_builtin
     from ..snippet.check import FORBIDDEN
 
-    return f"{name}_kernel" if is_builtin(name) or name in FORBIDDEN else name
+    used = {n for m in members for n in (*m.type.fusable.names, *m.type.params,
+                                         *m.inputs, *m.outputs)}
+    taken = is_builtin(name) or name in FORBIDDEN or name in used
+    return f"{name}_kernel" if taken else name
 
 
 def group_type(system: System, name: str, members: list[ComponentNode],
@@ -373,5 +377,5 @@ def group_type(system: System, name: str, members: list[ComponentNode],
         name=cls, kind="gpu-aware",
         description=description,
         params={}, inputs=ports, outputs={out_name: out_decl}, requires=[],
-        decl_file=rt.decl_file, origin="group", pos=root.pos, kernel_function=entry_name(name),
+        decl_file=rt.decl_file, origin="group", pos=root.pos, kernel_function=entry_name(name, members),
         grid=out_name, cover="rows", gpu=group_gpu_decl(system.device))

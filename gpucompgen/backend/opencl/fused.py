@@ -325,8 +325,10 @@ def _declaration(p, name: str) -> str:
 
 
 def _function(name: str, index, interior: bool) -> str:
-    """The generated function of member name: its interior version ends '_in'."""
-    return f"_m{index[name]}_{name}" + ("_in" if interior else "")
+    """The generated function of member name: its interior version ends '_in'.  '_f',
+    not '_m' (the members' parameters): member 'thresh' of a type whose parameter is
+    'thresh' gets _f0_thresh and _m0_thresh, never one name for both."""
+    return f"_f{index[name]}_{name}" + ("_in" if interior else "")
 
 
 def _member(m, feeds: dict[Endpoint, str], producer: dict[Endpoint, Endpoint], index,
