@@ -199,7 +199,6 @@ def gen_variant(ctx, queue, t, arrays, params, device):
     import pyopencl as cl
 
     from gpucompgen.backend.opencl import fused
-    from gpucompgen.backend.opencl.convention import group_parameters
 
     if t.fusable is None:
         return None
@@ -210,22 +209,12 @@ def gen_variant(ctx, queue, t, arrays, params, device):
     program = cl.Program(ctx, source).build()
     kernel = cl.Kernel(program, fused.kernel_name(group))
     mf = cl.mem_flags
-    bufs = {f"op_{k}": cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR,
-                                 hostbuf=np.ascontiguousarray(v))
+    bufs = {k: cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=np.ascontiguousarray(v))
             for k, v in zip(t.inputs, arrays)}
     result = np.empty(shape, dtype)
     out = cl.Buffer(ctx, mf.READ_WRITE, max(result.nbytes, 1))
     tile, bx, by, _ = fused.preferred_settings(group, device)
-    args = []
-    for p in group_parameters(group):
-        if p.kind == "buffer":
-            args.append(out if p.role == "output" else bufs[p.port])
-        elif p.role == "param":
-            v = params[p.param.split(".", 1)[1]]
-            args.append(np.float32(v) if p.c_type == "float" else np.int32(v))
-        else:
-            args.append(np.int32(tile))
-    kernel.set_args(*args)
+    kernel.set_args(*fused.launch_arguments(group, bufs, out, params, tile))
     gsize, lsize = fused.launch_geometry(group, tile, bx, by)
     return Variant(queue, kernel, gsize, lsize, out, result, bufs)
 

@@ -2,7 +2,8 @@
 
     python benchmarks/launch_cost.py [--launches 3000] [--rounds 5]
 
-The vision system's ImageMerger (three buffers and seven scalar arguments), generated and
+The vision system's ImageMerger (three buffers and the tile: its kernel, generated from
+its form, has its sizes as constants), generated and
 configured as the program does it, is launched over and over on a small frame (so the
 device's work is negligible: what is timed is the host's).  Three ways, interleaved round
 after round:
@@ -35,22 +36,29 @@ def merger(tmp: Path):
     import numpy as np
 
     from gpucompgen import runtime
+    from gpucompgen.backend.opencl.fused import group_kernel, group_of_one
     from gpucompgen.build import compile_model, write
+    from gpucompgen.model import library_types
 
     out = tmp / "vision"
-    # unfused: the ImageMerger component and its own kernel, not the merger_detector group
+    # unfused: the ImageMerger component alone, not the merger_detector group
     write(compile_model(ROOT / "models" / "vision_system.yaml", out, fusion="off"), out)
     module = runtime.load_module(out / "vision_system.py", "launch_cost_vision")
     context = runtime.create_context()
     queue = runtime.create_queue(context, False)
-    program = runtime.build_program(context, module.LIB_DIR / "image_merger.cl", "merger")
+    # the kernel a lone merger runs, generated for 16x16 frames (its sizes are constants)
+    group = group_of_one(library_types()["ImageMerger"], {},
+                         {"left": (16, 16), "right": (16, 16), "merged": (16, 32)},
+                         name=module.ImageMerger.function)
+    source = tmp / "merger.cl"
+    source.write_text(group_kernel(group, "launch cost"), encoding="utf-8")
+    program = runtime.build_program(context, source, "merger")
     m = module.ImageMerger(context, queue, program)
     size = runtime.Size(16, 16, 3)
     m.initialize(size, size)
-    m.config_gpu(tile=16, local_size=(16, 16, 1), global_size=(32, 16, 1),
-                 settings_source="preferred", arguments=[
-                     "left", "right", "merged", np.int32(16), np.int32(16), np.int32(16),
-                     np.int32(16), np.int32(16), np.int32(32), np.int32(16)])
+    m.config_gpu(tile=16, local_size=(16, 16, 1), global_size=(16, 16, 1),
+                 settings_source="preferred", arguments=["left", "right", "merged",
+                                                         np.int32(16)])
     import pyopencl as cl
 
     left = cl.Buffer(context, cl.mem_flags.READ_ONLY, size.nbytes(np.uint8))
@@ -97,7 +105,7 @@ def main(argv=None) -> int:
             for name, launch in ways.items():
                 times[name].append(time_launches(launch, queue, args.launches))
         m.free_memory()
-    print(f"host time per launch of ImageMerger (10 arguments), median of {args.rounds} "
+    print(f"host time per launch of ImageMerger (4 arguments), median of {args.rounds} "
           f"rounds of {args.launches:,} launches:")
     base = statistics.median(times["set every launch"])
     for name, values in times.items():

@@ -60,7 +60,6 @@ FUSED_VS_ONE = 1.30
 ROUNDS = 4
 MAX_SIDE = 16384  # StillImage's largest width and height (library/mirror.yaml; tested)
 MAX_LENGTH = MAX_COMPONENTS - 2  # the mirrors, a source and a sink
-LIBRARY = Path(__file__).resolve().parent / "library"
 
 
 class BenchError(Exception):
@@ -164,21 +163,25 @@ class HandWritten:
     def __init__(self, n: int, image: np.ndarray, context):
         import pyopencl as cl
 
+        from .backend.opencl.fused import group_kernel, group_of_one, launch_geometry
         from .model import library_types
+        from .passes.fuse import GROUP_GPU
         from .runtime import quiet_compiler
 
         self.cl, self.n, self.image = cl, n, image
         self.context = context
         self.queue = cl.CommandQueue(context)
-        with quiet_compiler():
-            program = cl.Program(context, (LIBRARY / "vertical_mirror.cl").read_text()).build()
-        self.kernel = cl.Kernel(program, "vertical_mirror")
         h, w = image.shape[:2]
-        # the settings the generated program uses: the type's preference, rows of the output
-        tile, bx, by, bz = library_types()["VerticalMirror"].gpu.prefer
-        self.global_size = (bx, -(-h // tile) * by, bz)
-        self.local_size = (bx, by, bz)
-        self.args = [np.int32(h), np.int32(w), np.int32(h), np.int32(w), np.int32(tile)]
+        # VerticalMirror's kernel: the one the generator writes from its form for a mirror
+        # alone, with the settings the generated program gives it (work-groups of rows)
+        group = group_of_one(library_types()["VerticalMirror"], {},
+                             {"image": (h, w), "mirrored": (h, w)}, "m", "vertical_mirror")
+        with quiet_compiler():
+            program = cl.Program(context, group_kernel(group, "bench")).build()
+        self.kernel = cl.Kernel(program, "vertical_mirror")
+        tile, bx, by, _ = GROUP_GPU.prefer
+        self.global_size, self.local_size = launch_geometry(group, tile, bx, by)
+        self.args = [np.int32(tile)]
         mf = cl.mem_flags
         self.buffers = [cl.Buffer(context, mf.READ_WRITE, image.nbytes) for _ in range(n + 1)]
         self.host = np.empty_like(image)

@@ -87,6 +87,9 @@ def dot_text(system: System) -> str:
             lines.append(f"  {quote(name)} [label={quote(label)}, shape=cds, "
                          'style="filled,dashed", fillcolor="#fff2cc"];')
             continue
+        if isinstance(node, GroupNode) and len(node.members) == 1:  # a component alone
+            lines.append(f"  {_component_line(name, node.root, gpu_aware_mode)}")
+            continue
         if isinstance(node, GroupNode):
             label = (f"fused group {name}: one kernel, one launch\n"
                      + " -> ".join(m.name for m in node.members))

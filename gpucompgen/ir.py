@@ -230,19 +230,31 @@ class System:
     # --- queries -----------------------------------------------------------------------
     @property
     def components(self) -> dict[str, ComponentNode]:
-        return {n: node for n, node in self.nodes.items() if isinstance(node, ComponentNode)}
+        """The components that are nodes, and those running a generated kernel alone (a
+        group of one is its component under the component's name)."""
+        return {n: node.root if isinstance(node, GroupNode) else node
+                for n, node in self.nodes.items()
+                if isinstance(node, ComponentNode)
+                or isinstance(node, GroupNode) and len(node.members) == 1}
 
     def component(self, name: str) -> ComponentNode:
         """A component by name, also when a fused group holds it."""
         node = self.nodes.get(name)
         if isinstance(node, ComponentNode):
             return node
-        return next(m for g in self.groups for m in g.members if m.name == name)
+        return next(m for g in self.kernel_groups for m in g.members if m.name == name)
+
+    @property
+    def kernel_groups(self) -> list[GroupNode]:
+        """Every node whose kernel is generated from fusable forms: the fused groups and
+        the groups of one (a component of a fusable type alone, passes/fuse.py)."""
+        names = self.order or list(self.nodes)
+        return [self.nodes[n] for n in names if isinstance(self.nodes.get(n), GroupNode)]
 
     @property
     def groups(self) -> list[GroupNode]:
-        names = self.order or list(self.nodes)
-        return [self.nodes[n] for n in names if isinstance(self.nodes.get(n), GroupNode)]
+        """The fused groups: several components as one kernel."""
+        return [g for g in self.kernel_groups if len(g.members) > 1]
 
     def gpu_node(self, name: str) -> ComponentNode | GroupNode:
         """A component placed on the GPU or a group: a node with a type and GPU settings."""
@@ -335,7 +347,8 @@ def verify_problems(system: System) -> list[str]:
                 problems.append(f"port '{node.name}.{port.name}' is filed as '{pname}'")
         if isinstance(node, GroupNode):
             for m in node.members:
-                if m.name in system.nodes:
+                # a group of one is its member under the member's name
+                if m.name in system.nodes and system.nodes[m.name] is not node:
                     problems.append(f"'{m.name}' is a member of group '{node.name}' and a node")
     seen: dict[Endpoint, int] = {}
     for e in system.edges:

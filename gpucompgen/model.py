@@ -699,9 +699,21 @@ def _check_signature(doc, rep, base, ctype: ComponentType, kspec: dict) -> None:
 
 def _load_kernel(doc, rep, base, ctype: ComponentType, spec,
                  signature_check: bool = True) -> None:
+    if "kernel" not in spec and "fusable" in spec:
+        # the kernel is generated from the fusable form (backend/opencl/fused.py), for a
+        # component alone as for a fused group: the operation is declared once
+        ctype.grid = next(iter(ctype.outputs), "")
+        ctype.cover = "rows"
+        if "gpu" in spec:
+            rep.error(doc.key_pos(*base, "gpu"),
+                      f"'gpu' settings of '{ctype.name}' are for a hand-written kernel; its "
+                      "kernel is generated from its fusable form, with the system's settings",
+                      "remove 'gpu:' (or add 'kernel: {file, function}')")
+        return
     kspec = _expect_map(doc, rep, base + ("kernel",), spec.get("kernel"), "kernel")
     if not kspec:
-        rep.error(ctype.pos, f"GPU-aware type '{ctype.name}' needs 'kernel: {{file, function}}'")
+        rep.error(ctype.pos, f"GPU-aware type '{ctype.name}' needs 'kernel: {{file, function}}'",
+                  "or a 'fusable:' form, from which the system generates its kernel")
         return
     _unknown_keys(doc, rep, base + ("kernel",), kspec, KERNEL_KEYS, "kernel")
     found = _resolve_file(doc, rep, base + ("kernel", "file"), ctype.decl_file.parent,
@@ -1268,7 +1280,8 @@ def load_system(path: Path, display: str | None = None) -> SystemModel:
         fuse = cspec.get("fuse", True)
         if not isinstance(fuse, bool):
             rep.error(doc.pos(*cpath, "fuse"), f"fuse of '{cname}' must be true or false, "
-                      f"not {fuse!r}", "'fuse: false' keeps the component's own kernel")
+                      f"not {fuse!r}", "'fuse: false' keeps the component out of every "
+                      "group (it runs its kernel alone)")
             fuse = True
         where, where_pos = cspec.get("placement", ""), None
         if "placement" in cspec:

@@ -216,6 +216,9 @@ class ProgramPlan:
     lib_files: dict[str, str] = field(default_factory=dict)  # lib file -> what it is
     fusion: str = "off"
     groups: tuple[GroupPlan, ...] = ()
+    # components of fusable types alone, each running the kernel generated from its form:
+    # (part, type, form, file in the lib folder)
+    generated: tuple[tuple[str, str, str, str], ...] = ()
     unfused: tuple[tuple[str, str], ...] = ()  # (GPU-to-GPU edge, why it was not fused)
     placement: tuple[str, ...] = ()  # where each flexible component runs, who decided, costs
     # frames in flight (stage-frames): N, the stages, why stages were merged, the parts
@@ -346,10 +349,16 @@ def plan_lines(plan: ProgramPlan) -> list[str]:
 
 def fusion_lines(plan: ProgramPlan) -> list[str]:
     """Each fused group and, for every GPU-to-GPU edge left unfused, why."""
+    lines = []
+    if plan.generated:  # a component of a fusable type alone: the kernel of its form
+        lines += textwrap.wrap(
+            "kernels generated from fusable forms, one component each: " + ", ".join(
+                f"{part} ({t}, {form}: {file})" for part, t, form, file in plan.generated),
+            88, subsequent_indent="  ", break_on_hyphens=False)
     if plan.fusion == "off" and not plan.unfused:
-        return []
-    lines = [f"fusion: {plan.fusion}, {len(plan.groups)} "
-             f"group{'s' if len(plan.groups) != 1 else ''}" + (":" if plan.groups else "")]
+        return lines
+    lines += [f"fusion: {plan.fusion}, {len(plan.groups)} "
+              f"group{'s' if len(plan.groups) != 1 else ''}" + (":" if plan.groups else "")]
     for g in plan.groups:
         lines.append(f"  {g.part}: one kernel ({g.file}) for")
         lines += [f"    {'-> ' if i else ''}{m} ({t}, {form})"

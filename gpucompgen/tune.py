@@ -26,7 +26,7 @@ import time
 import traceback
 from pathlib import Path
 
-from .ir import ComponentNode
+from .ir import GroupNode
 from .passes.place import default_profile, sizes_text
 
 TRANSFER_PROBE_BYTES = 64
@@ -116,11 +116,12 @@ def tune(model_path: Path, frames: int = 20, display: str | None = None) -> tupl
     queue = cl.CommandQueue(context)
     rows = []
     for name in flexible:
-        node: ComponentNode = system.nodes[name]
-        t = node.type
+        node = system.nodes[name]  # a fusable type's: a group of one, its generated kernel
+        member = node.root if isinstance(node, GroupNode) else node
+        t = member.type
         inputs = {p: camera_frame(port.data.size.shape, port.data.dtype, i)
                   for i, (p, port) in enumerate(node.inputs.items())}
-        function, kwargs = _cpu_function(t), {**inputs, **node.params}
+        function, kwargs = _cpu_function(t), {**inputs, **member.params}
         cpu_s = _median(frames, lambda f=function, k=kwargs, n=name, t=t: _call(n, t, f, k))
         gpu_s = _gpu_time(context, queue, system, plan, node, inputs, frames)
         rows.append((name, t.name, sizes_text(system, node), cpu_s * 1e6, gpu_s * 1e6))
@@ -228,7 +229,17 @@ def _gpu_time(context, queue, system, plan, node, inputs, frames) -> float:
         "inputs": tuple((p, np.dtype(d.dtype).type) for p, d in t.inputs.items()),
         "outputs": tuple((p, np.dtype(d.dtype).type) for p, d in t.outputs.items()),
         "output_sizes": lambda self, *sizes: out_sizes})
-    program = runtime.build_program(context, t.kernel_file, f"{node.name} ({t.name})")
+    if isinstance(node, GroupNode):  # the kernel the build writes from the type's form
+        import tempfile
+
+        from .backend.opencl.fused import group_kernel
+
+        with tempfile.TemporaryDirectory() as folder:
+            path = Path(folder) / f"{node.name}.cl"
+            path.write_text(group_kernel(node, "tune", system.device), encoding="utf-8")
+            program = runtime.build_program(context, path, f"{node.name} ({t.name})")
+    else:
+        program = runtime.build_program(context, t.kernel_file, f"{node.name} ({t.name})")
     comp = cls(context, queue, program, **node.params)
     try:
         comp.initialize(*(p.data.size for p in node.inputs.values()))

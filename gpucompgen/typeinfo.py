@@ -90,6 +90,10 @@ def forms(ctype: ComponentType) -> list[tuple[str, str]]:
                                    f"tiles {', '.join(map(str, gpu.tiles))}; preferred tile "
                                    f"{tile}, block {bx}x{by}x{bz}"
                                    + ("; covers whole rows" if ctype.cover == "rows" else "")))
+    elif ctype.gpu_aware and ctype.fusable is not None:
+        rows.append(("GPU kernel", ("generated from the fusable form below, for a component "
+                                    "alone as for a fused group; the system chooses its "
+                                    "settings")))
     if ctype.cpu_file is not None:
         detail = (f"{ctype.cpu_function}() in {ctype.cpu_file.name}, called with the input "
                   "arrays and the parameters as keywords; runs where the model places the "

@@ -90,27 +90,54 @@ def build(tmp_path):
     return _build
 
 
-def configure(comp, tile: int, bx: int, by: int, bz: int) -> None:
-    """config_gpu() on a generated GPU-aware class with any settings, as the lower pass
-    would call it: the global size and the kernel arguments follow the calling convention
-    (restated here from its documentation, an independent reference for the tests)."""
-    import math
+_GENERATED: dict = {}  # (type, port shapes) -> (program, group): sizes are constants
 
+
+def run_generated(context, queue, ctype, params: dict, arrays, out_shape: tuple,
+                  settings=(16, 16, 16, 1)):
+    """Run the kernel the generator writes for a component of fusable type ctype alone
+    (what a lone component runs: a group of one) on arrays, with any settings (tile,
+    block_x, block_y, block_z): work-group g computes output rows [g * tile, g * tile +
+    tile), its block_x x block_y threads sharing them.  The output buffer starts with junk
+    (0xA5), so an element the kernel misses shows.  Returns the output array."""
     import numpy as np
+    import pyopencl as cl
 
-    from gpucompgen.model import library_types
+    from gpucompgen.backend.opencl.fused import (
+        group_kernel,
+        group_of_one,
+        kernel_name,
+        launch_arguments,
+    )
+    from gpucompgen.model import DTYPES
 
-    ctype = library_types()[type(comp).__name__]
-    ports = list(ctype.inputs) + list(ctype.outputs)
-    args = list(ports)
-    for port in ports:
-        args += [np.int32(comp.sizes[port].height), np.int32(comp.sizes[port].width)]
-    for name, decl in ctype.params.items():
-        args.append((np.float32 if decl.type == "float" else np.int32)(getattr(comp, name)))
-    args.append(np.int32(tile))
-    grid = comp.sizes[ctype.grid]
-    gx = bx if ctype.cover == "rows" else math.ceil(grid.width / tile) * bx
-    comp.config_gpu(tile, (bx, by, bz), (gx, math.ceil(grid.height / tile) * by, bz), args)
+    (oname, oport), = ctype.outputs.items()
+    shapes = {p: a.shape[:2] for p, a in zip(ctype.inputs, arrays, strict=True)}
+    shapes[oname] = tuple(out_shape[:2])
+    # sizes and a stencil's radius are constants of the kernel; other parameters arguments
+    radius = ctype.fusable.radius
+    key = (ctype.name, tuple(sorted(shapes.items())), params.get(radius, radius))
+    if key not in _GENERATED:
+        group = group_of_one(ctype, params, shapes)
+        _GENERATED[key] = cl.Program(context, group_kernel(group, "test")).build(), group
+    program, group = _GENERATED[key]
+    tile, bx, by, bz = settings
+    mf = cl.mem_flags
+    buffers = {p: cl.Buffer(context, mf.READ_ONLY | mf.COPY_HOST_PTR,
+                            hostbuf=np.ascontiguousarray(a))
+               for p, a in zip(ctype.inputs, arrays, strict=True)}
+    result = np.empty(out_shape, np.dtype(DTYPES[oport.dtype][0]))
+    out = cl.Buffer(context, mf.READ_WRITE, max(result.nbytes, 1))
+    cl.enqueue_fill_buffer(queue, out, np.uint8(0xA5), 0, max(result.nbytes, 1))
+    kernel = cl.Kernel(program, kernel_name(group))
+    kernel.set_args(*launch_arguments(group, buffers, out, params, tile))
+    rows = -(-shapes[oname][0] // tile)
+    cl.enqueue_nd_range_kernel(queue, kernel, (bx, rows * by, bz), (bx, by, bz))
+    cl.enqueue_copy(queue, result, out)
+    queue.finish()
+    for b in [*buffers.values(), out]:
+        b.release()
+    return result
 
 
 # Collectors for tests that build models: one standard type per element type and channel

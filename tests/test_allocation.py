@@ -87,9 +87,12 @@ def _reach(comps: dict, conns: list[str]) -> dict[str, set[str]]:
 
 def _resident(system, name) -> int:
     s = system.settings[name]
+    t = system.gpu_node(name).type  # a component alone on a generated kernel: its group's
     grid = system.sizes[next(e for e in system.sizes if e.component == name
-                             and e.port == system.components[name].type.grid)]
-    groups = math.ceil(grid.width / s.tile) * math.ceil(grid.height / s.tile)
+                             and e.port == t.grid)]
+    # tile x tile squares a work-group, or tile whole rows (generated kernels)
+    across = 1 if t.cover == "rows" else math.ceil(grid.width / s.tile)
+    groups = across * math.ceil(grid.height / s.tile)
     return min(groups * s.block_x * s.block_y * s.block_z, system.device.total_threads)
 
 
@@ -107,7 +110,7 @@ def _check_system(system, comps, conns, budget):
     gpu = sorted(n for n in comps if types[comps[n]["type"]].gpu_aware)
     assert sorted(system.settings) == gpu
     for n, s in system.settings.items():
-        decl = types[comps[n]["type"]].gpu
+        decl = system.gpu_node(n).type.gpu  # the kernel it runs (generated, or the type's)
         assert s.tile in decl.tiles and s.block_z in decl.block_z
         assert s.block_x * s.block_y * s.block_z <= dev.max_work_group_size
         for v, limit in zip((s.block_x, s.block_y, s.block_z), dev.max_work_item_sizes):
@@ -151,18 +154,18 @@ def test_random_pipelines_stay_within_limits_and_budget(tmp_path_factory, pipe, 
                                          "components": comps, "connections": conns}))
         system = compile_model(model, model.parent / "out", fusion="off").system  # sizes
         reach = _reach(comps, conns)
-        types = library_types()
         for m in messages:
             head = m.split(" can run")[0].split(" needs")[0]
             names = head.split(" ", 1)[1].split(", ")
             assert set(names) in [set(g) for g in _antichains(sorted(names), reach)]
             least = 0
             for n in names:
+                kt = system.gpu_node(n).type  # the kernel it runs
                 grid = system.sizes[next(e for e in system.sizes if e.component == n
-                                         and e.port == system.components[n].type.grid)]
-                t = max(types[comps[n]["type"]].gpu.tiles)
-                least += min(math.ceil(grid.width / t) * math.ceil(grid.height / t),
-                             facts.total_threads)
+                                         and e.port == kt.grid)]
+                t = max(kt.gpu.tiles)
+                across = 1 if kt.cover == "rows" else math.ceil(grid.width / t)
+                least += min(across * math.ceil(grid.height / t), facts.total_threads)
             assert f"at least {least} resident threads" in m, (m, least)
             assert least > budget
         return
@@ -246,7 +249,7 @@ def test_budget_the_model_fixes_is_reported_with_the_fixed_settings(tmp_path):
 @pytest.mark.parametrize("override,message", [
     ("{tile: 16, block_x: 32, block_y: 32}", "block 32x32x1 = 1024 threads is over the "
      "device's work-group limit of 256"),
-    ("{tile: 12}", "tile 12 is not one the kernel accepts [8, 16, 32, 64]"),
+    ("{tile: 12}", "tile 12 is not one the kernel accepts [1, 2, 4, 8, 16, 32, 64, 128]"),
     ("{block_z: 2}", "block_z 2 is not one the kernel accepts [1]"),
     ("{block_x: 512, block_y: 1}", "block_x 512 is over the device's 256"),
 ])

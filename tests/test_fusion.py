@@ -519,3 +519,77 @@ def test_random_fusable_systems_fused_equals_unfused_equals_numpy(tmp_path_facto
     frame = sorted((x.tobytes(), x.shape) for x in got["auto"][:sinks])
     want = sorted((x.tobytes(), x.shape) for x in expected)
     assert frame == want, (comps, conns)
+
+
+# -- a lone component of a fusable type runs the kernel generated from its form ------------
+
+LONE_TYPES = """component_types:
+  Brighten:
+    kind: gpu-aware
+    params:
+      amount: {type: int, default: 40, min: 0, max: 255}
+    inputs:
+      image: {memory: gpu, dtype: uint8, channels: 3}
+    outputs:
+      brighter: {memory: gpu, dtype: uint8, channels: 3}
+    fusable:
+      form: pointwise
+      value: "add_sat(image(y, x, c), (uchar)amount)"
+"""
+
+
+def _lone_model(tmp_path: Path, platform: str = "", name: str = "bright") -> Path:
+    (tmp_path / "types.yaml").write_text(LONE_TYPES)
+    model = tmp_path / "m.yaml"
+    model.write_text(
+        f"system: s\ntypes: [types.yaml]\n{platform}components:\n"
+        "  src: {type: StillImage, params: {width: 24, height: 10}}\n"
+        f"  {name}: {{type: Brighten, params: {{amount: 60}}}}\n"
+        "  m: {type: VerticalMirror}\n  sink: {type: FrameSink}\nconnections:\n"
+        f"  - src.image -> {name}.image\n  - {name}.brighter -> m.image\n"
+        "  - m.mirrored -> sink.image\n")
+    return model
+
+
+def test_a_fusable_type_needs_no_kernel_and_runs_alone_what_its_form_says(tmp_path):
+    """A type with a form and no 'kernel:' builds; with fusion off each component runs the
+    kernel generated for it alone (a group of one, <component>.cl), the plan says so,
+    and the bytes are numpy's; the parameter stays settable at run time."""
+    require_opencl()
+    model = _lone_model(tmp_path, "platform: {fusion: off}\n")
+    result = compile_model(model, tmp_path / "o")
+    plan = result.system.plan
+    assert plan.groups == () and result.system.groups == []
+    assert plan.generated == (("bright", "Brighten", "pointwise", "bright.cl"),
+                              ("m", "VerticalMirror", "index_map", "m.cl"))
+    assert [p.file for p in plan.programs] == ["bright.cl", "m.cl"]
+    assert list(result.system.components) == ["src", "bright", "m", "sink"]
+    write(result, tmp_path / "o")
+    text = (tmp_path / "o" / "s.py").read_text()
+    assert "class Brighten(runtime.KernelComponent)" in text
+    assert "kernels generated from fusable forms, one component each: bright" in text
+    assert "params['bright.amount']" in text  # still settable at run time
+    module = load_generated(tmp_path / "o" / "s.py", "lone_fusable")
+    out = module.run(frames=2).components["sink"].last
+    frame = still_frame(24, 10)
+    expected = np.flipud(np.minimum(frame.astype(int) + 60, 255).astype(np.uint8))
+    np.testing.assert_array_equal(out, expected)
+
+
+def test_a_kernel_entry_point_never_takes_an_opencl_builtins_name(tmp_path):
+    require_opencl()
+    model = _lone_model(tmp_path, "platform: {fusion: off}\n", name="trunc")
+    result = compile_model(model, tmp_path / "o")
+    assert result.system.plan.launch("trunc").function == "trunc_kernel"
+    write(result, tmp_path / "o")
+    module = load_generated(tmp_path / "o" / "s.py", "lone_trunc")
+    assert module.run(frames=1).frames == 1
+
+
+def test_gpu_settings_without_a_kernel_are_an_error(tmp_path):
+    model = _lone_model(tmp_path)
+    (tmp_path / "types.yaml").write_text(LONE_TYPES + "    gpu: {tiles: [8]}\n")
+    with pytest.raises(GpucompgenError) as info:
+        compile_model(model, tmp_path / "o")
+    assert "types.yaml:13:5: error: 'gpu' settings of 'Brighten' are for a hand-written " \
+        "kernel" in str(info.value)

@@ -3,8 +3,10 @@
 Every type runs four ways: OpenCV's function, the CPU form (cpu_kernels.py, which calls
 OpenCV wherever OpenCV has the operation), an independent numpy reference written from
 the operation's definition (imgproc_reference.py: the CPU form must not be checked only
-against itself) and the OpenCL kernel, launched directly with pyopencl on the pinned
-device (PoCL in CI) with its arguments in the calling convention's order. On real
+against itself) and the OpenCL kernel a lone component runs, launched directly with
+pyopencl on the pinned device (PoCL in CI): the kernel the generator writes from the
+type's fusable form, or for Resize and Crop, which have none, their hand-written kernel
+with its arguments in the calling convention's order. On real
 photographs (scikit-image's bundled chelsea 300x451, coffee 400x600 and astronaut
 512x512; their gray versions for the one-channel types) the CPU and GPU outputs must be
 byte for byte the same, equal to the numpy reference, and within MAX_DIFF of OpenCV's:
@@ -148,7 +150,8 @@ def inputs_for(type_name: str, image: np.ndarray) -> list[np.ndarray]:
 
 
 class Kernels:
-    """Build each .cl file once; launch a type's kernel as the calling convention says."""
+    """Launch a type's kernel: a hand-written one (Resize, Crop) as the calling convention
+    says, built once a file; a fusable type's generated one (conftest.run_generated)."""
 
     def __init__(self, context, queue):
         self.context, self.queue, self.programs = context, queue, {}
@@ -162,10 +165,6 @@ class Kernels:
         from gpucompgen.model import DTYPES
 
         ctype = imgproc_types()[type_name]
-        path = ctype.kernel_file
-        if path not in self.programs:
-            self.programs[path] = cl.Program(self.context, path.read_text()).build()
-        kernel = cl.Kernel(self.programs[path], ctype.kernel_function)
         inputs = dict(zip(ctype.inputs, arrays))
         sizes = {k: v.shape[:2] for k, v in inputs.items()}
         ints = {k: v for k, v in params.items() if ctype.params[k].type == "int"}
@@ -174,6 +173,16 @@ class Kernels:
                  sizeexpr.evaluate(oport.width, sizes, ints))
         if oport.channels > 1:
             shape += (oport.channels,)
+        if ctype.kernel_file is None:  # a fusable type: the kernel generated from its form
+            from conftest import run_generated
+
+            tile, bx, by = setting
+            return run_generated(self.context, self.queue, ctype, params, arrays, shape,
+                                 (tile, bx, by, 1))
+        path = ctype.kernel_file
+        if path not in self.programs:
+            self.programs[path] = cl.Program(self.context, path.read_text()).build()
+        kernel = cl.Kernel(self.programs[path], ctype.kernel_function)
         result = np.empty(shape, np.dtype(DTYPES[oport.dtype][0]))
         mf = cl.mem_flags
         buffers = {k: cl.Buffer(self.context, mf.READ_ONLY | mf.COPY_HOST_PTR,

@@ -10,67 +10,38 @@ from gpucompgen.library.camera import Camera
 ROOT = __import__("pathlib").Path(__file__).resolve().parent.parent
 
 
-def _program(ctx, name):
-    import pyopencl as cl
+def _types():
+    from gpucompgen.model import library_types
 
-    return cl.Program(ctx, (ROOT / "gpucompgen" / "library" / name).read_text()).build()
-
-
-def _run_class(module, cls_name, ctx, queue, program, params, inputs, settings):
-    """Drive a generated GPU-aware class through the paper's interface."""
-    import pyopencl as cl
-    from conftest import configure
-
-    from gpucompgen.runtime import Size
-
-    comp = getattr(module, cls_name)(ctx, queue, program, **params)
-    bufs, sizes = [], []
-    for arr in inputs:
-        bufs.append(cl.Buffer(ctx, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR,
-                              hostbuf=np.ascontiguousarray(arr)))
-        sizes.append(Size(arr.shape[0], arr.shape[1], arr.shape[2] if arr.ndim == 3 else 1))
-    out_size = comp.initialize(*sizes)
-    configure(comp, *settings)
-    out_buf = comp.execute(*bufs)
-    out = np.empty(out_size.shape, np.uint8)
-    cl.enqueue_copy(queue, out, out_buf)
-    comp.free_memory()
-    comp.free_memory()  # safe twice
-    return out
+    return library_types()
 
 
-@pytest.fixture(scope="module")
-def vision_module(tmp_path_factory, cl_context):
-    from conftest import load_generated
-
-    from gpucompgen.build import compile_model, write
-
-    out = tmp_path_factory.mktemp("vision")
-    write(compile_model(ROOT / "models" / "vision_system.yaml", out, fusion="off"), out)
-    return load_generated(out / "vision_system.py", "vision_under_test")
-
-
+# ImageMerger and ObjectDetector have no hand-written kernel: a lone component runs the
+# kernel the generator writes from the type's form (a group of one), tested here at any
+# settings the system may choose
 @pytest.mark.parametrize("settings", [(16, 16, 16, 1), (8, 4, 2, 1), (64, 8, 8, 1),
                                       (32, 32, 8, 1)])
 @pytest.mark.parametrize("shape", [(480, 640), (37, 23), (1, 1)])
-def test_image_merger_matches_hstack(vision_module, cl_context, cl_queue, settings, shape):
+def test_image_merger_matches_hstack(cl_context, cl_queue, settings, shape):
+    from conftest import run_generated
+
     rng = np.random.default_rng(shape[0] * 7 + settings[0])
     left = rng.integers(0, 256, (*shape, 3), dtype=np.uint8)
     right = rng.integers(0, 256, (shape[0], shape[1] + 5, 3), dtype=np.uint8)
-    out = _run_class(vision_module, "ImageMerger", cl_context, cl_queue,
-                     _program(cl_context, "image_merger.cl"), {}, [left, right], settings)
+    out = run_generated(cl_context, cl_queue, _types()["ImageMerger"], {}, [left, right],
+                        (shape[0], 2 * shape[1] + 5, 3), settings)
     np.testing.assert_array_equal(out, np.hstack([left, right]))
 
 
 @pytest.mark.parametrize("settings", [(32, 16, 16, 1), (8, 8, 8, 1), (16, 4, 16, 1)])
 @pytest.mark.parametrize("red_min,margin", [(150, 80), (0, 0), (255, 255), (100, 10)])
-def test_object_detector_matches_numpy(vision_module, cl_context, cl_queue, settings,
-                                       red_min, margin):
+def test_object_detector_matches_numpy(cl_context, cl_queue, settings, red_min, margin):
+    from conftest import run_generated
+
     rng = np.random.default_rng(red_min + margin)
     frame = rng.integers(0, 256, (61, 77, 3), dtype=np.uint8)
-    out = _run_class(vision_module, "ObjectDetector", cl_context, cl_queue,
-                     _program(cl_context, "object_detector.cl"),
-                     {"red_min": red_min, "margin": margin}, [frame], settings)
+    out = run_generated(cl_context, cl_queue, _types()["ObjectDetector"],
+                        {"red_min": red_min, "margin": margin}, [frame], (61, 77), settings)
     r, g, b = (frame[..., i].astype(int) for i in range(3))
     expected = np.where((r >= red_min) & (r - g >= margin) & (r - b >= margin), 255, 0)
     np.testing.assert_array_equal(out, expected.astype(np.uint8))

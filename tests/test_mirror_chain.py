@@ -9,7 +9,7 @@ import sys
 
 import numpy as np
 import pytest
-from conftest import ROOT, configure, load_generated, require_opencl
+from conftest import ROOT, load_generated, require_opencl
 
 from gpucompgen.library.still_image import still_frame
 
@@ -23,45 +23,20 @@ def _module(build, mode, name):
     return load_generated(out / "mirror_chain.py", name)
 
 
-@pytest.fixture(scope="module")
-def mirror_program(cl_context):
-    import pyopencl as cl
-
-    source = (ROOT / "gpucompgen" / "library" / "vertical_mirror.cl").read_text()
-    return cl.Program(cl_context, source).build()
-
-
-@pytest.fixture(scope="module")
-def mirror_class(tmp_path_factory, cl_context):
-    from gpucompgen.build import compile_model, write
-
-    out = tmp_path_factory.mktemp("mirror")
-    write(compile_model(MODEL, out, fusion="off"), out)
-    return load_generated(out / "mirror_chain.py", "mirror_class_under_test").VerticalMirror
-
-
 @pytest.mark.parametrize("settings", [(32, 8, 8, 1), (8, 1, 1, 1), (16, 64, 2, 1),
                                       (128, 16, 16, 1), (64, 3, 5, 1)])
 @pytest.mark.parametrize("shape", [(864, 1152), (37, 23), (1, 1), (5, 1151), (2, 16), (9, 17)])
-def test_vertical_mirror_is_bit_exact(mirror_class, mirror_program, cl_context, cl_queue,
-                                      shape, settings):
-    """Odd widths take the byte path, widths of 16-pixel multiples the uint4 path."""
-    import pyopencl as cl
+def test_vertical_mirror_is_bit_exact(cl_context, cl_queue, shape, settings):
+    """The kernel a lone mirror runs (generated from VerticalMirror's form), at any
+    settings: rows of odd widths and of 16-pixel multiples, rows split among threads."""
+    from conftest import run_generated
 
-    from gpucompgen.runtime import Size
+    from gpucompgen.model import library_types
 
     image = np.random.default_rng(shape[0] * 31 + shape[1]).integers(
         0, 256, (*shape, 3), dtype=np.uint8)
-    comp = mirror_class(cl_context, cl_queue, mirror_program)
-    src = cl.Buffer(cl_context, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR,
-                    hostbuf=image)
-    assert comp.initialize(Size(*shape, 3)) == Size(*shape, 3)
-    configure(comp, *settings)
-    # the output buffer starts with junk, so a row the kernel missed shows
-    cl.enqueue_fill_buffer(cl_queue, comp.buffers["mirrored"], np.uint8(0xA5), 0, image.nbytes)
-    out = np.empty_like(image)
-    cl.enqueue_copy(cl_queue, out, comp.execute(src))
-    comp.free_memory()
+    out = run_generated(cl_context, cl_queue, library_types()["VerticalMirror"], {}, [image],
+                        image.shape, settings)
     np.testing.assert_array_equal(out, np.flipud(image))
     cv2 = pytest.importorskip("cv2")
     np.testing.assert_array_equal(out, cv2.flip(image, 0))

@@ -62,8 +62,8 @@ def test_one_flexible_type_in_full_with_every_form(capsys):
     assert "4 TOZERO_INV" in out
     forms = lines[lines.index("Forms:") + 1:]
     assert " ".join(" ".join(forms).split()) == (
-        "GPU kernel threshold() in threshold.cl; tiles 8, 16, 32, 64; preferred tile 16, "
-        "block 16x16x1 CPU function threshold() in cpu_kernels.py, called with the input "
+        "GPU kernel generated from the fusable form below, for a component alone as for a "
+        "fused group; the system chooses its settings CPU function threshold() in cpu_kernels.py, called with the input "
         "arrays and the parameters as keywords; runs where the model places the component "
         "(placement: cpu, --place) fusable pointwise: const int p = image(y, x, c); const "
         "bool above = p > thresh; return thresh_type == 0 ? (above ? maxval : 0) : "

@@ -19,7 +19,7 @@
 
 // mirror1: VerticalMirror (index_map); every element
 #define image(y_, x_, c_) _in0[(size_t)(y_) * 3456 + (x + ((x_) - x) * 3)]
-static inline uchar _m0_mirror1(_PARAMS, const int y, const int x, const int c)
+static inline uchar _f0_mirror1(_PARAMS, const int y, const int x, const int c)
 {
     const int image_height = 864, image_width = 1152;
     const int mirrored_height = 864, mirrored_width = 1152;
@@ -28,8 +28,8 @@ static inline uchar _m0_mirror1(_PARAMS, const int y, const int x, const int c)
 #undef image
 
 // mirror2: VerticalMirror (index_map); every element
-#define image(y_, x_, c_) _m0_mirror1(_ARGS, (y_), (x + ((x_) - x) * 3), (c_))
-static inline uchar _m1_mirror2(_PARAMS, const int y, const int x, const int c)
+#define image(y_, x_, c_) _f0_mirror1(_ARGS, (y_), (x + ((x_) - x) * 3), (c_))
+static inline uchar _f1_mirror2(_PARAMS, const int y, const int x, const int c)
 {
     const int image_height = 864, image_width = 1152;
     const int mirrored_height = 864, mirrored_width = 1152;
@@ -38,8 +38,8 @@ static inline uchar _m1_mirror2(_PARAMS, const int y, const int x, const int c)
 #undef image
 
 // mirror3: VerticalMirror (index_map); every element
-#define image(y_, x_, c_) _m1_mirror2(_ARGS, (y_), (x + ((x_) - x) * 3), (c_))
-static inline uchar _m2_mirror3(_PARAMS, const int y, const int x, const int c)
+#define image(y_, x_, c_) _f1_mirror2(_ARGS, (y_), (x + ((x_) - x) * 3), (c_))
+static inline uchar _f2_mirror3(_PARAMS, const int y, const int x, const int c)
 {
     const int image_height = 864, image_width = 1152;
     const int mirrored_height = 864, mirrored_width = 1152;
@@ -48,8 +48,8 @@ static inline uchar _m2_mirror3(_PARAMS, const int y, const int x, const int c)
 #undef image
 
 // mirror4: VerticalMirror (index_map); every element
-#define image(y_, x_, c_) _m2_mirror3(_ARGS, (y_), (x + ((x_) - x) * 3), (c_))
-static inline uchar _m3_mirror4(_PARAMS, const int y, const int x, const int c)
+#define image(y_, x_, c_) _f2_mirror3(_ARGS, (y_), (x + ((x_) - x) * 3), (c_))
+static inline uchar _f3_mirror4(_PARAMS, const int y, const int x, const int c)
 {
     const int image_height = 864, image_width = 1152;
     const int mirrored_height = 864, mirrored_width = 1152;
@@ -58,8 +58,8 @@ static inline uchar _m3_mirror4(_PARAMS, const int y, const int x, const int c)
 #undef image
 
 // mirror5: VerticalMirror (index_map); every element
-#define image(y_, x_, c_) _m3_mirror4(_ARGS, (y_), (x + ((x_) - x) * 3), (c_))
-static inline uchar _m4_mirror5(_PARAMS, const int y, const int x, const int c)
+#define image(y_, x_, c_) _f3_mirror4(_ARGS, (y_), (x + ((x_) - x) * 3), (c_))
+static inline uchar _f4_mirror5(_PARAMS, const int y, const int x, const int c)
 {
     const int image_height = 864, image_width = 1152;
     const int mirrored_height = 864, mirrored_width = 1152;
@@ -81,6 +81,6 @@ __kernel void mirror1_to_mirror5(_PARAMS, const int _tile)
     for (int _y = _y0 + get_local_id(1); _y < _y1; _y += get_local_size(1)) {
         __global uchar *_row = _out + (size_t)_y * 3456;
         for (int _x = _x0; _x < _x1; _x++)
-            _row[_x] = _m4_mirror5(_ARGS, _y, _x, 0);
+            _row[_x] = _f4_mirror5(_ARGS, _y, _x, 0);
     }
 }

@@ -1,6 +1,7 @@
-// Resize, Crop, FlipHorizontal and Rotate180 (one- and three-channel types): index maps,
-// each output pixel a copy of (or, for bilinear resize, a mix of) input pixels at
-// positions computed from its own. OpenCV: resize, an ROI, flip(1), rotate(ROTATE_180).
+// Resize and Crop (one- and three-channel types): the library's only hand-written kernels,
+// the operations without a fusable form (every other type's kernel is generated from its
+// form). Each output pixel is a copy of (or, for bilinear resize, a mix of) input pixels
+// at positions computed from its own. OpenCV: resize, an ROI.
 
 // The output pixels (y, x) a work-group covers: a tile x tile square, its threads
 // striding through it.
@@ -116,41 +117,4 @@ __kernel void crop_gray(__global const uchar *image, __global uchar *cropped,
 {
     FOR_EACH_OUTPUT(cropped_height, cropped_width)
         copy_pixel(image, image_width, crop_y + y, crop_x + x, cropped, cropped_width, y, x, 1);
-}
-
-__kernel void flip_horizontal(__global const uchar *image, __global uchar *flipped,
-                              const int image_height, const int image_width,
-                              const int flipped_height, const int flipped_width, const int tile)
-{
-    FOR_EACH_OUTPUT(flipped_height, flipped_width)
-        copy_pixel(image, image_width, y, image_width - 1 - x, flipped, flipped_width, y, x,
-                   3);
-}
-
-__kernel void flip_horizontal_gray(__global const uchar *image, __global uchar *flipped,
-                                   const int image_height, const int image_width,
-                                   const int flipped_height, const int flipped_width,
-                                   const int tile)
-{
-    FOR_EACH_OUTPUT(flipped_height, flipped_width)
-        copy_pixel(image, image_width, y, image_width - 1 - x, flipped, flipped_width, y, x,
-                   1);
-}
-
-__kernel void rotate180(__global const uchar *image, __global uchar *rotated,
-                        const int image_height, const int image_width,
-                        const int rotated_height, const int rotated_width, const int tile)
-{
-    FOR_EACH_OUTPUT(rotated_height, rotated_width)
-        copy_pixel(image, image_width, image_height - 1 - y, image_width - 1 - x, rotated,
-                   rotated_width, y, x, 3);
-}
-
-__kernel void rotate180_gray(__global const uchar *image, __global uchar *rotated,
-                             const int image_height, const int image_width,
-                             const int rotated_height, const int rotated_width, const int tile)
-{
-    FOR_EACH_OUTPUT(rotated_height, rotated_width)
-        copy_pixel(image, image_width, image_height - 1 - y, image_width - 1 - x, rotated,
-                   rotated_width, y, x, 1);
 }

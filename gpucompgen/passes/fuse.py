@@ -25,7 +25,12 @@ and Inductor's scheduler, which records why two nodes were not fused):
   it, so no group chosen is estimated slower than its members apart; `plan` shows the
   estimate of every group and the figures of every refusal.  Where in doubt (a tie) the
   producer stays apart.
-- A group of one component is no group: the component keeps its own, hand-written kernel.
+- A component of a fusable type that ends up in no group (fusion off, 'fuse: false', a
+  producer the cost model refused, no fusable neighbour) becomes a group of one: it runs
+  the kernel the generator writes from its form, as a group does (the library's fusable
+  types have no hand-written kernel: each operation is declared once).  Such a group keeps
+  the component's name, ports and, where it is the only one of its type, the type's name
+  as its class; `plan` lists it as a generated kernel, not as a fusion.
 
 Every GPU-to-GPU edge between components that ends up outside a group gets its reason in
 system.unfused (shown by `plan`, `check` and --print-between-passes), and so does every
@@ -69,6 +74,7 @@ class Fuse(Pass):
         if system.fusion == "off" or not gpu_edges:
             for e in gpu_edges:
                 system.unfused[str(e)] = f"fusion off ({system.fusion_reason})"
+            _generate_singles(system)
             return system
         at = {n: i for i, n in enumerate(system.order)}
         assigned: dict[str, str] = {}  # member -> the root of its group
@@ -107,7 +113,17 @@ class Fuse(Pass):
             if len(names) > 1:
                 text = estimate_text(system, set(names))
                 make_group(system, names).estimate = text
+        _generate_singles(system)
         return system
+
+
+def _generate_singles(system: System) -> None:
+    """Every GPU component of a fusable type left outside a group becomes a group of one:
+    its kernel is generated from its form (backend/opencl/fused.py), like a group's."""
+    singles = [n for n in system.order if isinstance(system.nodes[n], ComponentNode)
+               and system.nodes[n].on_gpu and system.nodes[n].type.fusable is not None]
+    for name in singles:
+        make_group(system, [name])
 
 
 def _through_the_cpu(system: System) -> None:
@@ -265,10 +281,12 @@ def group_name(system: System, names: list[str]) -> str:
 
 
 def make_group(system: System, names: list[str]) -> GroupNode:
-    """Replace member components by one GroupNode, rewiring every edge."""
+    """Replace member components by one GroupNode, rewiring every edge.  A group of one
+    is the component itself: its name and its ports' names."""
     members = [system.nodes[n] for n in names]
     root = members[-1]
-    name = group_name(system, names)
+    single = len(names) == 1
+    name = names[0] if single else group_name(system, names)
     inside = set(names)
     inputs: dict[str, Port] = {}
     feeds: dict[str, Endpoint] = {}
@@ -280,7 +298,7 @@ def make_group(system: System, names: list[str]) -> GroupNode:
         if a and b:
             internal.append(e)
         elif b:
-            port_name = f"{e.target.component}_{e.target.port}"
+            port_name = e.target.port if single else f"{e.target.component}_{e.target.port}"
             while port_name in inputs:  # member a_b's port c and member a's port b_c
                 port_name += "_"
             inputs[port_name] = replace(system.nodes[e.target.component].inputs[e.target.port],
@@ -294,17 +312,33 @@ def make_group(system: System, names: list[str]) -> GroupNode:
     group = GroupNode(name, root.pos, inputs, {out_name: replace(out_port)}, members=members,
                       feeds=feeds, internal=internal,
                       type=group_type(system, name, members, inputs))
-    position = system.order.index(root.name)
-    for n in names:
-        del system.nodes[n]
-    system.add_node(group)
+    if single:  # the component's place among the nodes, under its name
+        system.nodes = {n: group if n == name else node for n, node in system.nodes.items()}
+    else:
+        for n in names:
+            del system.nodes[n]
+        system.add_node(group)
     system.edges = edges
-    system.order[position] = name
-    system.order = [n for n in system.order if n not in inside]
-    system.stages[name] = system.stages[root.name]
+    stage = system.stages[root.name]
+    system.order = [n for n in system.order if n not in inside or n == root.name]
+    system.order[system.order.index(root.name)] = name
     for n in names:
         system.stages.pop(n, None)
+    system.stages[name] = stage
     return group
+
+
+def entry_name(name: str, members: list[ComponentNode]) -> str:
+    """The generated kernel's entry point: the group's (or lone component's) name, unless
+    OpenCL C has a function or word of that name (a component called 'trunc') or a
+    member's snippet uses it (a ThresholdGray called 'thresh', its parameter's name)."""
+    from ..snippet import is_builtin
+    from ..snippet.check import FORBIDDEN
+
+    used = {n for m in members for n in (*m.type.fusable.names, *m.type.params,
+                                         *m.inputs, *m.outputs)}
+    taken = is_builtin(name) or name in FORBIDDEN or name in used
+    return f"{name}_kernel" if taken else name
 
 
 def group_type(system: System, name: str, members: list[ComponentNode],
@@ -312,12 +346,28 @@ def group_type(system: System, name: str, members: list[ComponentNode],
     """The stand-in type of a group: its class name in generated code, its ports, and the
     GPU preferences of the generated kernel (backend/opencl/fused.py: work-groups cover
     tile whole rows of the output, as the VerticalMirror kernel, and any tile)."""
-    cls = "Fused" + "".join(part[:1].upper() + part[1:] for part in name.split("_") if part)
-    taken = set(system.model.types) | set(system.nodes)
-    while cls in taken:
-        cls += "_"
     root = members[-1]
     rt = root.type
+    camel = "".join(part[:1].upper() + part[1:] for part in name.split("_") if part)
+    taken = set(system.model.types) | set(system.nodes)
+    if len(members) == 1:
+        # the type's name where no other component of the type runs a generated kernel
+        # (the type itself has no class in the program: its components run this kernel)
+        others = [n for n in system.order if n != root.name
+                  and isinstance(system.nodes.get(n), ComponentNode)
+                  and system.nodes[n].on_gpu and system.nodes[n].type is rt]
+        others += [g.name for g in system.kernel_groups if len(g.members) == 1
+                   and g.root.type is rt]
+        cls = rt.name if not others else rt.name + camel
+        taken -= {rt.name}
+        description = (f"Kernel of {root.name} ({rt.name}), generated from its "
+                       f"{rt.fusable.form} form.")
+    else:
+        cls = "Fused" + camel
+        description = ("Fuses " + ", ".join(f"{m.name} ({m.type.name})" for m in members)
+                       + " into one kernel.")
+    while cls in taken:
+        cls += "_"
     from ..model import PortDecl
 
     ports = {p: PortDecl(p, "in", "gpu", port.dtype, port.channels)
@@ -325,8 +375,7 @@ def group_type(system: System, name: str, members: list[ComponentNode],
     (out_name, out_decl), = rt.outputs.items()
     return ComponentType(
         name=cls, kind="gpu-aware",
-        description="Fuses " + ", ".join(f"{m.name} ({m.type.name})" for m in members)
-        + " into one kernel.",
+        description=description,
         params={}, inputs=ports, outputs={out_name: out_decl}, requires=[],
-        decl_file=rt.decl_file, origin="group", pos=root.pos, kernel_function=name,
+        decl_file=rt.decl_file, origin="group", pos=root.pos, kernel_function=entry_name(name, members),
         grid=out_name, cover="rows", gpu=group_gpu_decl(system.device))

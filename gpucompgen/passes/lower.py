@@ -87,8 +87,9 @@ def lib_files(system: System) -> dict[str, str]:
             _name_lib_file(names, taken, key, wanted)
     for t in checked_kernel_types(system):
         _name_lib_file(names, taken, kernel_key(t), t.kernel_file.name)
-    for g in system.groups:
-        _name_lib_file(names, taken, lib_key(g.type), f"group_{g.type.kernel_function}.cl")
+    for g in system.kernel_groups:  # a group of one: the component's kernel, from its form
+        wanted = f"{g.name}.cl" if len(g.members) == 1 else f"group_{g.name}.cl"
+        _name_lib_file(names, taken, lib_key(g.type), wanted)
     return names
 
 
@@ -135,7 +136,8 @@ def gpu_used_types(system: System) -> list[ComponentType]:
 
 def checked_kernel_types(system: System) -> list[ComponentType]:
     """The user's types with a kernel that no component launches: every component of the
-    type is fused into a group (whose generated kernel replaces it) or placed on the CPU.
+    type runs the kernel generated from its fusable form (alone or fused into a group) or is
+    placed on the CPU.
 
     The program still builds their kernel files at start-up, so that every kernel a model
     names is compiled on the device wherever it runs (a typo in a fused type's .cl file
@@ -143,7 +145,7 @@ def checked_kernel_types(system: System) -> list[ComponentType]:
     to compile; they are left out.  A program with no part on the device (every flexible
     component on the CPU) opens no OpenCL context and builds none: it runs without one.
     """
-    if not gpu_used_types(system) and not system.groups:
+    if not gpu_used_types(system) and not system.kernel_groups:
         return []
     launched = {kernel_key(t) for t in gpu_used_types(system)}
     found: dict[str, ComponentType] = {}
@@ -238,7 +240,7 @@ def lower(system: System) -> ProgramPlan:
     model = system.model
     files = lib_files(system)
     types = used_types(system)
-    gpu_types = gpu_used_types(system) + [g.type for g in system.groups]
+    gpu_types = gpu_used_types(system) + [g.type for g in system.kernel_groups]
     taken = set(system.nodes)
     functions: dict[str, str] = {}  # flexible type on the CPU -> its function's variable
     for t in cpu_used_types(system):
@@ -372,7 +374,9 @@ def lower(system: System) -> ProgramPlan:
                               ports=tuple(tuple((p, np_name(d.dtype)) for p, d in ports.items())
                                           for ports in (t.inputs, t.outputs))))
         else:
-            parts.append(Part(name, "component", t.name, "fused group" if group else t.name,
+            what = t.name if not group else \
+                node.root.type.name if len(node.members) == 1 else "fused group"
+            parts.append(Part(name, "component", t.name, what,
                               "GPU" if node.on_gpu else "CPU", system.stages[name],
                               queue_of(name) if node.on_gpu else None,
                               programs.get(t.name) if node.on_gpu else None, params,
@@ -424,13 +428,15 @@ def lower(system: System) -> ProgramPlan:
     why: dict[str, str] = {}  # a type whose kernel is built only to check it -> why
     for t in checked_kernel_types(system):
         fused = [m.name for g in system.groups for m in g.members if m.type is t]
+        alone = [m.name for g in system.kernel_groups if len(g.members) == 1
+                 for m in g.members if m.type is t]
         on_cpu = [n for n in system.order if isinstance(system.nodes[n], ComponentNode)
                   and system.nodes[n].type is t]
-        users[t.name] = _some(fused + on_cpu)
+        users[t.name] = _some(fused + alone + on_cpu)
         why[t.name] = "; " + " and ".join(
-            w for w, names in (("fused", fused), ("on the CPU", on_cpu)) if names) + \
-            ": built only to check it"
-    groups = {g.type.name: g for g in system.groups}
+            w for w, names in (("fused", fused), ("its generated kernel alone", alone),
+                               ("on the CPU", on_cpu)) if names) + ": built only to check it"
+    groups = {g.type.name: g for g in system.kernel_groups}
     asked = model.thread_budget
     budget_source = ("platform.thread_budget" if asked and asked <= system.thread_budget else
                      "device total" if not asked else
@@ -453,6 +459,9 @@ def lower(system: System) -> ProgramPlan:
                                      for m in g.members for p, port in m.outputs.items()),
                                g.estimate)
                      for g in system.groups),
+        generated=tuple((g.name, g.root.type.name, g.root.type.fusable.form,
+                         files[lib_key(g.type)])
+                        for g in system.kernel_groups if len(g.members) == 1),
         unfused=tuple(system.unfused.items()), fusion=system.fusion,
         parts=tuple(parts), buffers=tuple(buffers), launches=tuple(launches),
         transfers=tuple(transfers), steps=tuple(steps),

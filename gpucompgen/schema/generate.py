@@ -202,14 +202,18 @@ def types_schema() -> dict[str, Any]:
                         "clamp, the nearest edge pixel; reflect101, OpenCV's BORDER_REFLECT_101 "
                         "(gfedcb|abcdefgh|gfedcba)")}, ("form", "value"),
         description="the per-element work in a form the system may fuse with its neighbours "
-                    "into one kernel (the kernel stays for the unfused path)")
+                    "into one kernel; a type with a form needs no 'kernel': its kernel, "
+                    "alone as in a group, is generated from the form")
     kind_gpu, kind_standard = model.KINDS[1], model.KINDS[0]
     ctype = _object(model.TYPE_KEYS, {
         "kind": _enum(model.KINDS), "description": TEXT, "params": _named_map(param),
         "inputs": inputs, "outputs": outputs, "requires": requires, "kernel": kernel,
         "python": python, "gpu": gpu, "cpu": cpu, "fusable": fusable}, ("kind",), allOf=[
         {"if": {"properties": {"kind": {"const": kind_gpu}}},
-         "then": {"required": ["kernel"], "not": {"required": ["python"]}}},
+         "then": {"anyOf": [{"required": ["kernel"]}, {"required": ["fusable"]}],
+                  "not": {"required": ["python"]}}},
+        # 'gpu' settings are a hand-written kernel's: a generated kernel has the system's
+        {"if": {"not": {"required": ["kernel"]}}, "then": {"not": {"required": ["gpu"]}}},
         {"if": {"properties": {"kind": {"const": kind_standard}}},
          "then": {"required": ["python"],
                   "not": {"anyOf": [{"required": ["kernel"]}, {"required": ["gpu"]}]}}}])

@@ -9,16 +9,16 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 """
 
 # System plan:
-#   step  name                           stage  queue  runs  GPU settings           threads
-#   1     camera1 (Camera)               1      -      CPU   -                      -
-#   2     camera2 (Camera)               1      -      CPU   -                      -
-#   3     adapter1_cpu2gpu               1      0      copy  -                      -
-#   4     blur1 (BoxBlur)                2      0      GPU   tile 64, block 8x8x1   5,120
-#   5     adapter2_cpu2gpu               1      1      copy  -                      -
-#   6     blur2 (BoxBlur)                2      1      GPU   tile 64, block 8x16x1  10,240
-#   7     merger_detector (fused group)  4      0      GPU   tile 32, block 8x8x1   960
-#   8     adapter3_gpu2cpu               4      0      copy  -                      -
-#   9     manager (VisionManager)        5      -      CPU   -                      -
+#   step  name                           stage  queue  runs  GPU settings          threads
+#   1     camera1 (Camera)               1      -      CPU   -                     -
+#   2     camera2 (Camera)               1      -      CPU   -                     -
+#   3     adapter1_cpu2gpu               1      0      copy  -                     -
+#   4     blur1 (BoxBlur)                2      0      GPU   tile 32, block 8x8x1  960
+#   5     adapter2_cpu2gpu               1      1      copy  -                     -
+#   6     blur2 (BoxBlur)                2      1      GPU   tile 32, block 8x8x1  960
+#   7     merger_detector (fused group)  4      0      GPU   tile 32, block 8x8x1  960
+#   8     adapter3_gpu2cpu               4      0      copy  -                     -
+#   9     manager (VisionManager)        5      -      CPU   -                     -
 #
 #   buffer                            memory       size                bytes
 #   camera1.image                     host         480x640x3 uint8   921,600
@@ -46,8 +46,10 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 #   staging of copying adapters: pinned (auto: device has no unified host memory)
 #   execution: parallel, 2 queues
 #   thread budget: 16,384 (device total); GPU components that can run at the same time:
-#     blur1, blur2: 15,360 threads
+#     blur1, blur2: 1,920 threads
 #     merger_detector: 960 threads
+#   kernels generated from fusable forms, one component each: blur1 (BoxBlur, stencil:
+#     blur1.cu), blur2 (BoxBlur, stencil: blur2.cu)
 #   fusion: auto, 1 group:
 #     merger_detector: one kernel (group_merger_detector.cu) for
 #       merger (ImageMerger, index_map)
@@ -80,8 +82,6 @@ LIB_DIR = Path(__file__).resolve().with_name('parallel_branches_lib')
 # The parameters --set NAME.PARAM=VALUE (and --input, --output) may change when the program
 # starts: those no size or requirement depends on. Their declarations and model values.
 PARAMS = {
-    'blur1.radius': runtime.Param('int', 2, minimum=0, maximum=7),
-    'blur2.radius': runtime.Param('int', 2, minimum=0, maximum=7),
     'camera1.buoys': runtime.Param('int', 2, minimum=0, maximum=8),
     'camera1.folder': runtime.Param('input', ''),
     'camera1.frames': runtime.Param('int', 0, minimum=0),
@@ -103,23 +103,41 @@ PARAMS = {
 }
 
 
-class BoxBlur(runtime.KernelComponent):
-    """GPU-aware component BoxBlur: kernel box_blur() in box_blur.cu.
+class BoxBlurBlur1(runtime.KernelComponent):
+    """GPU-aware component BoxBlurBlur1: kernel blur1() in blur1.cu.
 
-    One work-group of block_x * block_y * block_z threads covers a tile x tile square
-    of 'smooth'.
+    One work-group of block_x * block_y * block_z threads covers tile whole rows of
+    'smooth'.
     """
-    # Denoises an RGB frame: each channel becomes the mean of the (2 radius + 1)^2 neighbourhood,
-    # edges clamped, rounded half up (integer arithmetic, bit-exact).
+    # Kernel of blur1 (BoxBlur), generated from its stencil form.
 
-    function = 'box_blur'
+    function = 'blur1'
     inputs = (('image', np.uint8),)
     outputs = (('smooth', np.uint8),)
 
     def output_sizes(self, image):
         """Input sizes in, output sizes out (the type's size expressions)."""
         return [
-            Size(image.height, image.width, 3),
+            Size(480, 640, 3),
+        ]
+
+
+class BoxBlurBlur2(runtime.KernelComponent):
+    """GPU-aware component BoxBlurBlur2: kernel blur2() in blur2.cu.
+
+    One work-group of block_x * block_y * block_z threads covers tile whole rows of
+    'smooth'.
+    """
+    # Kernel of blur2 (BoxBlur), generated from its stencil form.
+
+    function = 'blur2'
+    inputs = (('image', np.uint8),)
+    outputs = (('smooth', np.uint8),)
+
+    def output_sizes(self, image):
+        """Input sizes in, output sizes out (the type's size expressions)."""
+        return [
+            Size(480, 640, 3),
         ]
 
 
@@ -168,8 +186,10 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
         'blur2.smooth': 921_600,
         'merger_detector.mask': 614_400,
     })
-    box_blur_program = runtime.build_program(
-        context, LIB_DIR / 'box_blur.cu', 'blur1, blur2 (BoxBlur)')
+    box_blur_blur1_program = runtime.build_program(
+        context, LIB_DIR / 'blur1.cu', 'blur1 (BoxBlurBlur1)')
+    box_blur_blur2_program = runtime.build_program(
+        context, LIB_DIR / 'blur2.cu', 'blur2 (BoxBlurBlur2)')
     fused_merger_detector_program = runtime.build_program(
         context, LIB_DIR / 'group_merger_detector.cu', 'merger_detector (FusedMergerDetector)')
 
@@ -199,13 +219,11 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
         # camera1.image -> blur1.image
         adapter1_cpu2gpu = parts['adapter1_cpu2gpu'] = runtime.CpuToGpuAdapter(
             context, queue0, nbytes=921_600, blocking=False, staging='pinned')
-        blur1 = parts['blur1'] = BoxBlur(
-            context, queue0, box_blur_program, radius=params['blur1.radius'])
+        blur1 = parts['blur1'] = BoxBlurBlur1(context, queue0, box_blur_blur1_program)
         # camera2.image -> blur2.image
         adapter2_cpu2gpu = parts['adapter2_cpu2gpu'] = runtime.CpuToGpuAdapter(
             context, queue1, nbytes=921_600, blocking=False, staging='pinned')
-        blur2 = parts['blur2'] = BoxBlur(
-            context, queue1, box_blur_program, radius=params['blur2.radius'])
+        blur2 = parts['blur2'] = BoxBlurBlur2(context, queue1, box_blur_blur2_program)
         merger_detector = parts['merger_detector'] = FusedMergerDetector(
             context, queue0, fused_merger_detector_program)
         # detector.mask -> manager.mask
@@ -238,28 +256,24 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
         detector_mask_cpu_size = adapter3_gpu2cpu.initialize(merger_detector_mask_size, np.uint8)
         manager.initialize(detector_mask_cpu_size)
 
-        # blur1: settings shrunk to share the thread budget, 5,120 resident threads; kernel
-        # arguments in the calling convention's order (a port's name stands for its buffer)
+        # blur1: settings preferred, 960 resident threads; kernel arguments in the calling
+        # convention's order (a port's name stands for its buffer)
         blur1.config_gpu(
-            tile=64, local_size=(8, 8, 1), global_size=(80, 64, 1),
-            settings_source='shrunk to share the thread budget', arguments=[
+            tile=32, local_size=(8, 8, 1), global_size=(8, 120, 1),
+            settings_source='preferred', arguments=[
                 'image', 'smooth',  # buffers: inputs, then outputs
-                np.int32(480), np.int32(640),  # image: height, width
-                np.int32(480), np.int32(640),  # smooth: height, width
-                np.int32(params['blur1.radius']),  # radius
-                np.int32(64),  # tile
+                np.int32(2),  # blur1_radius
+                np.int32(32),  # tile
             ])
 
-        # blur2: settings shrunk to share the thread budget, 10,240 resident threads; kernel
-        # arguments in the calling convention's order (a port's name stands for its buffer)
+        # blur2: settings preferred, 960 resident threads; kernel arguments in the calling
+        # convention's order (a port's name stands for its buffer)
         blur2.config_gpu(
-            tile=64, local_size=(8, 16, 1), global_size=(80, 128, 1),
-            settings_source='shrunk to share the thread budget', arguments=[
+            tile=32, local_size=(8, 8, 1), global_size=(8, 120, 1),
+            settings_source='preferred', arguments=[
                 'image', 'smooth',  # buffers: inputs, then outputs
-                np.int32(480), np.int32(640),  # image: height, width
-                np.int32(480), np.int32(640),  # smooth: height, width
-                np.int32(params['blur2.radius']),  # radius
-                np.int32(64),  # tile
+                np.int32(2),  # blur2_radius
+                np.int32(32),  # tile
             ])
 
         # merger_detector: settings preferred, 960 resident threads; kernel arguments in the calling

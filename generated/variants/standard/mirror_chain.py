@@ -55,6 +55,10 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 #     mirror3: 1,728 threads
 #     mirror4: 1,728 threads
 #     mirror5: 1,728 threads
+#   kernels generated from fusable forms, one component each: mirror1 (VerticalMirror,
+#     index_map: mirror1.cl), mirror2 (VerticalMirror, index_map: mirror2.cl), mirror3
+#     (VerticalMirror, index_map: mirror3.cl), mirror4 (VerticalMirror, index_map:
+#     mirror4.cl), mirror5 (VerticalMirror, index_map: mirror5.cl)
 #   fusion: off, 0 groups
 #     not fused: mirror1.mirrored -> mirror2.image:
 #       fusion off (standard mode: one kernel per component)
@@ -91,23 +95,98 @@ PARAMS = {
 }
 
 
-class VerticalMirror(runtime.KernelComponent):
-    """GPU-aware component VerticalMirror: kernel vertical_mirror() in vertical_mirror.cl.
+class VerticalMirrorMirror1(runtime.KernelComponent):
+    """GPU-aware component VerticalMirrorMirror1: kernel mirror1() in mirror1.cl.
 
     One work-group of block_x * block_y * block_z threads covers tile whole rows of
     'mirrored'.
     """
-    # Flips a frame upside down (row y becomes row height-1-y), bit-exact as np.flipud and
-    # cv2.flip(image, 0). Copies whole rows, 16 bytes at a time where rows allow.
+    # Kernel of mirror1 (VerticalMirror), generated from its index_map form.
 
-    function = 'vertical_mirror'
+    function = 'mirror1'
     inputs = (('image', np.uint8),)
     outputs = (('mirrored', np.uint8),)
 
     def output_sizes(self, image):
         """Input sizes in, output sizes out (the type's size expressions)."""
         return [
-            Size(image.height, image.width, 3),
+            Size(864, 1152, 3),
+        ]
+
+
+class VerticalMirrorMirror2(runtime.KernelComponent):
+    """GPU-aware component VerticalMirrorMirror2: kernel mirror2() in mirror2.cl.
+
+    One work-group of block_x * block_y * block_z threads covers tile whole rows of
+    'mirrored'.
+    """
+    # Kernel of mirror2 (VerticalMirror), generated from its index_map form.
+
+    function = 'mirror2'
+    inputs = (('image', np.uint8),)
+    outputs = (('mirrored', np.uint8),)
+
+    def output_sizes(self, image):
+        """Input sizes in, output sizes out (the type's size expressions)."""
+        return [
+            Size(864, 1152, 3),
+        ]
+
+
+class VerticalMirrorMirror3(runtime.KernelComponent):
+    """GPU-aware component VerticalMirrorMirror3: kernel mirror3() in mirror3.cl.
+
+    One work-group of block_x * block_y * block_z threads covers tile whole rows of
+    'mirrored'.
+    """
+    # Kernel of mirror3 (VerticalMirror), generated from its index_map form.
+
+    function = 'mirror3'
+    inputs = (('image', np.uint8),)
+    outputs = (('mirrored', np.uint8),)
+
+    def output_sizes(self, image):
+        """Input sizes in, output sizes out (the type's size expressions)."""
+        return [
+            Size(864, 1152, 3),
+        ]
+
+
+class VerticalMirrorMirror4(runtime.KernelComponent):
+    """GPU-aware component VerticalMirrorMirror4: kernel mirror4() in mirror4.cl.
+
+    One work-group of block_x * block_y * block_z threads covers tile whole rows of
+    'mirrored'.
+    """
+    # Kernel of mirror4 (VerticalMirror), generated from its index_map form.
+
+    function = 'mirror4'
+    inputs = (('image', np.uint8),)
+    outputs = (('mirrored', np.uint8),)
+
+    def output_sizes(self, image):
+        """Input sizes in, output sizes out (the type's size expressions)."""
+        return [
+            Size(864, 1152, 3),
+        ]
+
+
+class VerticalMirrorMirror5(runtime.KernelComponent):
+    """GPU-aware component VerticalMirrorMirror5: kernel mirror5() in mirror5.cl.
+
+    One work-group of block_x * block_y * block_z threads covers tile whole rows of
+    'mirrored'.
+    """
+    # Kernel of mirror5 (VerticalMirror), generated from its index_map form.
+
+    function = 'mirror5'
+    inputs = (('image', np.uint8),)
+    outputs = (('mirrored', np.uint8),)
+
+    def output_sizes(self, image):
+        """Input sizes in, output sizes out (the type's size expressions)."""
+        return [
+            Size(864, 1152, 3),
         ]
 
 
@@ -138,9 +217,16 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
         'mirror5.image': 2_985_984,
         'mirror5.mirrored': 2_985_984,
     })
-    vertical_mirror_program = runtime.build_program(
-        context, LIB_DIR / 'vertical_mirror.cl',
-        'mirror1, mirror2, mirror3 and 2 more (VerticalMirror)')
+    vertical_mirror_mirror1_program = runtime.build_program(
+        context, LIB_DIR / 'mirror1.cl', 'mirror1 (VerticalMirrorMirror1)')
+    vertical_mirror_mirror2_program = runtime.build_program(
+        context, LIB_DIR / 'mirror2.cl', 'mirror2 (VerticalMirrorMirror2)')
+    vertical_mirror_mirror3_program = runtime.build_program(
+        context, LIB_DIR / 'mirror3.cl', 'mirror3 (VerticalMirrorMirror3)')
+    vertical_mirror_mirror4_program = runtime.build_program(
+        context, LIB_DIR / 'mirror4.cl', 'mirror4 (VerticalMirrorMirror4)')
+    vertical_mirror_mirror5_program = runtime.build_program(
+        context, LIB_DIR / 'mirror5.cl', 'mirror5 (VerticalMirrorMirror5)')
 
     # every component and adapter, filled in as it is constructed; those initialized are
     # freed once each, in reverse order
@@ -157,16 +243,16 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
     try:
         source = parts['source'] = StillImage(
             width=1152, height=864, seed=params['source.seed'], frames=params['source.frames'])
-        mirror1 = parts['mirror1'] = VerticalMirror(
-            context, queue, vertical_mirror_program, copies_own_data=True)
-        mirror2 = parts['mirror2'] = VerticalMirror(
-            context, queue, vertical_mirror_program, copies_own_data=True)
-        mirror3 = parts['mirror3'] = VerticalMirror(
-            context, queue, vertical_mirror_program, copies_own_data=True)
-        mirror4 = parts['mirror4'] = VerticalMirror(
-            context, queue, vertical_mirror_program, copies_own_data=True)
-        mirror5 = parts['mirror5'] = VerticalMirror(
-            context, queue, vertical_mirror_program, copies_own_data=True)
+        mirror1 = parts['mirror1'] = VerticalMirrorMirror1(
+            context, queue, vertical_mirror_mirror1_program, copies_own_data=True)
+        mirror2 = parts['mirror2'] = VerticalMirrorMirror2(
+            context, queue, vertical_mirror_mirror2_program, copies_own_data=True)
+        mirror3 = parts['mirror3'] = VerticalMirrorMirror3(
+            context, queue, vertical_mirror_mirror3_program, copies_own_data=True)
+        mirror4 = parts['mirror4'] = VerticalMirrorMirror4(
+            context, queue, vertical_mirror_mirror4_program, copies_own_data=True)
+        mirror5 = parts['mirror5'] = VerticalMirrorMirror5(
+            context, queue, vertical_mirror_mirror5_program, copies_own_data=True)
         sink = parts['sink'] = FrameSink(output=params['sink.output'])
         monitor.attach(parts)
         profiler = runtime.Profile(parts) if profile else None
@@ -197,8 +283,6 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
             tile=32, local_size=(8, 8, 1), global_size=(8, 216, 1),
             settings_source="component's own", arguments=[
                 'image', 'mirrored',  # buffers: inputs, then outputs
-                np.int32(864), np.int32(1152),  # image: height, width
-                np.int32(864), np.int32(1152),  # mirrored: height, width
                 np.int32(32),  # tile
             ])
 
@@ -208,8 +292,6 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
             tile=32, local_size=(8, 8, 1), global_size=(8, 216, 1),
             settings_source="component's own", arguments=[
                 'image', 'mirrored',  # buffers: inputs, then outputs
-                np.int32(864), np.int32(1152),  # image: height, width
-                np.int32(864), np.int32(1152),  # mirrored: height, width
                 np.int32(32),  # tile
             ])
 
@@ -219,8 +301,6 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
             tile=32, local_size=(8, 8, 1), global_size=(8, 216, 1),
             settings_source="component's own", arguments=[
                 'image', 'mirrored',  # buffers: inputs, then outputs
-                np.int32(864), np.int32(1152),  # image: height, width
-                np.int32(864), np.int32(1152),  # mirrored: height, width
                 np.int32(32),  # tile
             ])
 
@@ -230,8 +310,6 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
             tile=32, local_size=(8, 8, 1), global_size=(8, 216, 1),
             settings_source="component's own", arguments=[
                 'image', 'mirrored',  # buffers: inputs, then outputs
-                np.int32(864), np.int32(1152),  # image: height, width
-                np.int32(864), np.int32(1152),  # mirrored: height, width
                 np.int32(32),  # tile
             ])
 
@@ -241,8 +319,6 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
             tile=32, local_size=(8, 8, 1), global_size=(8, 216, 1),
             settings_source="component's own", arguments=[
                 'image', 'mirrored',  # buffers: inputs, then outputs
-                np.int32(864), np.int32(1152),  # image: height, width
-                np.int32(864), np.int32(1152),  # mirrored: height, width
                 np.int32(32),  # tile
             ])
 

@@ -9,14 +9,14 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 """
 
 # System plan:
-#   step  name                       stage  queue  runs  GPU settings            threads
-#   1     camera1 (Camera)           1      -      CPU   -                       -
-#   2     camera2 (Camera)           1      -      CPU   -                       -
-#   3     blur1 (BoxBlur)            2      -      GPU   tile 64, block 8x8x1    5,120
-#   4     blur2 (BoxBlur)            2      -      GPU   tile 64, block 8x16x1   10,240
-#   5     merger (ImageMerger)       3      -      GPU   tile 16, block 16x16x1  16,384
-#   6     detector (ObjectDetector)  4      -      GPU   tile 32, block 16x16x1  16,384
-#   7     manager (VisionManager)    5      -      CPU   -                       -
+#   step  name                       stage  queue  runs  GPU settings          threads
+#   1     camera1 (Camera)           1      -      CPU   -                     -
+#   2     camera2 (Camera)           1      -      CPU   -                     -
+#   3     blur1 (BoxBlur)            2      -      GPU   tile 32, block 8x8x1  960
+#   4     blur2 (BoxBlur)            2      -      GPU   tile 32, block 8x8x1  960
+#   5     merger (ImageMerger)       3      -      GPU   tile 32, block 8x8x1  960
+#   6     detector (ObjectDetector)  4      -      GPU   tile 32, block 8x8x1  960
+#   7     manager (VisionManager)    5      -      CPU   -                     -
 #
 #   buffer                memory  size                  bytes
 #   camera1.image         host    480x640x3 uint8     921,600
@@ -48,9 +48,12 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 #   zero-copy adapters: off (standard mode: components copy their own data)
 #   execution: sequential
 #   thread budget: 16,384 (device total); GPU components that can run at the same time:
-#     blur1, blur2: 15,360 threads
-#     merger: 16,384 threads
-#     detector: 16,384 threads
+#     blur1, blur2: 1,920 threads
+#     merger: 960 threads
+#     detector: 960 threads
+#   kernels generated from fusable forms, one component each: blur1 (BoxBlur, stencil:
+#     blur1.cl), blur2 (BoxBlur, stencil: blur2.cl), merger (ImageMerger, index_map:
+#     merger.cl), detector (ObjectDetector, pointwise: detector.cl)
 #   fusion: off, 0 groups
 #     not fused: blur1.smooth -> merger.left:
 #       fusion off (standard mode: one kernel per component)
@@ -76,8 +79,6 @@ LIB_DIR = Path(__file__).resolve().with_name('parallel_branches_lib')
 # The parameters --set NAME.PARAM=VALUE (and --input, --output) may change when the program
 # starts: those no size or requirement depends on. Their declarations and model values.
 PARAMS = {
-    'blur1.radius': runtime.Param('int', 2, minimum=0, maximum=7),
-    'blur2.radius': runtime.Param('int', 2, minimum=0, maximum=7),
     'camera1.buoys': runtime.Param('int', 2, minimum=0, maximum=8),
     'camera1.folder': runtime.Param('input', ''),
     'camera1.frames': runtime.Param('int', 0, minimum=0),
@@ -99,62 +100,79 @@ PARAMS = {
 }
 
 
-class BoxBlur(runtime.KernelComponent):
-    """GPU-aware component BoxBlur: kernel box_blur() in box_blur.cl.
+class BoxBlurBlur1(runtime.KernelComponent):
+    """GPU-aware component BoxBlurBlur1: kernel blur1() in blur1.cl.
 
-    One work-group of block_x * block_y * block_z threads covers a tile x tile square
-    of 'smooth'.
+    One work-group of block_x * block_y * block_z threads covers tile whole rows of
+    'smooth'.
     """
-    # Denoises an RGB frame: each channel becomes the mean of the (2 radius + 1)^2 neighbourhood,
-    # edges clamped, rounded half up (integer arithmetic, bit-exact).
+    # Kernel of blur1 (BoxBlur), generated from its stencil form.
 
-    function = 'box_blur'
+    function = 'blur1'
     inputs = (('image', np.uint8),)
     outputs = (('smooth', np.uint8),)
 
     def output_sizes(self, image):
         """Input sizes in, output sizes out (the type's size expressions)."""
         return [
-            Size(image.height, image.width, 3),
+            Size(480, 640, 3),
+        ]
+
+
+class BoxBlurBlur2(runtime.KernelComponent):
+    """GPU-aware component BoxBlurBlur2: kernel blur2() in blur2.cl.
+
+    One work-group of block_x * block_y * block_z threads covers tile whole rows of
+    'smooth'.
+    """
+    # Kernel of blur2 (BoxBlur), generated from its stencil form.
+
+    function = 'blur2'
+    inputs = (('image', np.uint8),)
+    outputs = (('smooth', np.uint8),)
+
+    def output_sizes(self, image):
+        """Input sizes in, output sizes out (the type's size expressions)."""
+        return [
+            Size(480, 640, 3),
         ]
 
 
 class ImageMerger(runtime.KernelComponent):
-    """GPU-aware component ImageMerger: kernel image_merger() in image_merger.cl.
+    """GPU-aware component ImageMerger: kernel merger() in merger.cl.
 
-    One work-group of block_x * block_y * block_z threads covers a tile x tile square
-    of 'merged'.
+    One work-group of block_x * block_y * block_z threads covers tile whole rows of
+    'merged'.
     """
-    # Places two frames of the same height side by side (left | right).
+    # Kernel of merger (ImageMerger), generated from its index_map form.
 
-    function = 'image_merger'
+    function = 'merger'
     inputs = (('left', np.uint8), ('right', np.uint8))
     outputs = (('merged', np.uint8),)
 
     def output_sizes(self, left, right):
         """Input sizes in, output sizes out (the type's size expressions)."""
         return [
-            Size(left.height, left.width + right.width, 3),
+            Size(480, 1280, 3),
         ]
 
 
 class ObjectDetector(runtime.KernelComponent):
-    """GPU-aware component ObjectDetector: kernel object_detector() in object_detector.cl.
+    """GPU-aware component ObjectDetector: kernel detector() in detector.cl.
 
-    One work-group of block_x * block_y * block_z threads covers a tile x tile square
-    of 'mask'.
+    One work-group of block_x * block_y * block_z threads covers tile whole rows of
+    'mask'.
     """
-    # Marks red buoys: a pixel is white (255) when red is at least red_min and exceeds green and
-    # blue by at least margin, else black (0).
+    # Kernel of detector (ObjectDetector), generated from its pointwise form.
 
-    function = 'object_detector'
+    function = 'detector'
     inputs = (('frame', np.uint8),)
     outputs = (('mask', np.uint8),)
 
     def output_sizes(self, frame):
         """Input sizes in, output sizes out (the type's size expressions)."""
         return [
-            Size(frame.height, frame.width, 1),
+            Size(480, 1280, 1),
         ]
 
 
@@ -184,12 +202,14 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
         'detector.frame': 1_843_200,
         'detector.mask': 614_400,
     })
-    box_blur_program = runtime.build_program(
-        context, LIB_DIR / 'box_blur.cl', 'blur1, blur2 (BoxBlur)')
+    box_blur_blur1_program = runtime.build_program(
+        context, LIB_DIR / 'blur1.cl', 'blur1 (BoxBlurBlur1)')
+    box_blur_blur2_program = runtime.build_program(
+        context, LIB_DIR / 'blur2.cl', 'blur2 (BoxBlurBlur2)')
     image_merger_program = runtime.build_program(
-        context, LIB_DIR / 'image_merger.cl', 'merger (ImageMerger)')
+        context, LIB_DIR / 'merger.cl', 'merger (ImageMerger)')
     object_detector_program = runtime.build_program(
-        context, LIB_DIR / 'object_detector.cl', 'detector (ObjectDetector)')
+        context, LIB_DIR / 'detector.cl', 'detector (ObjectDetector)')
 
     # every component and adapter, filled in as it is constructed; those initialized are
     # freed once each, in reverse order
@@ -212,15 +232,14 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
             width=640, height=480, seed=params['camera2.seed'], buoys=params['camera2.buoys'],
             frames=params['camera2.frames'], folder=params['camera2.folder'],
             video=params['camera2.video'], source=params['camera2.source'])
-        blur1 = parts['blur1'] = BoxBlur(
-            context, queue, box_blur_program, radius=params['blur1.radius'], copies_own_data=True)
-        blur2 = parts['blur2'] = BoxBlur(
-            context, queue, box_blur_program, radius=params['blur2.radius'], copies_own_data=True)
+        blur1 = parts['blur1'] = BoxBlurBlur1(
+            context, queue, box_blur_blur1_program, copies_own_data=True)
+        blur2 = parts['blur2'] = BoxBlurBlur2(
+            context, queue, box_blur_blur2_program, copies_own_data=True)
         merger = parts['merger'] = ImageMerger(
             context, queue, image_merger_program, copies_own_data=True)
         detector = parts['detector'] = ObjectDetector(
-            context, queue, object_detector_program, red_min=params['detector.red_min'],
-            margin=params['detector.margin'], copies_own_data=True)
+            context, queue, object_detector_program, copies_own_data=True)
         manager = parts['manager'] = VisionManager(
             min_area=params['manager.min_area'], stop_radius=params['manager.stop_radius'],
             print_decisions=params['manager.print_decisions'],
@@ -248,52 +267,43 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
             'detector.mask', detector_mask_size, Size(480, 1280, 1))
         manager.initialize(detector_mask_size)
 
-        # blur1: settings shrunk to share the thread budget, 5,120 resident threads; kernel
-        # arguments in the calling convention's order (a port's name stands for its buffer)
+        # blur1: settings component's own, 960 resident threads; kernel arguments in the calling
+        # convention's order (a port's name stands for its buffer)
         blur1.config_gpu(
-            tile=64, local_size=(8, 8, 1), global_size=(80, 64, 1),
-            settings_source='shrunk to share the thread budget', arguments=[
+            tile=32, local_size=(8, 8, 1), global_size=(8, 120, 1),
+            settings_source="component's own", arguments=[
                 'image', 'smooth',  # buffers: inputs, then outputs
-                np.int32(480), np.int32(640),  # image: height, width
-                np.int32(480), np.int32(640),  # smooth: height, width
-                np.int32(params['blur1.radius']),  # radius
-                np.int32(64),  # tile
+                np.int32(2),  # blur1_radius
+                np.int32(32),  # tile
             ])
 
-        # blur2: settings shrunk to share the thread budget, 10,240 resident threads; kernel
-        # arguments in the calling convention's order (a port's name stands for its buffer)
+        # blur2: settings component's own, 960 resident threads; kernel arguments in the calling
+        # convention's order (a port's name stands for its buffer)
         blur2.config_gpu(
-            tile=64, local_size=(8, 16, 1), global_size=(80, 128, 1),
-            settings_source='shrunk to share the thread budget', arguments=[
+            tile=32, local_size=(8, 8, 1), global_size=(8, 120, 1),
+            settings_source="component's own", arguments=[
                 'image', 'smooth',  # buffers: inputs, then outputs
-                np.int32(480), np.int32(640),  # image: height, width
-                np.int32(480), np.int32(640),  # smooth: height, width
-                np.int32(params['blur2.radius']),  # radius
-                np.int32(64),  # tile
+                np.int32(2),  # blur2_radius
+                np.int32(32),  # tile
             ])
 
-        # merger: settings component's own, 16,384 resident threads; kernel arguments in the calling
+        # merger: settings component's own, 960 resident threads; kernel arguments in the calling
         # convention's order (a port's name stands for its buffer)
         merger.config_gpu(
-            tile=16, local_size=(16, 16, 1), global_size=(1280, 480, 1),
+            tile=32, local_size=(8, 8, 1), global_size=(8, 120, 1),
             settings_source="component's own", arguments=[
                 'left', 'right', 'merged',  # buffers: inputs, then outputs
-                np.int32(480), np.int32(640),  # left: height, width
-                np.int32(480), np.int32(640),  # right: height, width
-                np.int32(480), np.int32(1280),  # merged: height, width
-                np.int32(16),  # tile
+                np.int32(32),  # tile
             ])
 
-        # detector: settings component's own, 16,384 resident threads; kernel arguments in the
-        # calling convention's order (a port's name stands for its buffer)
+        # detector: settings component's own, 960 resident threads; kernel arguments in the calling
+        # convention's order (a port's name stands for its buffer)
         detector.config_gpu(
-            tile=32, local_size=(16, 16, 1), global_size=(640, 240, 1),
+            tile=32, local_size=(8, 8, 1), global_size=(8, 120, 1),
             settings_source="component's own", arguments=[
                 'frame', 'mask',  # buffers: inputs, then outputs
-                np.int32(480), np.int32(1280),  # frame: height, width
-                np.int32(480), np.int32(1280),  # mask: height, width
-                np.int32(params['detector.red_min']),  # red_min
-                np.int32(params['detector.margin']),  # margin
+                np.int32(params['detector.red_min']),  # detector_red_min
+                np.int32(params['detector.margin']),  # detector_margin
                 np.int32(32),  # tile
             ])
 

@@ -9,13 +9,13 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 """
 
 # System plan:
-#   step  name                 stage  queue  runs  GPU settings            threads
-#   1     camera (Camera)      1      -      CPU   -                       -
-#   2     hsv (RgbToHsv)       2      -      GPU   tile 16, block 16x16x1  16,384
-#   3     red (InRange)        3      -      GPU   tile 16, block 16x16x1  16,384
-#   4     erode (ErodeGray)    4      -      GPU   tile 16, block 16x16x1  16,384
-#   5     dilate (DilateGray)  5      -      GPU   tile 16, block 16x16x1  16,384
-#   6     writer (MaskWriter)  6      -      CPU   -                       -
+#   step  name                 stage  queue  runs  GPU settings          threads
+#   1     camera (Camera)      1      -      CPU   -                     -
+#   2     hsv (RgbToHsv)       2      -      GPU   tile 32, block 8x8x1  448
+#   3     red (InRange)        3      -      GPU   tile 32, block 8x8x1  448
+#   4     erode (ErodeGray)    4      -      GPU   tile 32, block 8x8x1  448
+#   5     dilate (DilateGray)  5      -      GPU   tile 32, block 8x8x1  448
+#   6     writer (MaskWriter)  6      -      CPU   -                     -
 #
 #   buffer                 memory  size               bytes
 #   camera.image           host    200x301x3 uint8  180,600
@@ -45,10 +45,13 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 #   zero-copy adapters: off (standard mode: components copy their own data)
 #   execution: sequential
 #   thread budget: 16,384 (device total); GPU components that can run at the same time:
-#     hsv: 16,384 threads
-#     red: 16,384 threads
-#     erode: 16,384 threads
-#     dilate: 16,384 threads
+#     hsv: 448 threads
+#     red: 448 threads
+#     erode: 448 threads
+#     dilate: 448 threads
+#   kernels generated from fusable forms, one component each: hsv (RgbToHsv, pointwise:
+#     hsv.cl), red (InRange, pointwise: red.cl), erode (ErodeGray, stencil: erode.cl),
+#     dilate (DilateGray, stencil: dilate.cl)
 #   fusion: off, 0 groups
 #     not fused: hsv.hsv -> red.image:
 #       fusion off (standard mode: one kernel per component)
@@ -96,85 +99,79 @@ PARAMS = {
 }
 
 
-class DilateGray(runtime.KernelComponent):
-    """GPU-aware component DilateGray: kernel dilate_gray() in filter.cl.
-
-    One work-group of block_x * block_y * block_z threads covers a tile x tile square
-    of 'dilated'.
-    """
-    # Each element becomes the maximum of its 3x3 neighbourhood (a 3x3 rectangle, one iteration;
-    # chain two for iterations=2), pixels outside the frame ignored. OpenCV: cv2.dilate(image,
-    # np.ones((3, 3), np.uint8)), bit-exact.
-
-    function = 'dilate_gray'
-    inputs = (('image', np.uint8),)
-    outputs = (('dilated', np.uint8),)
-
-    def output_sizes(self, image):
-        """Input sizes in, output sizes out (the type's size expressions)."""
-        return [
-            Size(image.height, image.width, 1),
-        ]
-
-
-class ErodeGray(runtime.KernelComponent):
-    """GPU-aware component ErodeGray: kernel erode_gray() in filter.cl.
-
-    One work-group of block_x * block_y * block_z threads covers a tile x tile square
-    of 'eroded'.
-    """
-    # Each element becomes the minimum of its 3x3 neighbourhood (a 3x3 rectangle, one iteration;
-    # chain two for iterations=2), pixels outside the frame ignored. OpenCV: cv2.erode(image,
-    # np.ones((3, 3), np.uint8)), bit-exact.
-
-    function = 'erode_gray'
-    inputs = (('image', np.uint8),)
-    outputs = (('eroded', np.uint8),)
-
-    def output_sizes(self, image):
-        """Input sizes in, output sizes out (the type's size expressions)."""
-        return [
-            Size(image.height, image.width, 1),
-        ]
-
-
-class InRange(runtime.KernelComponent):
-    """GPU-aware component InRange: kernel in_range() in in_range.cl.
-
-    One work-group of block_x * block_y * block_z threads covers a tile x tile square
-    of 'mask'.
-    """
-    # Mask of the pixels inside a box of colours: 255 where every channel c is within
-    # lowerb_c..upperb_c (inclusive), else 0. OpenCV: cv2.inRange(image, lowerb, upperb), bit-exact.
-
-    function = 'in_range'
-    inputs = (('image', np.uint8),)
-    outputs = (('mask', np.uint8),)
-
-    def output_sizes(self, image):
-        """Input sizes in, output sizes out (the type's size expressions)."""
-        return [
-            Size(image.height, image.width, 1),
-        ]
-
-
 class RgbToHsv(runtime.KernelComponent):
-    """GPU-aware component RgbToHsv: kernel rgb_to_hsv() in color.cl.
+    """GPU-aware component RgbToHsv: kernel hsv_kernel() in hsv.cl.
 
-    One work-group of block_x * block_y * block_z threads covers a tile x tile square
-    of 'hsv'.
+    One work-group of block_x * block_y * block_z threads covers tile whole rows of
+    'hsv'.
     """
-    # HSV from RGB, 8-bit: hue 0..179 (degrees / 2), saturation and value 0..255. OpenCV:
-    # cv2.cvtColor(image, cv2.COLOR_RGB2HSV), bit-exact.
+    # Kernel of hsv (RgbToHsv), generated from its pointwise form.
 
-    function = 'rgb_to_hsv'
+    function = 'hsv_kernel'
     inputs = (('image', np.uint8),)
     outputs = (('hsv', np.uint8),)
 
     def output_sizes(self, image):
         """Input sizes in, output sizes out (the type's size expressions)."""
         return [
-            Size(image.height, image.width, 3),
+            Size(200, 301, 3),
+        ]
+
+
+class InRange(runtime.KernelComponent):
+    """GPU-aware component InRange: kernel red() in red.cl.
+
+    One work-group of block_x * block_y * block_z threads covers tile whole rows of
+    'mask'.
+    """
+    # Kernel of red (InRange), generated from its pointwise form.
+
+    function = 'red'
+    inputs = (('image', np.uint8),)
+    outputs = (('mask', np.uint8),)
+
+    def output_sizes(self, image):
+        """Input sizes in, output sizes out (the type's size expressions)."""
+        return [
+            Size(200, 301, 1),
+        ]
+
+
+class ErodeGray(runtime.KernelComponent):
+    """GPU-aware component ErodeGray: kernel erode() in erode.cl.
+
+    One work-group of block_x * block_y * block_z threads covers tile whole rows of
+    'eroded'.
+    """
+    # Kernel of erode (ErodeGray), generated from its stencil form.
+
+    function = 'erode'
+    inputs = (('image', np.uint8),)
+    outputs = (('eroded', np.uint8),)
+
+    def output_sizes(self, image):
+        """Input sizes in, output sizes out (the type's size expressions)."""
+        return [
+            Size(200, 301, 1),
+        ]
+
+
+class DilateGray(runtime.KernelComponent):
+    """GPU-aware component DilateGray: kernel dilate() in dilate.cl.
+
+    One work-group of block_x * block_y * block_z threads covers tile whole rows of
+    'dilated'.
+    """
+    # Kernel of dilate (DilateGray), generated from its stencil form.
+
+    function = 'dilate'
+    inputs = (('image', np.uint8),)
+    outputs = (('dilated', np.uint8),)
+
+    def output_sizes(self, image):
+        """Input sizes in, output sizes out (the type's size expressions)."""
+        return [
+            Size(200, 301, 1),
         ]
 
 
@@ -203,10 +200,11 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
         'dilate.image': 60_200,
         'dilate.dilated': 60_200,
     })
-    filter_program = runtime.build_program(
-        context, LIB_DIR / 'filter.cl', 'dilate (DilateGray), erode (ErodeGray)')
-    in_range_program = runtime.build_program(context, LIB_DIR / 'in_range.cl', 'red (InRange)')
-    rgb_to_hsv_program = runtime.build_program(context, LIB_DIR / 'color.cl', 'hsv (RgbToHsv)')
+    rgb_to_hsv_program = runtime.build_program(context, LIB_DIR / 'hsv.cl', 'hsv (RgbToHsv)')
+    in_range_program = runtime.build_program(context, LIB_DIR / 'red.cl', 'red (InRange)')
+    erode_gray_program = runtime.build_program(context, LIB_DIR / 'erode.cl', 'erode (ErodeGray)')
+    dilate_gray_program = runtime.build_program(
+        context, LIB_DIR / 'dilate.cl', 'dilate (DilateGray)')
 
     # every component and adapter, filled in as it is constructed; those initialized are
     # freed once each, in reverse order
@@ -225,13 +223,10 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
             frames=params['camera.frames'], folder=params['camera.folder'],
             video=params['camera.video'], source=params['camera.source'])
         hsv = parts['hsv'] = RgbToHsv(context, queue, rgb_to_hsv_program, copies_own_data=True)
-        red = parts['red'] = InRange(
-            context, queue, in_range_program, lowerb_0=params['red.lowerb_0'],
-            lowerb_1=params['red.lowerb_1'], lowerb_2=params['red.lowerb_2'],
-            upperb_0=params['red.upperb_0'], upperb_1=params['red.upperb_1'],
-            upperb_2=params['red.upperb_2'], copies_own_data=True)
-        erode = parts['erode'] = ErodeGray(context, queue, filter_program, copies_own_data=True)
-        dilate = parts['dilate'] = DilateGray(context, queue, filter_program, copies_own_data=True)
+        red = parts['red'] = InRange(context, queue, in_range_program, copies_own_data=True)
+        erode = parts['erode'] = ErodeGray(context, queue, erode_gray_program, copies_own_data=True)
+        dilate = parts['dilate'] = DilateGray(
+            context, queue, dilate_gray_program, copies_own_data=True)
         writer = parts['writer'] = MaskWriter(
             min_area=params['writer.min_area'], folder=params['writer.folder'],
             print_objects=params['writer.print_objects'], output=params['writer.output'])
@@ -253,54 +248,46 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
             'dilate.dilated', dilate_dilated_size, Size(200, 301, 1))
         writer.initialize(camera_image_size, dilate_dilated_size)
 
-        # hsv: settings component's own, 16,384 resident threads; kernel arguments in the calling
+        # hsv: settings component's own, 448 resident threads; kernel arguments in the calling
         # convention's order (a port's name stands for its buffer)
         hsv.config_gpu(
-            tile=16, local_size=(16, 16, 1), global_size=(304, 208, 1),
+            tile=32, local_size=(8, 8, 1), global_size=(8, 56, 1),
             settings_source="component's own", arguments=[
                 'image', 'hsv',  # buffers: inputs, then outputs
-                np.int32(200), np.int32(301),  # image: height, width
-                np.int32(200), np.int32(301),  # hsv: height, width
-                np.int32(16),  # tile
+                np.int32(32),  # tile
             ])
 
-        # red: settings component's own, 16,384 resident threads; kernel arguments in the calling
+        # red: settings component's own, 448 resident threads; kernel arguments in the calling
         # convention's order (a port's name stands for its buffer)
         red.config_gpu(
-            tile=16, local_size=(16, 16, 1), global_size=(304, 208, 1),
+            tile=32, local_size=(8, 8, 1), global_size=(8, 56, 1),
             settings_source="component's own", arguments=[
                 'image', 'mask',  # buffers: inputs, then outputs
-                np.int32(200), np.int32(301),  # image: height, width
-                np.int32(200), np.int32(301),  # mask: height, width
-                np.int32(params['red.lowerb_0']),  # lowerb_0
-                np.int32(params['red.lowerb_1']),  # lowerb_1
-                np.int32(params['red.lowerb_2']),  # lowerb_2
-                np.int32(params['red.upperb_0']),  # upperb_0
-                np.int32(params['red.upperb_1']),  # upperb_1
-                np.int32(params['red.upperb_2']),  # upperb_2
-                np.int32(16),  # tile
+                np.int32(params['red.lowerb_0']),  # red_lowerb_0
+                np.int32(params['red.lowerb_1']),  # red_lowerb_1
+                np.int32(params['red.lowerb_2']),  # red_lowerb_2
+                np.int32(params['red.upperb_0']),  # red_upperb_0
+                np.int32(params['red.upperb_1']),  # red_upperb_1
+                np.int32(params['red.upperb_2']),  # red_upperb_2
+                np.int32(32),  # tile
             ])
 
-        # erode: settings component's own, 16,384 resident threads; kernel arguments in the calling
+        # erode: settings component's own, 448 resident threads; kernel arguments in the calling
         # convention's order (a port's name stands for its buffer)
         erode.config_gpu(
-            tile=16, local_size=(16, 16, 1), global_size=(304, 208, 1),
+            tile=32, local_size=(8, 8, 1), global_size=(8, 56, 1),
             settings_source="component's own", arguments=[
                 'image', 'eroded',  # buffers: inputs, then outputs
-                np.int32(200), np.int32(301),  # image: height, width
-                np.int32(200), np.int32(301),  # eroded: height, width
-                np.int32(16),  # tile
+                np.int32(32),  # tile
             ])
 
-        # dilate: settings component's own, 16,384 resident threads; kernel arguments in the calling
+        # dilate: settings component's own, 448 resident threads; kernel arguments in the calling
         # convention's order (a port's name stands for its buffer)
         dilate.config_gpu(
-            tile=16, local_size=(16, 16, 1), global_size=(304, 208, 1),
+            tile=32, local_size=(8, 8, 1), global_size=(8, 56, 1),
             settings_source="component's own", arguments=[
                 'image', 'dilated',  # buffers: inputs, then outputs
-                np.int32(200), np.int32(301),  # image: height, width
-                np.int32(200), np.int32(301),  # dilated: height, width
-                np.int32(16),  # tile
+                np.int32(32),  # tile
             ])
 
         frame = 0

@@ -9,12 +9,12 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 """
 
 # System plan:
-#   step  name                       stage  queue  runs  GPU settings            threads
-#   1     camera1 (Camera)           1      -      CPU   -                       -
-#   2     camera2 (Camera)           1      -      CPU   -                       -
-#   3     merger (ImageMerger)       2      -      GPU   tile 16, block 16x16x1  16,384
-#   4     detector (ObjectDetector)  3      -      GPU   tile 32, block 16x16x1  16,384
-#   5     manager (VisionManager)    4      -      CPU   -                       -
+#   step  name                       stage  queue  runs  GPU settings          threads
+#   1     camera1 (Camera)           1      -      CPU   -                     -
+#   2     camera2 (Camera)           1      -      CPU   -                     -
+#   3     merger (ImageMerger)       2      -      GPU   tile 32, block 8x8x1  960
+#   4     detector (ObjectDetector)  3      -      GPU   tile 32, block 8x8x1  960
+#   5     manager (VisionManager)    4      -      CPU   -                     -
 #
 #   buffer                memory  size                  bytes
 #   camera1.image         host    480x640x3 uint8     921,600
@@ -38,8 +38,10 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 #   zero-copy adapters: off (standard mode: components copy their own data)
 #   execution: sequential
 #   thread budget: 16,384 (device total); GPU components that can run at the same time:
-#     merger: 16,384 threads
-#     detector: 16,384 threads
+#     merger: 960 threads
+#     detector: 960 threads
+#   kernels generated from fusable forms, one component each: merger (ImageMerger,
+#     index_map: merger.cl), detector (ObjectDetector, pointwise: detector.cl)
 #   fusion: off, 0 groups
 #     not fused: merger.merged -> detector.frame:
 #       fusion off (standard mode: one kernel per component)
@@ -83,41 +85,40 @@ PARAMS = {
 
 
 class ImageMerger(runtime.KernelComponent):
-    """GPU-aware component ImageMerger: kernel image_merger() in image_merger.cl.
+    """GPU-aware component ImageMerger: kernel merger() in merger.cl.
 
-    One work-group of block_x * block_y * block_z threads covers a tile x tile square
-    of 'merged'.
+    One work-group of block_x * block_y * block_z threads covers tile whole rows of
+    'merged'.
     """
-    # Places two frames of the same height side by side (left | right).
+    # Kernel of merger (ImageMerger), generated from its index_map form.
 
-    function = 'image_merger'
+    function = 'merger'
     inputs = (('left', np.uint8), ('right', np.uint8))
     outputs = (('merged', np.uint8),)
 
     def output_sizes(self, left, right):
         """Input sizes in, output sizes out (the type's size expressions)."""
         return [
-            Size(left.height, left.width + right.width, 3),
+            Size(480, 1280, 3),
         ]
 
 
 class ObjectDetector(runtime.KernelComponent):
-    """GPU-aware component ObjectDetector: kernel object_detector() in object_detector.cl.
+    """GPU-aware component ObjectDetector: kernel detector() in detector.cl.
 
-    One work-group of block_x * block_y * block_z threads covers a tile x tile square
-    of 'mask'.
+    One work-group of block_x * block_y * block_z threads covers tile whole rows of
+    'mask'.
     """
-    # Marks red buoys: a pixel is white (255) when red is at least red_min and exceeds green and
-    # blue by at least margin, else black (0).
+    # Kernel of detector (ObjectDetector), generated from its pointwise form.
 
-    function = 'object_detector'
+    function = 'detector'
     inputs = (('frame', np.uint8),)
     outputs = (('mask', np.uint8),)
 
     def output_sizes(self, frame):
         """Input sizes in, output sizes out (the type's size expressions)."""
         return [
-            Size(frame.height, frame.width, 1),
+            Size(480, 1280, 1),
         ]
 
 
@@ -144,9 +145,9 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
         'detector.mask': 614_400,
     })
     image_merger_program = runtime.build_program(
-        context, LIB_DIR / 'image_merger.cl', 'merger (ImageMerger)')
+        context, LIB_DIR / 'merger.cl', 'merger (ImageMerger)')
     object_detector_program = runtime.build_program(
-        context, LIB_DIR / 'object_detector.cl', 'detector (ObjectDetector)')
+        context, LIB_DIR / 'detector.cl', 'detector (ObjectDetector)')
 
     # every component and adapter, filled in as it is constructed; those initialized are
     # freed once each, in reverse order
@@ -170,8 +171,7 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
         merger = parts['merger'] = ImageMerger(
             context, queue, image_merger_program, copies_own_data=True)
         detector = parts['detector'] = ObjectDetector(
-            context, queue, object_detector_program, red_min=params['detector.red_min'],
-            margin=params['detector.margin'], copies_own_data=True)
+            context, queue, object_detector_program, copies_own_data=True)
         manager = parts['manager'] = VisionManager(
             min_area=params['manager.min_area'], stop_radius=params['manager.stop_radius'],
             print_decisions=params['manager.print_decisions'],
@@ -193,28 +193,23 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
             'detector.mask', detector_mask_size, Size(480, 1280, 1))
         manager.initialize(detector_mask_size)
 
-        # merger: settings component's own, 16,384 resident threads; kernel arguments in the calling
+        # merger: settings component's own, 960 resident threads; kernel arguments in the calling
         # convention's order (a port's name stands for its buffer)
         merger.config_gpu(
-            tile=16, local_size=(16, 16, 1), global_size=(1280, 480, 1),
+            tile=32, local_size=(8, 8, 1), global_size=(8, 120, 1),
             settings_source="component's own", arguments=[
                 'left', 'right', 'merged',  # buffers: inputs, then outputs
-                np.int32(480), np.int32(640),  # left: height, width
-                np.int32(480), np.int32(640),  # right: height, width
-                np.int32(480), np.int32(1280),  # merged: height, width
-                np.int32(16),  # tile
+                np.int32(32),  # tile
             ])
 
-        # detector: settings component's own, 16,384 resident threads; kernel arguments in the
-        # calling convention's order (a port's name stands for its buffer)
+        # detector: settings component's own, 960 resident threads; kernel arguments in the calling
+        # convention's order (a port's name stands for its buffer)
         detector.config_gpu(
-            tile=32, local_size=(16, 16, 1), global_size=(640, 240, 1),
+            tile=32, local_size=(8, 8, 1), global_size=(8, 120, 1),
             settings_source="component's own", arguments=[
                 'frame', 'mask',  # buffers: inputs, then outputs
-                np.int32(480), np.int32(1280),  # frame: height, width
-                np.int32(480), np.int32(1280),  # mask: height, width
-                np.int32(params['detector.red_min']),  # red_min
-                np.int32(params['detector.margin']),  # margin
+                np.int32(params['detector.red_min']),  # detector_red_min
+                np.int32(params['detector.margin']),  # detector_margin
                 np.int32(32),  # tile
             ])
 

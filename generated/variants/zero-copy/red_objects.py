@@ -9,14 +9,14 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 """
 
 # System plan:
-#   step  name                   stage  queue  runs      GPU settings            threads
-#   1     camera (Camera)        1      -      CPU       -                       -
-#   2     adapter1_cpu2gpu       1      -      in place  -                       -
-#   3     hsv_red (fused group)  3      -      GPU       tile 32, block 8x8x1    448
-#   4     erode (ErodeGray)      4      -      GPU       tile 16, block 16x16x1  16,384
-#   5     dilate (DilateGray)    5      -      GPU       tile 16, block 16x16x1  16,384
-#   6     adapter2_gpu2cpu       5      -      map       -                       -
-#   7     writer (MaskWriter)    6      -      CPU       -                       -
+#   step  name                   stage  queue  runs      GPU settings          threads
+#   1     camera (Camera)        1      -      CPU       -                     -
+#   2     adapter1_cpu2gpu       1      -      in place  -                     -
+#   3     hsv_red (fused group)  3      -      GPU       tile 32, block 8x8x1  448
+#   4     erode (ErodeGray)      4      -      GPU       tile 32, block 8x8x1  448
+#   5     dilate (DilateGray)    5      -      GPU       tile 32, block 8x8x1  448
+#   6     adapter2_gpu2cpu       5      -      map       -                     -
+#   7     writer (MaskWriter)    6      -      CPU       -                     -
 #
 #   buffer                             memory              size               bytes
 #   camera.image                       host                200x301x3 uint8  180,600
@@ -40,8 +40,10 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 #   execution: parallel, 1 queue
 #   thread budget: 16,384 (device total); GPU components that can run at the same time:
 #     hsv_red: 448 threads
-#     erode: 16,384 threads
-#     dilate: 16,384 threads
+#     erode: 448 threads
+#     dilate: 448 threads
+#   kernels generated from fusable forms, one component each: erode (ErodeGray, stencil:
+#     erode.cl), dilate (DilateGray, stencil: dilate.cl)
 #   fusion: auto, 1 group:
 #     hsv_red: one kernel (group_hsv_red.cl) for
 #       hsv (RgbToHsv, pointwise)
@@ -96,48 +98,6 @@ PARAMS = {
 }
 
 
-class DilateGray(runtime.KernelComponent):
-    """GPU-aware component DilateGray: kernel dilate_gray() in filter.cl.
-
-    One work-group of block_x * block_y * block_z threads covers a tile x tile square
-    of 'dilated'.
-    """
-    # Each element becomes the maximum of its 3x3 neighbourhood (a 3x3 rectangle, one iteration;
-    # chain two for iterations=2), pixels outside the frame ignored. OpenCV: cv2.dilate(image,
-    # np.ones((3, 3), np.uint8)), bit-exact.
-
-    function = 'dilate_gray'
-    inputs = (('image', np.uint8),)
-    outputs = (('dilated', np.uint8),)
-
-    def output_sizes(self, image):
-        """Input sizes in, output sizes out (the type's size expressions)."""
-        return [
-            Size(image.height, image.width, 1),
-        ]
-
-
-class ErodeGray(runtime.KernelComponent):
-    """GPU-aware component ErodeGray: kernel erode_gray() in filter.cl.
-
-    One work-group of block_x * block_y * block_z threads covers a tile x tile square
-    of 'eroded'.
-    """
-    # Each element becomes the minimum of its 3x3 neighbourhood (a 3x3 rectangle, one iteration;
-    # chain two for iterations=2), pixels outside the frame ignored. OpenCV: cv2.erode(image,
-    # np.ones((3, 3), np.uint8)), bit-exact.
-
-    function = 'erode_gray'
-    inputs = (('image', np.uint8),)
-    outputs = (('eroded', np.uint8),)
-
-    def output_sizes(self, image):
-        """Input sizes in, output sizes out (the type's size expressions)."""
-        return [
-            Size(image.height, image.width, 1),
-        ]
-
-
 class FusedHsvRed(runtime.KernelComponent):
     """GPU-aware component FusedHsvRed: kernel hsv_red() in group_hsv_red.cl.
 
@@ -151,6 +111,44 @@ class FusedHsvRed(runtime.KernelComponent):
     outputs = (('mask', np.uint8),)
 
     def output_sizes(self, hsv_image):
+        """Input sizes in, output sizes out (the type's size expressions)."""
+        return [
+            Size(200, 301, 1),
+        ]
+
+
+class ErodeGray(runtime.KernelComponent):
+    """GPU-aware component ErodeGray: kernel erode() in erode.cl.
+
+    One work-group of block_x * block_y * block_z threads covers tile whole rows of
+    'eroded'.
+    """
+    # Kernel of erode (ErodeGray), generated from its stencil form.
+
+    function = 'erode'
+    inputs = (('image', np.uint8),)
+    outputs = (('eroded', np.uint8),)
+
+    def output_sizes(self, image):
+        """Input sizes in, output sizes out (the type's size expressions)."""
+        return [
+            Size(200, 301, 1),
+        ]
+
+
+class DilateGray(runtime.KernelComponent):
+    """GPU-aware component DilateGray: kernel dilate() in dilate.cl.
+
+    One work-group of block_x * block_y * block_z threads covers tile whole rows of
+    'dilated'.
+    """
+    # Kernel of dilate (DilateGray), generated from its stencil form.
+
+    function = 'dilate'
+    inputs = (('image', np.uint8),)
+    outputs = (('dilated', np.uint8),)
+
+    def output_sizes(self, image):
         """Input sizes in, output sizes out (the type's size expressions)."""
         return [
             Size(200, 301, 1),
@@ -179,10 +177,11 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
         'erode.eroded': 60_200,
         'dilate.dilated': 60_200,
     })
-    filter_program = runtime.build_program(
-        context, LIB_DIR / 'filter.cl', 'dilate (DilateGray), erode (ErodeGray)')
     fused_hsv_red_program = runtime.build_program(
         context, LIB_DIR / 'group_hsv_red.cl', 'hsv_red (FusedHsvRed)')
+    erode_gray_program = runtime.build_program(context, LIB_DIR / 'erode.cl', 'erode (ErodeGray)')
+    dilate_gray_program = runtime.build_program(
+        context, LIB_DIR / 'dilate.cl', 'dilate (DilateGray)')
 
     # every component and adapter, filled in as it is constructed; those initialized are
     # freed once each, in reverse order
@@ -206,8 +205,9 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
             context, queue, nbytes=180_600)
         hsv_red = parts['hsv_red'] = FusedHsvRed(
             context, queue, fused_hsv_red_program, host_visible=True)
-        erode = parts['erode'] = ErodeGray(context, queue, filter_program, host_visible=True)
-        dilate = parts['dilate'] = DilateGray(context, queue, filter_program, host_visible=True)
+        erode = parts['erode'] = ErodeGray(context, queue, erode_gray_program, host_visible=True)
+        dilate = parts['dilate'] = DilateGray(
+            context, queue, dilate_gray_program, host_visible=True)
         # dilate.dilated -> writer.mask
         adapter2_gpu2cpu = parts['adapter2_gpu2cpu'] = runtime.ZeroCopyGpuToCpuAdapter(
             context, queue, nbytes=60_200)
@@ -248,26 +248,22 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
                 np.int32(32),  # tile
             ])
 
-        # erode: settings preferred, 16,384 resident threads; kernel arguments in the calling
+        # erode: settings preferred, 448 resident threads; kernel arguments in the calling
         # convention's order (a port's name stands for its buffer)
         erode.config_gpu(
-            tile=16, local_size=(16, 16, 1), global_size=(304, 208, 1),
+            tile=32, local_size=(8, 8, 1), global_size=(8, 56, 1),
             settings_source='preferred', arguments=[
                 'image', 'eroded',  # buffers: inputs, then outputs
-                np.int32(200), np.int32(301),  # image: height, width
-                np.int32(200), np.int32(301),  # eroded: height, width
-                np.int32(16),  # tile
+                np.int32(32),  # tile
             ])
 
-        # dilate: settings preferred, 16,384 resident threads; kernel arguments in the calling
+        # dilate: settings preferred, 448 resident threads; kernel arguments in the calling
         # convention's order (a port's name stands for its buffer)
         dilate.config_gpu(
-            tile=16, local_size=(16, 16, 1), global_size=(304, 208, 1),
+            tile=32, local_size=(8, 8, 1), global_size=(8, 56, 1),
             settings_source='preferred', arguments=[
                 'image', 'dilated',  # buffers: inputs, then outputs
-                np.int32(200), np.int32(301),  # image: height, width
-                np.int32(200), np.int32(301),  # dilated: height, width
-                np.int32(16),  # tile
+                np.int32(32),  # tile
             ])
 
         frame = 0

@@ -238,12 +238,18 @@ class Settable:
 
 
 def size_names(t) -> set[str]:
-    """The parameters a type's output sizes or requirements name: fixed at build time."""
+    """The parameters a type's output sizes or requirements name, and a stencil's radius
+    parameter (its generated kernel's window and interior are constants): fixed at build
+    time."""
     import ast
 
     exprs = [e for d in t.outputs.values() for e in (d.height, d.width) if e is not None]
     exprs += [check for check, _ in t.requires]
-    return {n.id for e in exprs for n in ast.walk(e) if isinstance(n, ast.Name)}
+    names = {n.id for e in exprs for n in ast.walk(e) if isinstance(n, ast.Name)}
+    decl = getattr(t, "fusable", None)
+    if decl is not None and decl.form == "stencil" and isinstance(decl.radius, str):
+        names.add(decl.radius)
+    return names
 
 
 def with_settable_params(system: System, plan: ProgramPlan) -> tuple[ProgramPlan, list]:
@@ -275,7 +281,8 @@ def with_settable_params(system: System, plan: ProgramPlan) -> tuple[ProgramPlan
         for a in la.arguments:
             if a.param:
                 owner, pname = a.param.split(".", 1)
-                member = node if owner == la.part else node.member(owner)
+                # a group's parameters are its members' (a group of one: the component's)
+                member = node.member(owner) if hasattr(node, "members") else node
                 if declare(a.param, member.type, pname, a.value):
                     a = dataclasses.replace(a, value=ParamRef(a.param))  # noqa: PLW2901
             args.append(a)
@@ -340,7 +347,7 @@ def render(system: System, source: str, model_dir: str = ".") -> list[OutputFile
                                     f"// {header}\n// Kernel of component type {t.name}, not "
                                     "launched (its components are fused or on the CPU):\n"
                                     "// built at start-up to check it.\n\n" + t.kernel_text))
-    for g in system.groups:
+    for g in system.kernel_groups:
         name = plan.lib_files_of(lib_key(g.type))
         files.append(OutputFile(PurePosixPath(lib, name), group_kernel(g, header, system.device)))
     from ...plan import plan_lines

@@ -46,7 +46,7 @@ static inline __attribute__((overloadable)) float _max(const float a, const floa
 
 // hsv: RgbToHsv (pointwise); every element
 #define image(y_, x_, c_) _in0[3 * ((size_t)(y_) * 301 + (x_)) + (c_)]
-static inline uchar _m0_hsv(_PARAMS, const int y, const int x, const int c)
+static inline uchar _f0_hsv(_PARAMS, const int y, const int x, const int c)
 {
     const int image_height = 200, image_width = 301;
     const int hsv_height = 200, hsv_width = 301;
@@ -65,8 +65,8 @@ static inline uchar _m0_hsv(_PARAMS, const int y, const int x, const int c)
 #undef image
 
 // red: InRange (pointwise); every element
-#define image(y_, x_, c_) _m0_hsv(_ARGS, (y_), (x_), (c_))
-static inline uchar _m1_red(_PARAMS, const int y, const int x, const int c)
+#define image(y_, x_, c_) _f0_hsv(_ARGS, (y_), (x_), (c_))
+static inline uchar _f1_red(_PARAMS, const int y, const int x, const int c)
 {
     const int image_height = 200, image_width = 301;
     const int mask_height = 200, mask_width = 301;
@@ -96,6 +96,6 @@ __kernel void hsv_red(_PARAMS, const int _tile)
     for (int _y = _y0 + get_local_id(1); _y < _y1; _y += get_local_size(1)) {
         __global uchar *_row = _out + (size_t)_y * 301;
         for (int _x = _x0; _x < _x1; _x++)
-            _row[_x] = _m1_red(_ARGS, _y, _x, 0);
+            _row[_x] = _f1_red(_ARGS, _y, _x, 0);
     }
 }

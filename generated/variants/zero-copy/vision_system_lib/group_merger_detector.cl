@@ -26,7 +26,7 @@
 // merger: ImageMerger (index_map); every element
 #define left(y_, x_, c_) _in0[3 * ((size_t)(y_) * 640 + (x_)) + (c_)]
 #define right(y_, x_, c_) _in1[3 * ((size_t)(y_) * 640 + (x_)) + (c_)]
-static inline uchar _m0_merger(_PARAMS, const int y, const int x, const int c)
+static inline uchar _f0_merger(_PARAMS, const int y, const int x, const int c)
 {
     const int left_height = 480, left_width = 640;
     const int right_height = 480, right_width = 640;
@@ -37,8 +37,8 @@ static inline uchar _m0_merger(_PARAMS, const int y, const int x, const int c)
 #undef right
 
 // detector: ObjectDetector (pointwise); every element
-#define frame(y_, x_, c_) _m0_merger(_ARGS, (y_), (x_), (c_))
-static inline uchar _m1_detector(_PARAMS, const int y, const int x, const int c)
+#define frame(y_, x_, c_) _f0_merger(_ARGS, (y_), (x_), (c_))
+static inline uchar _f1_detector(_PARAMS, const int y, const int x, const int c)
 {
     const int frame_height = 480, frame_width = 1280;
     const int mask_height = 480, mask_width = 1280;
@@ -63,6 +63,6 @@ __kernel void merger_detector(_PARAMS, const int _tile)
     for (int _y = _y0 + get_local_id(1); _y < _y1; _y += get_local_size(1)) {
         __global uchar *_row = _out + (size_t)_y * 1280;
         for (int _x = _x0; _x < _x1; _x++)
-            _row[_x] = _m1_detector(_ARGS, _y, _x, 0);
+            _row[_x] = _f1_detector(_ARGS, _y, _x, 0);
     }
 }
