@@ -115,6 +115,13 @@ def lib_key(t: ComponentType) -> str:
     return kernel_key(t) if t.gpu_aware else str(t.python_file.resolve())
 
 
+def _type_key(t: ComponentType) -> tuple[str, str]:
+    """A type in the program's tables: its kernel file and its name.  A user's fusable type
+    run alone is a group of one that keeps the type's name, and its own kernel file is
+    built only to check it: the two are different programs of one type name."""
+    return lib_key(t), t.name
+
+
 def cpu_lib_key(t: ComponentType) -> str:
     """A flexible type's CPU file in the lib folder (a user's; the library's is imported)."""
     return f"cpu:{t.cpu_file.resolve()}"
@@ -255,7 +262,7 @@ def lower(system: System) -> ProgramPlan:
     sharing: dict[str, list[ComponentType]] = {}
     for t in gpu_types + checked_kernel_types(system):
         sharing.setdefault(lib_key(t), []).append(t)
-    programs: dict[str, str] = {}  # type name -> its program's variable
+    programs: dict[tuple[str, str], str] = {}  # _type_key -> its program's variable
     for members in sharing.values():
         stem = files[lib_key(members[0])].rsplit(".", 1)[0]
         base = members[0].snake if len(members) == 1 else re.sub(r"\W", "_", stem).lower()
@@ -263,7 +270,7 @@ def lower(system: System) -> ProgramPlan:
         while var in taken or not var.isidentifier():
             var = f"_{var}" if not var.isidentifier() else var + "_"
         for t in members:
-            programs[t.name] = var
+            programs[_type_key(t)] = var
         taken.add(var)
     n_lanes = max(system.lanes.values(), default=0) + 1 if system.lanes else 0
     queues = ("queue",) if n_lanes == 1 else tuple(f"queue{i}" for i in range(n_lanes))
@@ -362,7 +369,7 @@ def lower(system: System) -> ProgramPlan:
                 options.append(("host_visible", True))
             if sets(name) > 1:
                 options.append(("buffer_sets", sets(name)))
-            launches.append(launch(system, node, programs[t.name]))
+            launches.append(launch(system, node, programs[_type_key(t)]))
         else:
             for p, port in node.outputs.items():
                 buffers.append(Buffer(name, p, f"{name}.{p}", "host", port.data,
@@ -379,7 +386,7 @@ def lower(system: System) -> ProgramPlan:
             parts.append(Part(name, "component", t.name, what,
                               "GPU" if node.on_gpu else "CPU", system.stages[name],
                               queue_of(name) if node.on_gpu else None,
-                              programs.get(t.name) if node.on_gpu else None, params,
+                              programs.get(_type_key(t)) if node.on_gpu else None, params,
                               tuple(options), init_inputs=in_vars, init_outputs=outs))
         # the sources run first, whatever the schedule: the end of the stream is known
         # before any part works on the frame (independent chains end together)
@@ -421,19 +428,19 @@ def lower(system: System) -> ProgramPlan:
                             "" if t.python_class == t.name else t.name))
         else:
             user_classes.append(UserClass(t.name, files[lib_key(t)], t.python_class))
-    users = {t.name: _some([n for n in system.order
+    users = {_type_key(t): _some([n for n in system.order
                             if isinstance(system.nodes[n], (ComponentNode, GroupNode))
                             and system.nodes[n].type is t and system.nodes[n].on_gpu])
              for t in gpu_types}
-    why: dict[str, str] = {}  # a type whose kernel is built only to check it -> why
+    why: dict[tuple[str, str], str] = {}  # a type whose kernel is only checked -> why
     for t in checked_kernel_types(system):
         fused = [m.name for g in system.groups for m in g.members if m.type is t]
         alone = [m.name for g in system.kernel_groups if len(g.members) == 1
                  for m in g.members if m.type is t]
         on_cpu = [n for n in system.order if isinstance(system.nodes[n], ComponentNode)
                   and system.nodes[n].type is t]
-        users[t.name] = _some(fused + alone + on_cpu)
-        why[t.name] = "; " + " and ".join(
+        users[_type_key(t)] = _some(fused + alone + on_cpu)
+        why[_type_key(t)] = "; " + " and ".join(
             w for w, names in (("fused", fused), ("its generated kernel alone", alone),
                                ("on the CPU", on_cpu)) if names) + ": built only to check it"
     groups = {g.type.name: g for g in system.kernel_groups}
@@ -445,8 +452,9 @@ def lower(system: System) -> ProgramPlan:
         system=system.name, mode=system.mode, execution=system.execution,
         device_name=system.device.name, zero_copy=system.zero_copy,
         zero_copy_reason=system.zero_copy_reason, queues=queues if n_lanes or gpu_types else (),
-        programs=tuple(Program(programs[m[0].name], files[lib_key(m[0])],
-                               ", ".join(f"{users[t.name]} ({t.name}{why.get(t.name, '')})"
+        programs=tuple(Program(programs[_type_key(m[0])], files[lib_key(m[0])],
+                               ", ".join(f"{users[_type_key(t)]} "
+                                         f"({t.name}{why.get(_type_key(t), '')})"
                                          for t in m))
                        for m in sharing.values()),
         imports=tuple(sorted(imports)), user_classes=tuple(user_classes),
