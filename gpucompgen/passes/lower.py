@@ -154,11 +154,12 @@ def checked_kernel_types(system: System) -> list[ComponentType]:
     """
     if not gpu_used_types(system) and not system.kernel_groups:
         return []
-    launched = {kernel_key(t) for t in gpu_used_types(system)}
+    launched = {kernel_key(t) for t in gpu_used_types(system) if t.kernel_file is not None}
     found: dict[str, ComponentType] = {}
     for inst in system.model.components.values():
         t = inst.type
-        if t.gpu_aware and t.origin == "user" and kernel_key(t) not in launched:
+        if t.gpu_aware and t.origin == "user" and t.kernel_file is not None \
+                and kernel_key(t) not in launched:  # a fusable type may have no kernel
             found.setdefault(t.name, t)
     return [found[k] for k in sorted(found)]
 
