@@ -23,7 +23,7 @@ import signal
 import subprocess
 import sys
 import time
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
@@ -45,7 +45,6 @@ class Job:
     frames: int | None = None
     save_outputs: bool = False
     timeout: float | None = None  # seconds for the whole recording
-    extra: tuple[str, ...] = ()  # more program options (--frames-in-flight is a build option)
 
 
 def recording_uri(recording: str, topic: str | None) -> str:
@@ -86,7 +85,6 @@ class Outcome:
     timed_out: bool = False
     interrupted: bool = False
     attempts: int = 1
-    extra: dict[str, Any] = field(default_factory=dict)
 
     @property
     def died(self) -> bool:
@@ -120,7 +118,7 @@ def _command(program: Path, job: Job, folder: Path) -> list[str]:
     if job.save_outputs:
         (folder / "images").mkdir(exist_ok=True)
         cmd += ["--save-images", str(folder / "images")]
-    return [*cmd, *job.extra]
+    return cmd
 
 
 def _run_once(program: Path, job: Job, folder: Path, stop) -> Outcome:
