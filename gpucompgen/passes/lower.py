@@ -15,7 +15,7 @@ import math
 import re
 from dataclasses import replace
 
-from ..backend.opencl.convention import PARAM_C_TYPES, group_parameters, kernel_parameters
+from ..convention import group_parameters, kernel_parameters
 from ..ir import AdapterNode, ComponentNode, GroupNode, System
 from ..model import DTYPES, ComponentType, Endpoint
 from ..plan import (
@@ -228,7 +228,7 @@ def launch(system: System, node: ComponentNode, program: str) -> Launch:
         elif p.role == "param":
             owner, pname = (node.member(p.param.split(".")[0]), p.param.split(".")[1]) \
                 if group else (node, p.param)
-            host = PARAM_C_TYPES[owner.type.params[pname].type][1].removeprefix("np.")
+            host = p.dtype
             value = owner.params[pname]
             value = float(value) if host == "float32" else int(value)
             args.append(Argument(p.name, "scalar", host_type=host, value=value,

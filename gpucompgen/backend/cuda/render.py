@@ -17,8 +17,9 @@ import re
 from pathlib import PurePosixPath
 
 from ...errors import Diagnostic, GpucompgenError
+from ...output import HEADER_PREFIX, OutputFile, source_path
 from ...passes.lower import gpu_used_types
-from ..opencl.render import HEADER_PREFIX, OutputFile, source_path
+from ..opencl.render import API_IMPORT
 from ..opencl.render import render as render_opencl
 from .prelude import PRELUDE, translate, unportable
 
@@ -35,7 +36,7 @@ _PROGRAM_LINES = (
      "select the CUDA device with\nCUDA_DEVICE (default 0)."),
     ("OpenCL profiling events time every kernel and copy",
      "CUDA events time every kernel and copy"),
-    ("import pyopencl as cl\n", ""),  # its one use, below, is the runtime's
+    (API_IMPORT, ""),  # its one use, below, is the runtime's
     ("cl.wait_for_events(", "runtime.wait_for_events("),
 )
 
