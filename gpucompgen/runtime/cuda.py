@@ -272,7 +272,7 @@ class CudaQueue:
 
 
 def wait_for_events(events) -> None:
-    """The host waits until these commands are done (pyopencl's wait_for_events)."""
+    """The host waits until these commands are done (the OpenCL runtime's wait_for_events)."""
     for event in events:
         if event is not None:
             event.wait()
@@ -290,7 +290,7 @@ class _Times:
 
 class CudaEvent:
     """What a command left behind: an event recorded after it on its stream (and one
-    before it when profiling).  .wait() and .profile.start/.end (ns) as in pyopencl."""
+    before it when profiling).  .wait() and .profile.start/.end (ns), the device interface's events."""
 
     def __init__(self, queue: CudaQueue):
         cu = _driver()

@@ -1,4 +1,5 @@
-"""Building kernel files into OpenCL programs with readable errors."""
+"""Kernel files and their build logs, made readable: what every device API's build does
+with a kernel file and a compiler's messages (opencl.build_program, cuda.build_program)."""
 
 from __future__ import annotations
 
@@ -7,26 +8,9 @@ import os
 import re
 import sys
 import tempfile
-import warnings
 from pathlib import Path
 
 from .errors import PipelineError
-
-
-@contextlib.contextmanager
-def quiet_compiler():
-    """Keep a successful build's compiler chatter off the user's terminal.
-
-    NVIDIA's OpenCL compiler returns a non-empty log for kernels that build fine, which
-    pyopencl turns into a CompilerWarning on stderr every run. As in pyopencl, setting
-    PYOPENCL_COMPILER_OUTPUT=1 shows it; a failed build always shows its log.
-    """
-    import pyopencl as cl
-
-    with warnings.catch_warnings():
-        if os.environ.get("PYOPENCL_COMPILER_OUTPUT") != "1":
-            warnings.simplefilter("ignore", cl.CompilerWarning)
-        yield
 
 
 @contextlib.contextmanager
@@ -79,7 +63,7 @@ def clean_build_log(log: str) -> list[str]:
 
 
 def _log_from_error(text: str) -> str:
-    """The build log inside pyopencl's error text (when the program object is gone):
+    """The build log inside the OpenCL binding's error text (when the program object is gone):
     after 'Build on <device>:', before '(options: ...)' and '(source saved as ...)'."""
     _, found, after = text.partition("Build on ")
     if not found:
@@ -128,37 +112,3 @@ def read_kernel_file(path: Path, component: str) -> str:
     except UnicodeDecodeError as exc:
         raise PipelineError(f"{component}: kernel file {path} is not UTF-8 text "
                             f"(byte {exc.start:,})") from None
-
-
-def build_program(context, path: Path, component: str, options: tuple[str, ...] = ()):
-    """Build one kernel file once; a failure names the component and file and gives the
-    compiler's messages once, as file:line:col (a #line directive makes the compiler
-    name the kernel file and its own line numbers)."""
-    import pyopencl as cl
-
-    path = Path(path)
-    source = read_kernel_file(path, component)
-    header, body = _split_header(source)
-    name = path.name.replace("\\", "\\\\").replace('"', '\\"')
-    program = cl.Program(context, f'{header}#line 1 "{name}"\n{body}')
-    with _captured_stderr() as captured:
-        try:
-            with quiet_compiler():
-                return program.build(options=list(options))
-        except cl.RuntimeError as exc:
-            error = exc
-    log = ""
-    raw = getattr(program, "_prg", None)
-    if raw is not None:
-        with contextlib.suppress(Exception):
-            log = "\n".join(str(raw.get_build_info(d, cl.program_build_info.LOG))
-                            for d in context.devices)
-    if not log.strip():
-        log = _log_from_error(str(error))
-    lines = clean_build_log(log + "\n" + "".join(captured))
-    lines = _name_unnamed_source(lines, path.name, header.count("\n") + 1)
-    if not lines:
-        lines = [str(error).strip().splitlines()[0] if str(error).strip() else
-                 type(error).__name__]
-    text = "\n".join(f"  {line}" for line in lines)
-    raise PipelineError(f"{component}: kernel file {path.name} failed to build:\n{text}")
