@@ -1,7 +1,7 @@
 """The OpenCL backend's printer: a ProgramPlan into files (the program and its lib folder).
 
-The templates (templates/ beside this file) print the plan's records with macros; this
-module loads them, gives them filters that make model text safe (escaped literals and
+The templates (the top-level templates/opencl/) print the plan's records with macros;
+this module loads them, gives them filters that make model text safe (escaped literals and
 comments) and one layout helper that fits a statement into the line length by breaking
 only between its tokens, never inside a literal.
 """
@@ -14,11 +14,11 @@ import posixpath
 import re
 import textwrap
 from dataclasses import dataclass
-from importlib import resources
 from pathlib import Path, PurePosixPath
 
 import jinja2
 
+from ... import output
 from ...ir import ComponentNode, System
 from ...output import HEADER, OutputFile
 from ...passes.lower import (
@@ -40,7 +40,7 @@ WIDTH = 100  # the project's line length; generated code fits it
 
 
 def template_folder() -> Path:
-    return Path(str(resources.files("gpucompgen.backend.opencl") / "templates"))
+    return output.template_folder("opencl")
 
 
 def environment() -> jinja2.Environment:
