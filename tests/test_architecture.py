@@ -4,7 +4,8 @@ Every module belongs to one layer (LAYERS, first matching prefix wins); ALLOWED 
 layers a layer may import, EXTERNAL which layers may import a device API's package.  An
 edge outside the table fails, unless it is listed in KNOWN_DEBT with why it is still there:
 the debt list may only shrink (an entry no longer in the graph fails too, so that it is
-removed when its edge is).  docs/development.md shows the same table (test_docs_show_layers).
+removed when its edge is).  docs/development.md shows the same table and graph
+(test_docs_show_the_layers; `python tests/test_architecture.py` prints them).
 """
 
 from __future__ import annotations
@@ -295,9 +296,49 @@ def test_runtime_tests_run_without_pyopencl(test_file, tmp_path):
     assert " passed" in done.stdout
 
 
-def test_docs_show_layers():
-    """docs/development.md's layer table is this test's."""
-    text = (ROOT / "docs" / "development.md").read_text(encoding="utf-8")
+def layer_table() -> str:
+    """The table docs/development.md shows: each layer, what it may import, its modules."""
+    members: dict[str, set[str]] = {layer: set() for layer in ALLOWED}
+    for module in modules():
+        name = _short(module).removeprefix("gpucompgen.")
+        if layer_of(module) == "generic" and ("." in name or (
+                module.endswith(".__init__") and name != "gpucompgen")):  # a package
+            name = name.split(".")[0] + "/"
+        members[layer_of(module)].add(name)
+    rows = ["| layer | may import | modules (under gpucompgen/) |", "|---|---|---|"]
     for layer, allowed in ALLOWED.items():
-        line = f"| {layer} | {', '.join(sorted(allowed)) or '(none)'} |"
-        assert line in text, f"docs/development.md lacks the row: {line}"
+        shown = ", ".join(f"`{n}`" for n in sorted(members[layer]) if n != "gpucompgen")
+        rows.append(f"| {layer} | {', '.join(sorted(allowed)) or '(none)'} | {shown} |")
+    return "\n".join(rows) + "\n"
+
+
+def layer_graph() -> str:
+    """The allowed edges between layers as a Mermaid flowchart (GitHub draws it)."""
+    lines = ["```mermaid", "flowchart TD"]
+    for layer, allowed in ALLOWED.items():
+        lines += [f"  {layer} --> {other}" for other in sorted(allowed)]
+    lines += ["```"]
+    return "\n".join(lines) + "\n"
+
+
+def test_docs_show_the_layers():
+    """docs/development.md shows this test's table and graph; regenerate them with
+    `python tests/test_architecture.py` and paste."""
+    text = (ROOT / "docs" / "development.md").read_text(encoding="utf-8")
+    assert layer_table() in text
+    assert layer_graph() in text
+
+
+def test_docs_list_the_passes_in_order():
+    from gpucompgen.passes.pipeline import PIPELINE
+
+    text = (ROOT / "docs" / "development.md").read_text(encoding="utf-8")
+    rows = [line.split("|")[1].strip().strip("`") for line in text.splitlines()
+            if line.startswith("| `") and line.count("|") == 4
+            and line.split("|")[2].strip().endswith(".py`")]
+    assert rows == [p.name for p in PIPELINE]
+
+
+if __name__ == "__main__":
+    print(layer_graph())
+    print(layer_table())
