@@ -25,6 +25,7 @@ from ..plan import (
     GroupPlan,
     KernelClass,
     Launch,
+    LibSource,
     Part,
     Program,
     ProgramPlan,
@@ -167,6 +168,41 @@ def checked_kernel_types(system: System) -> list[ComponentType]:
 def cpu_used_types(system: System) -> list[ComponentType]:
     """Flexible types that some component runs on the CPU (through its function)."""
     return [t for t in used_types(system, "cpu") if t.flexible]
+
+
+def lib_sources(system: System, files: dict[str, str]) -> tuple[LibSource, ...]:
+    """Every kernel and user Python file the lib folder holds, once each, with its checked
+    text: per used type, its kernel (a GPU one), its CPU function file (a user's flexible
+    type on the CPU), its class file (a user's standard type); then the kernels built only
+    to check them; then each fused group's generated kernel (no text: the backend writes
+    it)."""
+    found: list[LibSource] = []
+    written: set[str] = set()
+    gpu, cpu, used = gpu_used_types(system), cpu_used_types(system), used_types(system)
+
+    def add(key: str, kind: str, users: list[str], text: str, origin) -> None:
+        name = files[key]
+        if name not in written:  # a file several types share is copied once
+            written.add(name)
+            found.append(LibSource(name, kind, tuple(sorted(users)), text, str(origin)))
+
+    for t in used:
+        if t in gpu:
+            add(kernel_key(t), "kernel", [u.name for u in gpu if kernel_key(u) == kernel_key(t)],
+                t.kernel_text, t.kernel_file)
+        if t.flexible and t.origin == "user" and t in cpu:
+            add(cpu_lib_key(t), "cpu", [u.name for u in cpu if u.origin == "user"
+                                        and cpu_lib_key(u) == cpu_lib_key(t)],
+                t.cpu_text, t.cpu_file)
+        if not t.gpu_aware and t.origin == "user":
+            add(lib_key(t), "python", [u.name for u in used if not u.gpu_aware
+                                       and u.origin == "user" and lib_key(u) == lib_key(t)],
+                t.python_text, t.python_file)
+    for t in checked_kernel_types(system):
+        add(kernel_key(t), "checked_kernel", [t.name], t.kernel_text, t.kernel_file)
+    for g in system.kernel_groups:  # the backend's kernel generator writes their text
+        found.append(LibSource(files[lib_key(g.type)], "group", (g.name,), ""))
+    return tuple(found)
 
 
 def np_name(dtype: str) -> str:
@@ -479,6 +515,7 @@ def lower(system: System) -> ProgramPlan:
         concurrent=tuple((g, sum(resident_threads(system, n) for n in g))
                          for g in system.concurrent),
         lib_files={v: k for k, v in files.items()},
+        lib_dir=lib_dir_name(system.name), lib_sources=lib_sources(system, files),
         frames_in_flight=n_sets, stages=flight_stages(system, steps),
         flight_notes=tuple(system.flight_notes), buffer_sets=tuple(system.buffer_sets.items()),
         staging=system.staging, staging_reason=system.staging_reason,

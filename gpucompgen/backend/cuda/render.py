@@ -18,7 +18,6 @@ from pathlib import PurePosixPath
 
 from ...errors import Diagnostic, GpucompgenError
 from ...output import HEADER_PREFIX, OutputFile, source_path
-from ...passes.lower import gpu_used_types
 from ..opencl.render import API_IMPORT
 from ..opencl.render import render as render_opencl
 from .prelude import PRELUDE, translate, unportable
@@ -46,12 +45,13 @@ def check_portable(system) -> None:
     OpenCL-only construct is an error at its place in the kernel file, saying what to
     write instead."""
     problems = []
-    for t in gpu_used_types(system):
-        for u in unportable(t.kernel_text):
-            where = str(t.kernel_file) if t.kernel_file else t.name
+    launched = [(name, src) for src in system.plan.lib_sources if src.kind == "kernel"
+                for name in src.users]
+    for name, src in sorted(launched, key=lambda pair: pair[0]):  # by type, as they are used
+        for u in unportable(src.text):
             problems.append(Diagnostic(
-                where, u.line, u.column, "error",
-                f"component type {t.name}: '{u.text}' ({u.what}) is OpenCL-only; the CUDA "
+                src.origin or name, u.line, u.column, "error",
+                f"component type {name}: '{u.text}' ({u.what}) is OpenCL-only; the CUDA "
                 "backend cannot compile it",
                 f"{u.hint}; docs/cuda.md lists the portable subset"))
     if problems:

@@ -21,17 +21,7 @@ import jinja2
 from ... import output
 from ...ir import ComponentNode, System
 from ...output import HEADER, OutputFile
-from ...passes.lower import (
-    checked_kernel_types,
-    cpu_lib_key,
-    cpu_used_types,
-    gpu_used_types,
-    kernel_key,
-    lib_dir_name,
-    lib_key,
-    used_types,
-)
-from ...plan import Argument, ProgramPlan
+from ...plan import Argument, LibSource, ProgramPlan
 from .fused import group_kernel
 
 # the OpenCL program's import of its binding (the CUDA backend drops it: backend/cuda)
@@ -277,6 +267,23 @@ def with_settable_params(system: System, plan: ProgramPlan) -> tuple[ProgramPlan
     return plan, sorted(settable.values(), key=lambda s: s.key)
 
 
+def lib_file_text(src: LibSource, header: str) -> str:
+    """A lib folder's copy of a checked source, under the generated header saying what it
+    is."""
+    users = ", ".join(src.users)
+    if src.kind == "kernel":
+        return (f"// {header}\n// Kernel of component type{'s' if len(src.users) > 1 else ''} "
+                f"{users}.\n\n{src.text}")
+    if src.kind == "checked_kernel":
+        return (f"// {header}\n// Kernel of component type {users}, not launched (its "
+                "components are fused or on the CPU):\n// built at start-up to check it.\n\n"
+                + src.text)
+    if src.kind == "cpu":
+        return (f"# {header}\n# CPU implementation of {users}, copied from its type file."
+                f"\n\n{src.text}")
+    return f"# {header}\n# Copied from the component type file of {users}.\n\n{src.text}"
+
+
 def render(system: System, source: str, model_dir: str = ".") -> list[OutputFile]:
     """All files of one system, in a stable order: the program, then its lib folder (each
     kernel and user Python file once, whatever number of types use it).  model_dir: the
@@ -285,57 +292,14 @@ def render(system: System, source: str, model_dir: str = ".") -> list[OutputFile
     plan, settable = with_settable_params(system, plan)
     env = environment()
     model = system.model
-    lib = lib_dir_name(system.name)
+    lib = plan.lib_dir
     header = HEADER.format(source=comment_text(source))
     files: list[OutputFile] = []
-    written: set[str] = set()
-    for t in used_types(system):
-        if t in gpu_used_types(system):
-            name = plan.lib_files_of(kernel_key(t))
-            if name not in written:  # a kernel file several types share is copied once
-                written.add(name)
-                users = sorted(u.name for u in gpu_used_types(system)
-                               if kernel_key(u) == kernel_key(t))
-                text = t.kernel_text  # as checked (size, UTF-8, inside its folder)
-                files.append(OutputFile(PurePosixPath(lib, name),
-                                        f"// {header}\n// Kernel of component type"
-                                        f"{'s' if len(users) > 1 else ''} {', '.join(users)}."
-                                        f"\n\n{text}"))
-        if t.flexible and t.origin == "user" and t in cpu_used_types(system):
-            name = plan.lib_files_of(cpu_lib_key(t))
-            if name not in written:
-                written.add(name)
-                users = sorted(u.name for u in cpu_used_types(system)
-                               if u.origin == "user" and cpu_lib_key(u) == cpu_lib_key(t))
-                text = t.cpu_file.read_text(encoding="utf-8")
-                files.append(OutputFile(PurePosixPath(lib, name),
-                                        f"# {header}\n# CPU implementation of "
-                                        f"{', '.join(users)}, copied from its type file.\n\n"
-                                        f"{text}"))
-        if t.gpu_aware or t.origin != "user":
-            continue
-        name = plan.lib_files_of(lib_key(t))
-        if name in written:
-            continue
-        written.add(name)
-        users = sorted(u.name for u in used_types(system)
-                       if not u.gpu_aware and u.origin == "user"
-                       and lib_key(u) == lib_key(t))
-        text = t.python_text  # as checked
-        files.append(OutputFile(PurePosixPath(lib, name),
-                                f"# {header}\n# Copied from the component type file of "
-                                f"{', '.join(users)}.\n\n{text}"))
-    for t in checked_kernel_types(system):
-        name = plan.lib_files_of(kernel_key(t))
-        if name not in written:
-            written.add(name)
-            files.append(OutputFile(PurePosixPath(lib, name),
-                                    f"// {header}\n// Kernel of component type {t.name}, not "
-                                    "launched (its components are fused or on the CPU):\n"
-                                    "// built at start-up to check it.\n\n" + t.kernel_text))
-    for g in system.kernel_groups:
-        name = plan.lib_files_of(lib_key(g.type))
-        files.append(OutputFile(PurePosixPath(lib, name), group_kernel(g, header, system.device)))
+    groups = {g.name: g for g in system.kernel_groups}
+    for src in plan.lib_sources:
+        text = group_kernel(groups[src.users[0]], header, system.device) \
+            if src.kind == "group" else lib_file_text(src, header)
+        files.append(OutputFile(PurePosixPath(lib, src.file), text))
     from ...plan import plan_lines
 
     model_folder = model.file.resolve().parent
