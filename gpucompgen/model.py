@@ -19,6 +19,7 @@ from . import fusable as fusable_forms
 from . import sizeexpr
 from .backend import BACKENDS, signature_checker
 from .backend import DEFAULT as DEFAULT_BACKEND
+from .dataflow import Endpoint
 from .errors import Diagnostic, GpucompgenError, Pos, Reporter, did_you_mean
 from .loader import (
     MAX_FILE_BYTES,
@@ -176,15 +177,6 @@ class Instance:
     placement: str = ""  # "gpu" | "cpu" | "auto" as the model says; "" when it says nothing
     placement_pos: Pos | None = None
     fuse: bool = True  # 'fuse: false': never fused with its neighbours
-
-
-@dataclass(frozen=True)
-class Endpoint:
-    component: str
-    port: str
-
-    def __str__(self) -> str:
-        return f"{self.component}.{self.port}"
 
 
 @dataclass

@@ -13,8 +13,7 @@ import textwrap
 from dataclasses import dataclass, field
 from typing import Any
 
-from .ir import Data
-from .model import Endpoint
+from .dataflow import Data, Endpoint
 from .runtime.sizes import Size
 
 

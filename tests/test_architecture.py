@@ -28,6 +28,7 @@ LAYERS = [
     ("gpucompgen.backend", "registry"),
     ("gpucompgen.plan", "records"),
     ("gpucompgen.convention", "records"),
+    ("gpucompgen.dataflow", "records"),
     ("gpucompgen.errors", "records"),
     ("gpucompgen.output", "records"),
     ("gpucompgen.runtime.opencl", "runtime-opencl"),
@@ -45,8 +46,9 @@ ALLOWED = {
     # only through the registry, and the runtime only through its neutral core, its facade
     # (the default device API of generated programs) and the device interface
     "generic": {"records", "registry", "runtime", "runtime-facade", "io", "library"},
-    # the plan records, the calling convention and the error values: what lowering emits
-    # and a backend receives; the output files: what a backend gives back
+    # the plan records, the values that flow (Endpoint, Data), the calling convention and
+    # the error values: what lowering emits and a backend receives; the output files: what
+    # a backend gives back
     "records": {"runtime"},
     # picks a backend by name (importlib), so it imports none
     "registry": set(),
@@ -101,9 +103,6 @@ KNOWN_DEBT = {
         "the hand-written reference runs the generator's VerticalMirror kernel",
     ("gpucompgen.tune", "gpucompgen.backend.opencl.fused"):
         "a fusable type's kernel is written by the generator to be measured",
-    # The plan's records still point at the IR and the model for plan_lines.
-    ("gpucompgen.plan", "gpucompgen.ir"): "plan_lines reads the IR",
-    ("gpucompgen.plan", "gpucompgen.model"): "plan_lines reads model types",
 }
 
 
