@@ -274,7 +274,8 @@ print("ok")
     assert done.stdout.splitlines()[-1] == "ok"
 
 
-@pytest.mark.parametrize("test_file", ["test_runtime_messages.py", "test_lifecycle.py"])
+@pytest.mark.parametrize("test_file", ["test_runtime_messages.py", "test_lifecycle.py",
+                                       "test_overrides.py", "test_frames_checked.py"])
 def test_runtime_tests_run_without_pyopencl(test_file, tmp_path):
     """Tests of the runtime's core, run with pyopencl blocked: those that need a device
     skip, the rest pass."""
@@ -332,6 +333,21 @@ def test_docs_list_the_passes_in_order():
             if line.startswith("| `") and line.count("|") == 4
             and line.split("|")[2].strip().endswith(".py`")]
     assert rows == [p.name for p in PIPELINE]
+
+
+def test_the_opencl_module_implements_the_device_interface():
+    """Every function and name the interface declares is the OpenCL module's (importing it
+    needs no pyopencl: its functions import it)."""
+    import inspect
+
+    from gpucompgen.runtime import device_api, opencl
+
+    declared = {name for name, _ in inspect.getmembers(device_api.DeviceAPI, inspect.isfunction)
+                if not name.startswith("_")} | set(device_api.DeviceAPI.__annotations__)
+    assert declared >= {"copy", "map", "unmap", "launch", "build_program", "event_seconds"}
+    missing = sorted(name for name in declared if not hasattr(opencl, name))
+    assert not missing
+    assert device_api.get() is opencl
 
 
 if __name__ == "__main__":
