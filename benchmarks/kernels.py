@@ -367,7 +367,7 @@ def main(argv=None) -> int:
     ctx = cl.create_some_context(interactive=False)
     queue = cl.CommandQueue(ctx, properties=cl.command_queue_properties.PROFILING_ENABLE)
     device = ctx.devices[0]
-    from gpucompgen.runtime.facts import query as facts_of_cl_device
+    from gpucompgen.runtime.opencl import facts as facts_of_cl_device
 
     facts = facts_of_cl_device(device)
     types = library_types()
