@@ -516,7 +516,7 @@ def _lower_component(lo: _Lowering, name: str, node: ComponentNode | GroupNode,
     # before any part works on the frame (independent chains end together)
     (lo.head if name in lo.sources else lo.steps).append(Step(
         "execute", name, tuple(system.input_var(Endpoint(name, p)) for p in node.inputs),
-        tuple(system.output_vars[Endpoint(name, p)] for p in node.outputs),
+        _execute_outputs(lo, name, node),
         tuple(system.waits.get(name, ())) if not standard else ()))
     # what a CPU component returns is checked where it enters another part (a
     # source's after the end-of-stream test: None ends the stream there)
@@ -532,6 +532,17 @@ def _lower_component(lo: _Lowering, name: str, node: ComponentNode | GroupNode,
     for a in system.unmap_after.get(name, []):
         lo.steps.append(Step("unmap", a, note=f"the device may write "
                              f"{system.nodes[a].source} again"))
+
+
+def _execute_outputs(lo: _Lowering, name: str, node: ComponentNode | GroupNode) -> tuple:
+    """The variables an execute step assigns: '_' for an output nobody reads (a source's
+    outputs excepted: the end-of-stream test reads them), none when no output is read, so
+    that the program assigns no variable it never uses."""
+    system = lo.system
+    outputs = tuple(system.output_vars[Endpoint(name, p)]
+                    if name in lo.sources or system.readers(Endpoint(name, p)) else "_"
+                    for p in node.outputs)
+    return () if all(v == "_" for v in outputs) else outputs
 
 
 def _stream_steps(lo: _Lowering) -> list[Step]:
