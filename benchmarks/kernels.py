@@ -214,7 +214,7 @@ def gen_variant(ctx, queue, t, arrays, params, device):
     result = np.empty(shape, dtype)
     out = cl.Buffer(ctx, mf.READ_WRITE, max(result.nbytes, 1))
     tile, bx, by, _ = fused.preferred_settings(group, device)
-    kernel.set_args(*fused.launch_arguments(group, bufs, out, params, tile))
+    kernel.set_args(*fused.launch_arguments(group, bufs, out, tile))
     gsize, lsize = fused.launch_geometry(group, tile, bx, by)
     return Variant(queue, kernel, gsize, lsize, out, result, bufs)
 
