@@ -19,6 +19,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+# a parameter's value as a C literal: the generator writes a kernel's default constants
+# with it, the runtime its -D build options, so both give the same float32
+from .runtime.programs import c_literal  # noqa: F401  (re-exported for the backends)
+
 # parameter type -> the element type the host passes (numpy's name)
 HOST_TYPES = {"int": "int32", "bool": "int32", "float": "float32"}
 
@@ -28,7 +32,7 @@ class Param:
     """One parameter of a kernel, as the convention requires it."""
 
     name: str  # the conventional name (the kernel may call it anything)
-    kind: str  # "buffer" | "scalar"
+    kind: str  # "buffer" | "scalar" | "constant" (a build option: group_constants)
     dtype: str  # element type of a buffer, or the scalar's (numpy's name: "uint8", "int32")
     role: str  # "input" | "output" | "size" | "param" | "tile"
     port: str = ""  # the port a buffer or size belongs to
@@ -58,12 +62,14 @@ def group_parameters(group) -> list[Param]:
 
     1. one pointer per group input (named <member>_<port>, the member input it feeds),
        then the group's output (named <root>_<port>);
-    2. every member's parameters in declaration order, named <member>_<parameter>;
-    3. ``tile``.
+    2. ``tile``.
 
-    No sizes: the system fixed every port's size when it was built, and the generated
-    kernel states them as constants, so that the compiler folds composed index maps
-    (``h - 1 - (h - 1 - y)`` is ``y``) and drops tests that cannot fail.
+    No sizes and no parameters: the system fixed every port's size when it was built, and
+    every member's parameter when the program starts (its model value, or --set's), so the
+    generated kernel states sizes as constants and takes parameters as build options
+    (group_constants): the compiler folds composed index maps (``h - 1 - (h - 1 - y)`` is
+    ``y``), drops tests that cannot fail and picks a rule (Threshold's ``thresh_type``)
+    once, not per element.
     """
     params: list[Param] = []
     for name, port in group.inputs.items():
@@ -71,9 +77,17 @@ def group_parameters(group) -> list[Param]:
     for name, port in group.outputs.items():
         params.append(Param(f"{group.root.name}_{name}", "buffer", port.dtype, "output",
                             port=name))
-    for m in group.members:
-        for pname, decl in m.type.params.items():
-            params.append(Param(f"{m.name}_{pname}", "scalar", HOST_TYPES[decl.type], "param",
-                                param=f"{m.name}.{pname}"))
     params.append(Param("tile", "scalar", "int32", "tile"))
     return params
+
+
+def group_constants(group) -> list[Param]:
+    """The members' parameters of a group's generated kernel, in member order then
+    declaration order: constants of the kernel's build, set as build options (-D) when the
+    program starts.  Each is the macro _m<i>_<parameter> for the group's i-th member (the
+    generator's own namespace: model names start with a letter).  Not a stencil's radius:
+    the kernel writes its window as a literal (fixed at build time, like the sizes)."""
+    return [Param(f"_m{i}_{pname}", "constant", HOST_TYPES[decl.type], "param",
+                  param=f"{m.name}.{pname}")
+            for i, m in enumerate(group.members) for pname, decl in m.type.params.items()
+            if not (m.type.fusable.form == "stencil" and pname == m.type.fusable.radius)]

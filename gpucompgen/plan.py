@@ -150,6 +150,9 @@ class Program:
     var: str
     file: str
     users: str
+    # a generated kernel's constants, set as build options -D NAME=VALUE: its members'
+    # parameters (kind "constant"; name the macro, param the model's 'component.param')
+    defines: tuple[Argument, ...] = ()
 
 
 @dataclass(frozen=True)

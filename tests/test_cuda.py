@@ -295,7 +295,7 @@ class CudaKernels:
         ports = {p: f"m_{p}" for p in ctype.inputs}
         tile, bx, by = setting
         global_size, local_size = fused.launch_geometry(group, tile, bx, by)
-        arguments = fused.launch_arguments(group, ports, oname, params, tile)
+        arguments = fused.launch_arguments(group, ports, oname, tile)
         dtype = np.dtype(DTYPES[oport.dtype][0])
         shape = shapes[oname] + ((oport.channels,) if oport.channels > 1 else ())
 

@@ -15,7 +15,7 @@ import math
 import re
 from dataclasses import dataclass, field, replace
 
-from ..convention import group_parameters, kernel_parameters
+from ..convention import group_constants, group_parameters, kernel_parameters
 from ..ir import AdapterNode, ComponentNode, GroupNode, System
 from ..model import DTYPES, ComponentType, Endpoint
 from ..plan import (
@@ -244,6 +244,19 @@ def kernel_class(t: ComponentType, file: str, group: GroupNode | None = None) ->
         grid=t.grid, rows=t.cover == "rows")
 
 
+def param_argument(node: ComponentNode, p) -> Argument:
+    """A parameter's value as the kernel takes it: an argument of a hand kernel, a
+    constant (build option) of a group's generated kernel (p.param 'member.param')."""
+    group = isinstance(node, GroupNode)
+    owner, pname = (node.member(p.param.split(".")[0]), p.param.split(".")[1]) \
+        if group else (node, p.param)
+    host = p.dtype
+    value = owner.params[pname]
+    value = float(value) if host == "float32" else int(value)
+    return Argument(p.name, p.kind, host_type=host, value=value,
+                    param=f"{owner.name}.{pname}")
+
+
 def launch(system: System, node: ComponentNode, program: str) -> Launch:
     """The kernel launch of a GPU component: arguments in convention order, sizes decided."""
     s = system.settings[node.name]
@@ -262,13 +275,7 @@ def launch(system: System, node: ComponentNode, program: str) -> Launch:
             args.append(Argument(p.name, "scalar", port=p.port, host_type="int32",
                                  value=getattr(data, p.dim)))
         elif p.role == "param":
-            owner, pname = (node.member(p.param.split(".")[0]), p.param.split(".")[1]) \
-                if group else (node, p.param)
-            host = p.dtype
-            value = owner.params[pname]
-            value = float(value) if host == "float32" else int(value)
-            args.append(Argument(p.name, "scalar", host_type=host, value=value,
-                                 param=f"{owner.name}.{pname}"))
+            args.append(param_argument(node, p))
         else:  # the tile
             args.append(Argument(p.name, "scalar", host_type="int32", value=s.tile))
     grid = system.data(Endpoint(node.name, t.grid))
@@ -278,6 +285,13 @@ def launch(system: System, node: ComponentNode, program: str) -> Launch:
                   (s.block_x, s.block_y, s.block_z),
                   (groups_x * s.block_x, groups_y * s.block_y, s.block_z), s.source,
                   resident_threads(system, node.name))
+
+
+def _defines(group: GroupNode | None) -> tuple[Argument, ...]:
+    """The build options of a group's generated kernel: its members' parameters."""
+    if group is None:
+        return ()
+    return tuple(param_argument(group, p) for p in group_constants(group))
 
 
 def lower(system: System) -> ProgramPlan:
@@ -305,6 +319,7 @@ def lower(system: System) -> ProgramPlan:
     imports, user_classes = _imports(system, files, functions, types)
     users, why = _program_users(system, gpu_types)
     groups = {g.type.name: g for g in system.kernel_groups}
+    groups_by_key = {_type_key(g.type): g for g in system.kernel_groups}
     return ProgramPlan(
         system=system.name, mode=system.mode, execution=system.execution,
         device_name=system.device.name, zero_copy=system.zero_copy,
@@ -312,7 +327,8 @@ def lower(system: System) -> ProgramPlan:
         programs=tuple(Program(programs[_type_key(m[0])], files[lib_key(m[0])],
                                ", ".join(f"{users[_type_key(t)]} "
                                          f"({t.name}{why.get(_type_key(t), '')})"
-                                         for t in m))
+                                         for t in m),
+                               _defines(groups_by_key.get(_type_key(m[0]))))
                        for m in sharing.values()),
         imports=tuple(sorted(imports)), user_classes=tuple(user_classes),
         kernel_classes=tuple(kernel_class(t, files[lib_key(t)], groups.get(t.name))

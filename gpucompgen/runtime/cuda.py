@@ -56,7 +56,7 @@ from .monitor import Monitor
 from .overrides import Param, param_values
 from .pipeline import FrameFailure, stream_in_flight
 from .profiling import Profile
-from .programs import clean_build_log, read_kernel_file
+from .programs import clean_build_log, define_options, read_kernel_file
 from .sizes import Size
 
 __all__ = [
@@ -481,9 +481,11 @@ class CudaProgram:
 
 
 def build_program(context: CudaContext, path: Path, component: str,
-                  options: tuple[str, ...] = ()) -> CudaProgram:
+                  options: tuple[str, ...] = (), defines: dict | None = None) -> CudaProgram:
     """Compile one .cu file for the device's architecture (cached on disk) and load it;
-    a failure names the component and file and gives NVRTC's messages."""
+    a failure names the component and file and gives NVRTC's messages.  defines: the
+    kernel's constants as -D options, as for OpenCL (programs.define_options)."""
+    options = (*options, *define_options(defines))
     path = Path(path)
     source = read_kernel_file(path, component)
     arch = context.device.arch

@@ -25,6 +25,7 @@ from .programs import (
     _name_unnamed_source,
     _split_header,
     clean_build_log,
+    define_options,
     read_kernel_file,
 )
 
@@ -348,12 +349,15 @@ def build_source(context, source: str, options: tuple[str, ...] = ()):
         return cl.Program(context, source).build(options=list(options))
 
 
-def build_program(context, path: Path, component: str, options: tuple[str, ...] = ()):
+def build_program(context, path: Path, component: str, options: tuple[str, ...] = (),
+                  defines: dict | None = None):
     """Build one kernel file once; a failure names the component and file and gives the
     compiler's messages once, as file:line:col (a #line directive makes the compiler
-    name the kernel file and its own line numbers)."""
+    name the kernel file and its own line numbers).  defines: the kernel's constants
+    (programs.define_options), set as build options."""
     import pyopencl as cl
 
+    options = (*options, *define_options(defines))
     path = Path(path)
     source = read_kernel_file(path, component)
     header, body = _split_header(source)

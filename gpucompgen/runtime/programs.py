@@ -112,3 +112,32 @@ def read_kernel_file(path: Path, component: str) -> str:
     except UnicodeDecodeError as exc:
         raise PipelineError(f"{component}: kernel file {path} is not UTF-8 text "
                             f"(byte {exc.start:,})") from None
+
+
+def c_literal(value, c_type: str) -> str:
+    """A parameter's value as an OpenCL C (and CUDA C++) literal of c_type ('int' or
+    'float'): a float32 by its shortest decimal that reads back as the same float32, the
+    value the kernel argument np.float32(value) had; negative values in parentheses, so
+    that the macro is one operand wherever it stands."""
+    import numpy as np
+
+    if c_type == "float":
+        v = np.float32(value)
+        if not np.isfinite(v):
+            raise ValueError(f"no literal for the float {value!r}: parameters are finite")
+        text = np.format_float_positional(v, unique=True, trim="0") \
+            if 1e-4 <= abs(float(v)) < 1e16 or v == 0 else \
+            np.format_float_scientific(v, unique=True, trim="0")
+        text = text.replace("+", "") + ("f" if "e" in text or "." in text else ".0f")
+    else:
+        text = str(int(value))
+    return f"({text})" if text.startswith("-") else text
+
+
+def define_options(defines: dict | None) -> tuple[str, ...]:
+    """Build options -D NAME=VALUE for a kernel's constants: {name: np.int32 or
+    np.float32 value} (the generated program states each one with its type)."""
+    import numpy as np
+
+    return tuple(f"-D{name}={c_literal(v, 'float' if isinstance(v, np.floating) else 'int')}"
+                 for name, v in (defines or {}).items())

@@ -13,7 +13,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from ...convention import Param
+from ...convention import HOST_TYPES, Param
+from ...convention import group_constants as _group_constants
 from ...convention import group_parameters as _group_parameters
 from ...convention import kernel_parameters as _kernel_parameters
 
@@ -27,6 +28,8 @@ C_TYPES = {
     "uint32": "uint",
     "float32": "float",
 }
+# parameter type -> (OpenCL C scalar type, numpy conversion used by the host)
+PARAM_C_TYPES = {t: (C_TYPES[h], f"np.{h}") for t, h in HOST_TYPES.items()}
 
 
 @dataclass(frozen=True)
@@ -34,7 +37,7 @@ class KernelParam:
     """One parameter of a kernel, as the convention requires it."""
 
     name: str  # the conventional name (the kernel may call it anything)
-    kind: str  # "buffer" | "scalar"
+    kind: str  # "buffer" | "scalar" | "constant" (a build option: group_constants)
     c_type: str  # element type of a buffer, or the scalar's type
     role: str  # "input" | "output" | "size" | "param" | "tile"
     port: str = ""  # the port a buffer or size belongs to
@@ -68,3 +71,9 @@ def group_parameters(group) -> list[KernelParam]:
     """The parameter list of a fused group's generated kernel (see
     gpucompgen.convention.group_parameters)."""
     return [_spelled(p) for p in _group_parameters(group)]
+
+
+def group_constants(group) -> list[KernelParam]:
+    """The members' parameters of a group's generated kernel, as build constants (see
+    gpucompgen.convention.group_constants)."""
+    return [_spelled(p) for p in _group_constants(group)]

@@ -197,8 +197,8 @@ def with_model_paths(system: System, plan: ProgramPlan, model_dir: str) -> Progr
 
 @dataclass(frozen=True)
 class Settable:
-    """A parameter the program's --set may change when it starts: one that no size,
-    requirement or compiled kernel depends on."""
+    """A parameter the program's --set may change when it starts: one that no size or
+    requirement depends on (a generated kernel takes it as a build option)."""
 
     key: str  # 'component.param'
     type: str  # the declaration's type
@@ -263,7 +263,17 @@ def with_settable_params(system: System, plan: ProgramPlan) -> tuple[ProgramPlan
                     a = dataclasses.replace(a, value=ParamRef(a.param))  # noqa: PLW2901
             args.append(a)
         launches.append(dataclasses.replace(la, arguments=tuple(args)))
-    plan = dataclasses.replace(plan, parts=parts, launches=launches)
+    members = {m.name: m for g in system.kernel_groups for m in g.members}
+    programs = []
+    for prog in plan.programs:
+        defines = []
+        for a in prog.defines:  # a group's constants: its members' parameters
+            owner, pname = a.param.split(".", 1)
+            if declare(a.param, members[owner].type, pname, a.value):
+                a = dataclasses.replace(a, value=ParamRef(a.param))  # noqa: PLW2901
+            defines.append(a)
+        programs.append(dataclasses.replace(prog, defines=tuple(defines)))
+    plan = dataclasses.replace(plan, parts=parts, launches=launches, programs=programs)
     return plan, sorted(settable.values(), key=lambda s: s.key)
 
 
