@@ -14,10 +14,12 @@
 // The rows a work-group covers: tile whole rows from get_group_id(1) * tile, its block_y
 // threads taking them in turn, its block_x threads each the run [x0, x1) of the row's n
 // pixels (or elements).
-#define FOR_EACH_ROW(height, n)                                                        \
+#define ROWS_AND_RUN(height, n)                                                        \
     const int y0 = get_group_id(1) * tile, y_end = min(y0 + tile, height);             \
     const int per = ((n) + (int)get_local_size(0) - 1) / (int)get_local_size(0);       \
-    const int x0 = min((int)get_local_id(0) * per, (n)), x1 = min(x0 + per, (n));      \
+    const int x0 = min((int)get_local_id(0) * per, (n)), x1 = min(x0 + per, (n))
+#define FOR_EACH_ROW(height, n)                                                        \
+    ROWS_AND_RUN(height, n);                                                           \
     for (int y = y0 + get_local_id(1); y < y_end; y += get_local_size(1))
 
 // Built-ins (floor, min, clamp) are library calls on PoCL that keep a loop scalar; these
@@ -70,55 +72,119 @@ inline void linear_axis(const int d, const int dst, const int src, int *first, i
     *second = clamp_int(s + 1, 0, src - 1);
 }
 
-// Row y of the resized frame (rw pixels of channels elements), pixels [x0, x1).  Always
-// inlined: channels a constant, its loops unroll and the loop over x vectorizes (PoCL did
-// not inline it by itself; INTER_NEAREST took 0.115 ms so, 0.057 inlined).
-__attribute__((always_inline)) inline void resize_row(
+// INTER_NEAREST: row y of the resized frame (rw pixels of channels elements), pixels
+// [x0, x1).  Always inlined: channels a constant, its loops unroll and the loop over x
+// vectorizes (PoCL did not inline it by itself; it took 0.115 ms so, 0.057 inlined).
+__attribute__((always_inline)) inline void resize_nearest_row(
     __global const uchar *restrict image, const int height, const int width,
     __global uchar *restrict resized, const int rh, const int rw, const int y, const int x0,
-    const int x1, const int channels, const int interpolation)
+    const int x1, const int channels)
 {
     __global uchar *out = resized + (size_t)y * rw * channels;
-    if (interpolation == 0) {
-        __global const uchar *row = image + (size_t)nearest_index(y, rh, height) * width
-                                    * channels;
-        for (int x = x0; x < x1; x++) {
-            const int i = channels * nearest_index(x, rw, width);
-            for (int c = 0; c < channels; c++)
-                out[channels * x + c] = row[i + c];
-        }
-        return;
-    }
-    int sy0, sy1, wy;
-    linear_axis(y, rh, height, &sy0, &sy1, &wy);
-    __global const uchar *r0 = image + (size_t)sy0 * width * channels;
-    __global const uchar *r1 = image + (size_t)sy1 * width * channels;
-    // along the run, the source position moves by 2 width / (2 rw) a pixel: its floor s
-    // and remainder frac (0 <= frac < 2 rw) step without a division
-    const int den = 2 * rw, step = (2 * width) / den, step_frac = (2 * width) % den;
-    int num = (2 * x0 + 1) * width - rw;
-    int s = floor_div(num, den), frac = num - s * den;
-    const float inv = 1.0f / (float)den;
+    __global const uchar *row = image + (size_t)nearest_index(y, rh, height) * width * channels;
     for (int x = x0; x < x1; x++) {
-        const int n = frac * 2048 + rw;  // the weight: n / den, by a reciprocal, corrected
-        int wx = (int)((float)n * inv);
-        wx = wx * den > n ? wx - 1 : (wx + 1) * den <= n ? wx + 1 : wx;
-        const int a = channels * clamp_int(s, 0, width - 1);
-        const int b = channels * clamp_int(s + 1, 0, width - 1);
-        for (int c = 0; c < channels; c++) {
-            const int top = (2048 - wx) * r0[a + c] + wx * r0[b + c];
-            const int bottom = (2048 - wx) * r1[a + c] + wx * r1[b + c];
-            out[channels * x + c] = (uchar)(((2048 - wy) * top + wy * bottom + (1 << 21))
-                                            >> 22);
+        const int i = channels * nearest_index(x, rw, width);
+        for (int c = 0; c < channels; c++)
+            out[channels * x + c] = row[i + c];
+    }
+}
+
+// INTER_LINEAR, rows y_first, y_first + y_step, ... < y_end of the resized frame, each
+// blended from its two source rows r0, r1 (weight wy of r1 in 1/2048, linear_axis).
+
+// Pixels [x0, x1) when the width shrinks by the whole factor k (width = k rw): output x
+// then sits at source position k x + (k - 1) / 2, the same weight every pixel (odd k: 0,
+// pixel k x + (k - 1) / 2 alone; even k: 1024, pixels k x + k / 2 - 1 and k x + k / 2,
+// never clamped), so the loads are strided, not gathered, and the loop vectorizes.
+// OpenCV takes a fast path here too (its INTER_AREA kernel for a factor of 2).
+__attribute__((always_inline)) inline void resize_linear_whole(
+    __global const uchar *restrict image, const int height, const int width,
+    __global uchar *restrict resized, const int rh, const int rw, const int y_first,
+    const int y_end, const int y_step, const int x0, const int x1, const int channels,
+    const int k)
+{
+    const int first = (k - 1) / 2, second = k / 2, wx = k % 2 == 0 ? 1024 : 0;
+    for (int y = y_first; y < y_end; y += y_step) {
+        int sy0, sy1, wy;
+        linear_axis(y, rh, height, &sy0, &sy1, &wy);
+        __global const uchar *r0 = image + (size_t)sy0 * width * channels;
+        __global const uchar *r1 = image + (size_t)sy1 * width * channels;
+        __global uchar *out = resized + (size_t)y * rw * channels;
+        for (int x = x0; x < x1; x++)
+            for (int c = 0; c < channels; c++) {
+                const int a = channels * (k * x + first) + c, b = channels * (k * x + second) + c;
+                const int top = (2048 - wx) * r0[a] + wx * r0[b];
+                const int bottom = (2048 - wx) * r1[a] + wx * r1[b];
+                out[channels * x + c] = (uchar)(((2048 - wy) * top + wy * bottom + (1 << 21))
+                                                >> 22);
+            }
+    }
+}
+
+// The output pixels of a run whose source columns and weights a thread computes at once
+#define RESIZE_CHUNK 32
+
+// Pixels [x0, x1), any widths (OpenCV's order of work: separable, what depends on x
+// computed once for every row): for each chunk of the run, a table per element (channel)
+// of its two source elements and the weight of the second, then each row a loop over the
+// chunk's elements that only gathers, blends and stores.
+__attribute__((always_inline)) inline void resize_linear_table(
+    __global const uchar *restrict image, const int height, const int width,
+    __global uchar *restrict resized, const int rh, const int rw, const int y_first,
+    const int y_end, const int y_step, const int x0, const int x1, const int channels)
+{
+    int first[RESIZE_CHUNK * 3], second[RESIZE_CHUNK * 3], weight[RESIZE_CHUNK * 3];
+    for (int xc = x0; xc < x1; xc += RESIZE_CHUNK) {
+        const int n = min_int(x1 - xc, RESIZE_CHUNK) * channels;
+        for (int e = 0; e < n; e++) {
+            const int x = xc + e / channels, c = e % channels;
+            int s0, s1, w;
+            linear_axis(x, rw, width, &s0, &s1, &w);
+            first[e] = channels * s0 + c;
+            second[e] = channels * s1 + c;
+            weight[e] = w;
         }
-        s += step;
-        frac += step_frac;
-        if (frac >= den) {
-            frac -= den;
-            s++;
+        for (int y = y_first; y < y_end; y += y_step) {
+            int sy0, sy1, wy;
+            linear_axis(y, rh, height, &sy0, &sy1, &wy);
+            __global const uchar *r0 = image + (size_t)sy0 * width * channels;
+            __global const uchar *r1 = image + (size_t)sy1 * width * channels;
+            __global uchar *out = resized + ((size_t)y * rw + xc) * channels;
+            for (int e = 0; e < n; e++) {
+                const int top = (2048 - weight[e]) * r0[first[e]] + weight[e] * r0[second[e]];
+                const int bottom = (2048 - weight[e]) * r1[first[e]] + weight[e] * r1[second[e]];
+                out[e] = (uchar)(((2048 - wy) * top + wy * bottom + (1 << 21)) >> 22);
+            }
         }
     }
 }
+
+// The factors of resize_linear_whole compiled for (a constant k: constant strides)
+#define RESIZE_LINEAR(channels)                                                        \
+    const int k = image_width % resized_width == 0 ? image_width / resized_width : 0;  \
+    const int yf = y0 + get_local_id(1), ys = get_local_size(1);                       \
+    if (k == 2)                                                                        \
+        resize_linear_whole(image, image_height, image_width, resized, resized_height, \
+                            resized_width, yf, y_end, ys, x0, x1, channels, 2);        \
+    else if (k == 4)                                                                   \
+        resize_linear_whole(image, image_height, image_width, resized, resized_height, \
+                            resized_width, yf, y_end, ys, x0, x1, channels, 4);        \
+    else if (k == 3)                                                                   \
+        resize_linear_whole(image, image_height, image_width, resized, resized_height, \
+                            resized_width, yf, y_end, ys, x0, x1, channels, 3);        \
+    else                                                                               \
+        resize_linear_table(image, image_height, image_width, resized, resized_height, \
+                            resized_width, yf, y_end, ys, x0, x1, channels)
+
+#define RESIZE_BODY(channels)                                                          \
+    if (interpolation == 0) {                                                          \
+        FOR_EACH_ROW(resized_height, resized_width)                                    \
+            resize_nearest_row(image, image_height, image_width, resized,              \
+                               resized_height, resized_width, y, x0, x1, channels);    \
+    } else {                                                                           \
+        ROWS_AND_RUN(resized_height, resized_width);                                   \
+        RESIZE_LINEAR(channels);                                                       \
+    }
 
 __kernel void resize(__global const uchar *restrict image,
                      __global uchar *restrict resized,
@@ -127,9 +193,7 @@ __kernel void resize(__global const uchar *restrict image,
                      const int width, const int height, const int interpolation,
                      const int tile)
 {
-    FOR_EACH_ROW(resized_height, resized_width)
-        resize_row(image, image_height, image_width, resized, resized_height, resized_width,
-                   y, x0, x1, 3, interpolation);
+    RESIZE_BODY(3)
 }
 
 __kernel void resize_gray(__global const uchar *restrict image,
@@ -139,9 +203,7 @@ __kernel void resize_gray(__global const uchar *restrict image,
                           const int width, const int height, const int interpolation,
                           const int tile)
 {
-    FOR_EACH_ROW(resized_height, resized_width)
-        resize_row(image, image_height, image_width, resized, resized_height, resized_width,
-                   y, x0, x1, 1, interpolation);
+    RESIZE_BODY(1)
 }
 
 // Row y of the cropped frame: elements [x0, x1) of a row of n = width x channels, copied
