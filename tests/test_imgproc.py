@@ -348,7 +348,7 @@ def test_bilinear_resize_every_path_of_the_kernel(type_name, kernels):
                                                  (29, 3, 9, 13), (70, 4, 33, 8), (3, 4, 1, 1),
                                                  (40, 1, 12, 5), (13, 5, 10, 10),
                                                  (45, 1.5, 20, 31), (100, 0.5, 6, 2),
-                                                 (100, 2.5, 5, 3)):
+                                                 (100, 2.5, 5, 3), (100, 4.5, 5, 3)):
         width = int(out_width * factor)
         shape = (height, width) + ((channels,) if channels > 1 else ())
         image = rng.integers(0, 256, shape, dtype=np.uint8)
