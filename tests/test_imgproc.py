@@ -334,6 +334,32 @@ def test_random_frames_gpu_equals_cpu_and_opencv(type_name, kernels):
     check()
 
 
+@pytest.mark.parametrize("type_name", ["Resize", "ResizeGray"])
+def test_bilinear_resize_every_path_of_the_kernel(type_name, kernels):
+    """Bilinear Resize's kernel takes a strided path when the width shrinks by a whole
+    factor 2, 3 or 4 and otherwise a table of source columns a chunk of the run, its rows
+    blended first into a buffer where the chunk's source span fits it, gathered straight
+    from the frame where not (geometry.cl): each path, with runs split across threads and
+    chunks (widths past RESIZE_CHUNK), equals the CPU form, and the CPU form stays within
+    1 of OpenCV."""
+    rng = np.random.default_rng(24)
+    channels = channels_of(type_name)
+    for out_width, factor, height, out_height in ((5, 2, 7, 3), (37, 2, 30, 15), (1, 2, 4, 4),
+                                                 (29, 3, 9, 13), (70, 4, 33, 8), (3, 4, 1, 1),
+                                                 (40, 1, 12, 5), (13, 5, 10, 10),
+                                                 (45, 1.5, 20, 31), (100, 0.5, 6, 2),
+                                                 (100, 2.5, 5, 3), (100, 4.5, 5, 3)):
+        width = int(out_width * factor)
+        shape = (height, width) + ((channels,) if channels > 1 else ())
+        image = rng.integers(0, 256, shape, dtype=np.uint8)
+        params = {"width": out_width, "height": out_height, "interpolation": 1}
+        cpu = cpu_kernels.CPU_IMPLEMENTATIONS[type_name](image, **params)
+        assert largest_difference(cpu, SPECS[type_name].opencv(image, **params)) <= 1
+        for setting in SETTINGS:
+            np.testing.assert_array_equal(kernels.run(type_name, [image], params, setting), cpu,
+                                          err_msg=f"{width}x{height} -> {params} {setting}")
+
+
 # -- the CPU functions' own checks -------------------------------------------------------
 def test_cpu_functions_reject_bad_inputs():
     image = np.zeros((4, 5, 3), np.uint8)
