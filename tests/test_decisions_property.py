@@ -220,6 +220,7 @@ def decisions_as_planned(system) -> None:
     """The placement and fusion the build chose are the ones its plan reports, with the
     figures that decided them, and none is estimated slower than its alternative."""
     from gpucompgen.ir import ComponentNode, GroupNode
+    from gpucompgen.passes.place import a_device
 
     placement, plan = system.placement, system.plan
     lines = {line.split(":")[0]: line for line in plan.placement}
@@ -230,9 +231,9 @@ def decisions_as_planned(system) -> None:
         line = lines[name]
         assert line.startswith(f"{name}: {side.upper()} (by {by}"), line
         if node.asked == "default":  # nobody asked: the device's class decides
-            assert by == (f"default for a {kind} device" if kind else "default"), line
+            assert by == (f"default for {a_device(kind)}" if kind else "default"), line
             assert kind or side == "gpu", line
-        if by == "auto" or by.startswith("default for a"):  # an estimate decided
+        if by == "auto" or by.startswith("default for "):  # an estimate decided
             cost = placement.costs[name]
             assert f"est. CPU {cost.cpu_s * 1e3:.3f} ms, GPU {cost.gpu_s * 1e3:.3f} ms" in line
     if placement.estimate_s is not None:  # the chosen placement is the least estimated

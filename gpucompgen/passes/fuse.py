@@ -221,7 +221,9 @@ def _ms(seconds: float) -> str:
 
 
 def _constants(system: System) -> str:
-    return f"constants for a {device_kind(system) or 'cpu'} device"
+    from .place import a_device
+
+    return f"constants for {a_device(device_kind(system) or 'cpu')}"
 
 
 def _reader(system: System, end: Endpoint) -> str:
@@ -296,8 +298,8 @@ def kernel_features(system: System, members: list[str] | set[str]) -> dict[str, 
     """What the kernel of members (one, or a group) does for a frame: element operations
     computed, elements loaded from memory (the group's inputs, once a read of each
     evaluation), elements stored (its output), launches (one), and taps: a stencil's
-    reads of a producer inside the group, each an evaluation of that producer's function
-    where the stencil alone would load a row it can vectorize."""
+    reads of a producer inside the group that computes, each a call of that producer's
+    function where the stencil alone would load a row it can vectorize."""
     count = evaluations(system, set(members))
     order = [n for n in system.order if n in members]
     root = system.nodes[order[-1]]
@@ -310,10 +312,24 @@ def kernel_features(system: System, members: list[str] | set[str]) -> dict[str, 
         ops += count[m] * arithmetic(node)
         loads += count[m] * outside
         if node.type.fusable.form == "stencil":
-            inside = sum(reads(node, p) for p in node.inputs) - outside
-            taps += count[m] * inside
+            taps += count[m] * sum(reads(node, p) for p in node.inputs
+                                   if (w := system.writer(Endpoint(m, p))) is not None
+                                   and w.component in members
+                                   and _computes(system, w.component, members))
     n = elements(root)
     return {"ops": n * ops, "loads": n * loads, "stores": n, "launches": 1, "taps": n * taps}
+
+
+def _computes(system: System, name: str, members) -> bool:
+    """Whether evaluating member name computes anything (arithmetic of its own or of a
+    member it reads): an index map over the group's inputs is only a load at another
+    address, which stays a load in a stencil's row."""
+    node = system.nodes[name]
+    if arithmetic(node):
+        return True
+    return any(w is not None and w.component in members and
+               _computes(system, w.component, members)
+               for w in (system.writer(Endpoint(name, p)) for p in node.inputs))
 
 
 def kernel_s(system: System, members: list[str] | set[str]) -> float:

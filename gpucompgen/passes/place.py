@@ -69,9 +69,14 @@ PLACEMENT_COSTS: dict[str, dict[str, float]] = {
 STATIC = PLACEMENT_COSTS[""]
 
 
+def a_device(kind: str) -> str:
+    """'a cpu device', 'an integrated-gpu device': how plan names a device class."""
+    return f"{'an' if kind[:1] in 'aeiou' else 'a'} {kind} device"
+
+
 def estimate_source(kind: str) -> str:
     """How plan names the estimate of a device class."""
-    return f"estimate for a {kind} device" if kind else "static estimate"
+    return f"estimate for {a_device(kind)}" if kind else "static estimate"
 
 
 @dataclass(frozen=True)
@@ -144,7 +149,7 @@ class Place(Pass):
             if node.asked == "auto":
                 by = "auto"
             elif node.asked == "default" and kind:
-                by = node.placed_by = f"default for a {kind} device"
+                by = node.placed_by = f"default for {a_device(kind)}"
             placement.decided[node.name] = (node.placement, by)
         system.placement = placement
         return system
