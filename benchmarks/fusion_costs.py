@@ -71,8 +71,8 @@ def fit(rows: list[tuple[list[float], float]]) -> np.ndarray:
 
 def main(argv=None) -> int:
     import cv2
-
     import pipelines as bench
+
     from gpucompgen import device as device_mod
     from gpucompgen.errors import Reporter
     from gpucompgen.passes import fuse

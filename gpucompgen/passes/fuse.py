@@ -247,7 +247,10 @@ def _reader(system: System, end: Endpoint) -> str:
 # each group the fuse pass chose, device time, by `python benchmarks/fusion_costs.py`
 # (it prints the row, and for every group its measurement beside the estimate;
 # docs/fusion.md has the figures).  load_s fitted 0: loads of a kernel's inputs move
-# with its operations (a read is both), so op_s carries them.  The GPU rows are not fitted
+# with its operations (a read is both), so op_s carries them.  tap_s is set from the
+# groups of a stencil behind a producer that computes (0.5 to 1.9 ns a tap measured: a
+# threshold under a dilation or a median, InRange under an erosion); the fit leaves it
+# loose, as every value from 0.2 to 1 ns decides those groups alike.  The GPU rows are not fitted
 # on a device yet: memory-bound element costs at an integrated GPU's (~100 GB/s) and a
 # discrete GPU's (~1 TB/s) bandwidth, and their launch costs.  "" (the 'portable' profile)
 # is scheduled as a CPU device is (backend/opencl/fused.py), so it takes the CPU row.
@@ -256,7 +259,7 @@ def _reader(system: System, end: Endpoint) -> str:
 FEATURES = {"launches": "launch_s", "ops": "op_s", "loads": "load_s", "stores": "store_s",
             "taps": "tap_s"}  # kernel_features() -> its constant
 FUSION_COSTS: dict[str, dict[str, float]] = {
-    "cpu": {"launch_s": 29e-6, "op_s": 2.2e-11, "load_s": 0.0, "store_s": 4.7e-11,
+    "cpu": {"launch_s": 33e-6, "op_s": 2.3e-11, "load_s": 0.0, "store_s": 4.3e-11,
             "tap_s": 5e-10},
     "integrated-gpu": {"launch_s": 20e-6, "op_s": 2e-12, "load_s": 1e-11, "store_s": 1e-11,
                        "tap_s": 4e-12},

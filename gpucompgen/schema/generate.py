@@ -20,9 +20,9 @@ from pathlib import Path
 from typing import Any
 
 from .. import device, model, sizeexpr
-from ..runtime.facts import KINDS
 from .. import fusable as fusable_forms
 from ..names import MAX_NAME, NAME_RE
+from ..runtime.facts import KINDS
 from . import MODEL, TYPES
 
 HERE = Path(__file__).resolve().parent
