@@ -31,6 +31,9 @@ from .passes.place import default_profile, sizes_text
 from .runtime import device_api
 
 TRANSFER_PROBE_BYTES = 64
+# a group and its members apart are timed in turn, this many rounds of `frames` each, and
+# each side's median kept: a burst of load falls on both sides, not on one
+GROUP_ROUNDS = 3
 
 
 def default_profile_path(model_path: Path, model) -> Path:
@@ -167,16 +170,11 @@ def measure_groups(model, facts, context, queue, apart_system, frames: int) -> l
     from .passes.pipeline import PIPELINE, new_system, run_pipeline
 
     flexible = [n for n, inst in model.components.items() if inst.type.flexible]
-    alone: dict[str, float] = {}
 
-    def kernel_alone(name: str) -> float:
-        if name not in alone:
-            node = apart_system.nodes[name]
-            inputs = {p: camera_frame(port.data.size.shape, port.data.dtype, i)
-                      for i, (p, port) in enumerate(node.inputs.items())}
-            alone[name] = _gpu_time(context, queue, apart_system, apart_system.plan, node,
-                                    inputs, frames)
-        return alone[name]
+    def kernel(stack, system, node):
+        inputs = {p: camera_frame(port.data.size.shape, port.data.dtype, i)
+                  for i, (p, port) in enumerate(node.inputs.items())}
+        return stack.enter_context(_kernel(context, queue, system, system.plan, node, inputs))
 
     measured: dict[frozenset, tuple[float, float]] = {}
     rows = []
@@ -190,10 +188,13 @@ def measure_groups(model, facts, context, queue, apart_system, frames: int) -> l
             break
         for g in new:
             names = [m.name for m in g.members]
-            inputs = {p: camera_frame(port.data.size.shape, port.data.dtype, i)
-                      for i, (p, port) in enumerate(g.inputs.items())}
-            fused = _gpu_time(context, queue, system, system.plan, g, inputs, frames)
-            apart = sum(kernel_alone(n) for n in names)
+            with contextlib.ExitStack() as stack:  # rounds alternate: load hits both alike
+                one = kernel(stack, system, g)
+                members = [kernel(stack, apart_system, apart_system.nodes[n]) for n in names]
+                rounds = [(one(frames), sum(m(frames) for m in members))
+                          for _ in range(GROUP_ROUNDS)]
+            fused = statistics.median(f for f, _ in rounds)
+            apart = statistics.median(a for _, a in rounds)
             measured[frozenset(names)] = (fused, apart)
             rows.append((g.name, names, group_sizes_text(apart_system, set(names)),
                          fused * 1e6, apart * 1e6))
@@ -271,6 +272,14 @@ def _median(frames: int, call, finish=None) -> float:
 
 
 def _gpu_time(context, queue, system, plan, node, inputs, frames) -> float:
+    with _kernel(context, queue, system, plan, node, inputs) as run:
+        return run(frames)
+
+
+@contextlib.contextmanager
+def _kernel(context, queue, system, plan, node, inputs):
+    """The node's kernel built and configured as a build would, with its inputs on the
+    device: yields run(frames) -> the median seconds of a launch, enqueue to finish."""
     import numpy as np
 
     from . import runtime
@@ -302,7 +311,8 @@ def _gpu_time(context, queue, system, plan, node, inputs, frames) -> float:
                      for a in la.arguments]
         comp.config_gpu(la.tile, la.local_size, la.global_size, arguments, la.settings_source)
         buffers = [api.filled_buffer(context, x) for x in inputs.values()]
-        return _median(frames, lambda: comp.execute(*buffers), lambda: api.finish(queue))
+        yield lambda frames: _median(frames, lambda: comp.execute(*buffers),
+                                     lambda: api.finish(queue))
     finally:
         comp.free_memory()
 
