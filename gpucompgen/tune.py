@@ -196,7 +196,10 @@ def measure_groups(model, facts, context, queue, apart_system, frames: int) -> l
             fused = statistics.median(f for f, _ in rounds)
             apart = statistics.median(a for _, a in rounds)
             measured[frozenset(names)] = (fused, apart)
-            rows.append((g.name, names, group_sizes_text(apart_system, set(names)),
+            label = g.name  # two groups may share first and last member: the label differs
+            while label in {r[0] for r in rows}:
+                label += "_"
+            rows.append((label, names, group_sizes_text(apart_system, set(names)),
                          fused * 1e6, apart * 1e6))
     return rows
 
