@@ -246,23 +246,24 @@ def _reader(system: System, end: Endpoint) -> str:
 # kernels on PoCL (2 cores): each kernel of benchmarks/pipelines.py's pipelines alone and
 # each group the fuse pass chose, device time, by `python benchmarks/fusion_costs.py`
 # (it prints the row, and for every group its measurement beside the estimate;
-# docs/fusion.md has the figures).  The fit cannot tell loads from operations (in the
-# library's snippets a read is both: it put 2.3e-11 on op_s, 0 on load_s); they are split
+# docs/fusion.md has the figures), refitted after the kernels took their members'
+# parameters as build constants.  The fit cannot tell loads from operations (in the
+# library's snippets a read is both: it put 1.4e-11 on op_s, 0 on load_s); they are split
 # evenly, deciding every measured group alike, so that an index map's reads, which are
 # loads only, still cost (40 reads of 40 reads... is refused).  tap_s is set from the
-# groups of a stencil behind a producer that computes (0.5 to 1.9 ns a tap measured: a
-# threshold under a dilation or a median, InRange under an erosion); the fit leaves it
-# loose, as every value from 0.2 to 1 ns decides those groups alike.  The GPU rows are not fitted
-# on a device yet: memory-bound element costs at an integrated GPU's (~100 GB/s) and a
-# discrete GPU's (~1 TB/s) bandwidth, and their launch costs.  "" (the 'portable' profile)
+# groups of a stencil behind a producer that computes (0.08 to 0.15 ns a tap measured:
+# InRange under an erosion, a gray conversion under a blur); every value from 0 to 0.5 ns
+# decides the measured groups alike.  The GPU rows are not fitted on a device yet:
+# memory-bound element costs at an integrated GPU's (~100 GB/s) and a discrete GPU's
+# (~1 TB/s) bandwidth, and their launch costs.  "" (the 'portable' profile)
 # is scheduled as a CPU device is (backend/opencl/fused.py), so it takes the CPU row.
 # To recalibrate: `python benchmarks/fusion_costs.py` on the device (PYOPENCL_CTX), paste
 # the row it prints under the device's class.
 FEATURES = {"launches": "launch_s", "ops": "op_s", "loads": "load_s", "stores": "store_s",
             "taps": "tap_s"}  # kernel_features() -> its constant
 FUSION_COSTS: dict[str, dict[str, float]] = {
-    "cpu": {"launch_s": 33e-6, "op_s": 1.2e-11, "load_s": 1.2e-11, "store_s": 4.3e-11,
-            "tap_s": 5e-10},
+    "cpu": {"launch_s": 20e-6, "op_s": 0.7e-11, "load_s": 0.7e-11, "store_s": 4.3e-11,
+            "tap_s": 1e-10},
     "integrated-gpu": {"launch_s": 20e-6, "op_s": 2e-12, "load_s": 1e-11, "store_s": 1e-11,
                        "tap_s": 4e-12},
     "discrete-gpu": {"launch_s": 10e-6, "op_s": 2e-13, "load_s": 1e-12, "store_s": 1e-12,
