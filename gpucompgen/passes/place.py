@@ -398,6 +398,13 @@ def _read_profile(system: System, rep: Reporter, required: bool) -> dict | None:
                   "the profile lists no components",
                   f"rewrite it with 'gpucompgen tune {model.display}'")
         return result
+    _read_components(system, rep, doc, comps, result, number)
+    return result
+
+
+def _read_components(system: System, rep: Reporter, doc, comps: dict, result: dict,
+                     number) -> None:
+    """Each flexible component's CPU and kernel times, where measured at today's sizes."""
     for name, entry in comps.items():
         node = system.nodes.get(name) if isinstance(name, str) else None
         if not isinstance(node, ComponentNode) or not node.type.flexible:
@@ -420,7 +427,6 @@ def _read_profile(system: System, rep: Reporter, required: bool) -> dict | None:
             continue
         if cpu is not None and gpu is not None:
             result["components"][name] = (cpu * 1e-6, gpu * 1e-6)
-    return result
 
 
 def _read_groups(system: System, rep: Reporter, doc, groups: dict, result: dict,
