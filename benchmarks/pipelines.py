@@ -17,9 +17,14 @@ cv2 calls:
 - pointwise: gray -> scale -> threshold (trunc) -> scale -> threshold
 
 The frames are a pan across a photograph (scikit-image's astronaut, resized; 2 pixels a
-frame, 16 frames replayed), not noise. Variants: the default build, --fusion off, every
-component on the CPU (placement: cpu: the library's CPU forms, OpenCV), placement: auto
-(the static estimate) and placement: auto after `gpucompgen tune` (its profile). All run in ONE process, rounds interleaved (each round runs every variant of every
+frame, 16 frames replayed), not noise. Every variant is built for the device at hand
+(`--device auto`, as `gpucompgen run` builds: the OpenCL device PYOPENCL_CTX selects, its
+class deciding placement and the fusion cost model's constants). Variants: the default
+build (no placement, no fusion option: placed for the device's class), every component on
+the device (placement: gpu) with fusion auto and with --fusion off, every component on the
+CPU (placement: cpu: the library's CPU forms, OpenCV), placement: auto after
+`gpucompgen tune` (its profile: components and groups measured), and every component on
+the device after `tune` (the groups it measured slower than their members are refused). All run in ONE process, rounds interleaved (each round runs every variant of every
 pipeline and size, then cv2), so load from other programs falls on all of them. A
 variant's time of a frame is the time between two frames reaching the end of its loop
 (building and initializing are not counted); cv2's the time of one frame's calls. Every
@@ -89,12 +94,13 @@ PIPELINES = {
         "scale1.scaled -> thr1.image", "thr1.thresholded -> scale2.image",
         "scale2.scaled -> thr2.image", "thr2.thresholded -> sink.mask"]),
 }
-VARIANTS = {  # name -> (platform lines, fusion)
+VARIANTS = {  # name -> (platform lines, fusion); every one built for the device at hand
     "default": ("", None),
-    "fusion off": ("", "off"),
+    "device": ("placement: gpu", None),
+    "device fusion off": ("placement: gpu", "off"),
     "all CPU": ("placement: cpu", None),
-    "placement auto": ("placement: auto", None),
     "auto after tune": ("placement: auto", None),  # `gpucompgen tune MODEL` first
+    "device after tune": ("placement: gpu", None),  # tune's groups refuse the losers
 }
 
 
@@ -259,11 +265,16 @@ def main(argv=None) -> int:
                     folder.mkdir()
                     model = folder / "model.yaml"
                     model.write_text(model_text(name, width, height, path, line))
-                    if variant == "auto after tune":  # the profile auto then reads
+                    if variant.endswith("after tune"):  # the profile the build then reads
                         tuned(model, args.tune_frames)
-                    result = compile_model(model, folder / "out", fusion=fusion)
+                    result = compile_model(model, folder / "out", device="auto",
+                                           fusion=fusion)
                     write(result, folder / "out")
-                    if variant.startswith(("placement auto", "auto after")):
+                    groups = ["+".join(m.name for m in g.members) for g in result.system.groups]
+                    if groups:
+                        placed.append(f"{variant}, {name} {width}x{height}: groups "
+                                      f"{', '.join(groups)}")
+                    if variant in ("default", "auto after tune"):
                         on_gpu = [n for n in PIPELINES[name][1]
                                   if result.system.component(n).placement == "gpu"]
                         placed.append(f"{variant}, {name} {width}x{height}: "

@@ -46,8 +46,8 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 #       -> mirror3 (VerticalMirror, index_map)
 #       -> mirror4 (VerticalMirror, index_map)
 #       -> mirror5 (VerticalMirror, index_map)
-#       estimate: 5,991,968 element operations a frame as one kernel, 53,847,712 element
-#       operations apart (9.0x)
+#       estimate: 0.169 ms a frame as one kernel, 0.846 ms apart (5.0x; constants for a cpu
+#       device)
 
 from __future__ import annotations
 

@@ -50,7 +50,9 @@ def _common(p: argparse.ArgumentParser,
     p.add_argument("--device", metavar="PROFILE",
                    help="device facts to plan for: a profile name, or 'auto' for the OpenCL "
                         "device programs use (PYOPENCL_CTX, else the first that compiles "
-                        f"kernels; see 'gpucompgen devices'); default: {device_default}")
+                        "kernels; see 'gpucompgen devices'); its class (cpu, integrated-gpu, "
+                        "discrete-gpu) places the flexible components nobody placed and sets "
+                        f"the fusion cost model's constants; default: {device_default}")
     p.add_argument("--execution", choices=EXECUTIONS,
                    help="parallel: independent GPU work on separate queues, waiting only where "
                         "the host reads a result; sequential: one queue, blocking copies "
@@ -576,7 +578,8 @@ def cmd_tune(args) -> int:
         return 2
     out = output_path(args.model, load_system(args.model), args.output)  # before measuring
     try:
-        text, rows = tune(args.model, args.frames, str(args.model))
+        groups: list = []
+        text, rows = tune(args.model, args.frames, str(args.model), groups)
     except FunctionFailed as exc:  # the user's code failed, as in a failed run
         print(f"gpucompgen tune: error: {exc}", file=sys.stderr)
         return 1
@@ -588,6 +591,10 @@ def cmd_tune(args) -> int:
     print(f"{'component':<{width}}  {'CPU us':>10}  {'GPU us':>10}")
     for name, _, _, cpu_us, gpu_us in rows:
         print(f"{name:<{width}}  {cpu_us:>10,.1f}  {gpu_us:>10,.1f}")
+    for name, members, _, fused_us, apart_us in groups:
+        verdict = "kept" if fused_us < apart_us else "refused: no faster than its members"
+        print(f"group {name} ({', '.join(members)}): {fused_us:,.1f} us as one kernel, "
+              f"{apart_us:,.1f} us apart, {verdict}")
     print(f"wrote {out}")
     return 0
 

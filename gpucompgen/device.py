@@ -1,8 +1,12 @@
 """Device facts as plain data, so allocation can be planned for devices we do not have.
 
 A model names a profile (``device: portable``), or gives facts (``device: {profile:
-portable, max_work_group_size: 128}``); ``gpucompgen build --device auto`` reads the
-OpenCL device that ``PYOPENCL_CTX`` selects.  The build result depends only on these facts,
+portable, max_work_group_size: 128}``, or only the device's class: ``device: {profile:
+portable, kind: cpu}``); ``gpucompgen build --device auto`` reads the OpenCL device that
+``PYOPENCL_CTX`` selects.  The class (``kind``: cpu, integrated-gpu, discrete-gpu) decides
+where flexible components run by default and the fusion cost model's constants; the
+'portable' profile has none (any device): its build keeps every flexible component on the
+GPU by default, as the checked-in examples are.  The build result depends only on these facts,
 never on the machine that runs the generator, so checked-in output is reproducible.
 """
 
@@ -12,7 +16,7 @@ from dataclasses import fields, replace
 from typing import Any
 
 from .errors import Pos, Reporter, did_you_mean
-from .runtime.facts import DeviceFacts
+from .runtime.facts import KINDS, DeviceFacts
 
 KiB, MiB, GiB = 1 << 10, 1 << 20, 1 << 30
 
@@ -20,22 +24,22 @@ KiB, MiB, GiB = 1 << 10, 1 << 20, 1 << 30
 PROFILES: dict[str, DeviceFacts] = {
     # What every OpenCL 1.2 GPU and CPU device offers: safe default for checked-in code.
     "portable": DeviceFacts("portable OpenCL 1.2 device", 8, 256, (256, 256, 64), 32 * KiB,
-                            1 * GiB, 256 * MiB, False, 2048),
+                            1 * GiB, 256 * MiB, False, 2048, ""),
     # PoCL on a CPU: host memory is device memory.
     "pocl-cpu": DeviceFacts("PoCL CPU device", 2, 4096, (4096, 4096, 4096), 4 * MiB,
-                            8 * GiB, 4 * GiB, True, 4096),
+                            8 * GiB, 4 * GiB, True, 4096, "cpu"),
     # The paper's evaluation platform: an NVIDIA Kepler GPU (GK104-class).
     "nvidia-kepler": DeviceFacts("NVIDIA Kepler GPU", 8, 1024, (1024, 1024, 64), 48 * KiB,
-                                 2 * GiB, 512 * MiB, False, 2048),
+                                 2 * GiB, 512 * MiB, False, 2048, "discrete-gpu"),
     # An embedded board with an integrated GPU (Jetson-class): unified memory.
     "embedded-igpu": DeviceFacts("embedded integrated GPU", 2, 1024, (1024, 1024, 64),
-                                 48 * KiB, 4 * GiB, 1 * GiB, True, 2048),
+                                 48 * KiB, 4 * GiB, 1 * GiB, True, 2048, "integrated-gpu"),
     # A small mobile GPU (Mali-class): small work-groups.
     "mobile-gpu": DeviceFacts("small mobile GPU", 2, 64, (64, 64, 64), 32 * KiB, 1 * GiB,
-                              256 * MiB, True, 384),
+                              256 * MiB, True, 384, "integrated-gpu"),
     # A large discrete GPU (Hopper-class).
     "nvidia-hopper": DeviceFacts("NVIDIA Hopper GPU", 132, 1024, (1024, 1024, 64), 48 * KiB,
-                                 80 * GiB, 20 * GiB, False, 2048),
+                                 80 * GiB, 20 * GiB, False, 2048, "discrete-gpu"),
 }
 
 FACT_KEYS = tuple(f.name for f in fields(DeviceFacts))
@@ -60,6 +64,9 @@ def _fact_problem(key: str, value: Any) -> str:
         return ""
     if key == "host_unified_memory":
         return "" if isinstance(value, bool) else "host_unified_memory must be true or false"
+    if key == "kind":
+        return "" if value in KINDS else (
+            f"device kind must be one of {', '.join(KINDS)}, not {value!r}")
     low, high = FACT_RANGES[key]
     if key == "max_work_item_sizes":
         if not (isinstance(value, list) and len(value) == 3 and all(

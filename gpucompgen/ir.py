@@ -75,8 +75,9 @@ class ComponentNode(Node):
     placement: str = "cpu"  # "gpu" | "cpu"
     order: int = 0  # position in the model: ties in the run order follow it
     fuse: bool = True  # the model's 'fuse: false' keeps it out of every group
-    # a flexible component: what was asked ("gpu" | "cpu" | "auto") and by whom ("model",
-    # "platform.placement", "command line", "default"); the place pass decides "auto"
+    # a flexible component: what was asked ("gpu" | "cpu" | "auto" | "default": nothing
+    # asked) and by whom ("model", "platform.placement", "command line", "default"); the
+    # place pass decides "auto" and "default"
     asked: str = ""
     placed_by: str = ""
     kind: ClassVar[str] = "component"
@@ -122,6 +123,7 @@ class GroupNode(Node):
     params: dict[str, Any] = field(default_factory=dict)  # none: members keep theirs
     fuse: bool = False
     estimate: str = ""  # the fuse pass's cost estimate, fused against apart
+    estimate_s: tuple[float, float] = (0.0, 0.0)  # the same: (fused, apart) seconds a frame
     kind: ClassVar[str] = "group"
 
     @property
@@ -165,6 +167,11 @@ class System:
     staging_reason: str = ""
     fusion: str = "auto"  # "auto" | "off" (platform.fusion or --fusion)
     fusion_reason: str = ""
+    # the profile (passes/place.py load_profile), read once a build: None before, {} none
+    profile_cache: dict | None = None
+    # groups `gpucompgen tune` measured: frozenset(members) -> (fused_s, apart_s); None
+    # until the fuse pass reads the profile (tune sets it while it measures)
+    measured_groups: dict | None = None
     nodes: dict[str, Node] = field(default_factory=dict)
     edges: list[Edge] = field(default_factory=list)
     done: list[str] = field(default_factory=list)  # names of the passes applied so far
@@ -420,15 +427,16 @@ def component_node(name: str, ctype: ComponentType, params: dict[str, Any], pos:
 def asked_placement(model: SystemModel, name: str,
                     places: dict[str, str] | None = None) -> tuple[str, str]:
     """Where a flexible component is asked to run, and by whom: the command line
-    (--place), its own 'placement:', platform.placement, else the GPU (the default)."""
+    (--place), its own 'placement:', platform.placement, else "default": the place pass
+    decides it for the device's class (passes/place.py)."""
     inst = model.components[name]
     if places and name in places:
         return places[name], "command line"
     if inst.placement:
         return inst.placement, "model"
-    if model.placement != "gpu":
+    if model.placement:
         return model.placement, "platform.placement"
-    return "gpu", "default"
+    return "default", "default"
 
 
 def build_system(model: SystemModel, device: DeviceFacts, mode: str = "gpu-aware",

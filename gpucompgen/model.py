@@ -217,8 +217,9 @@ class SystemModel:
     # platform.backend: "opencl" (default) | "cuda" (gpucompgen.backend, docs/cuda.md)
     backend: str = "opencl"
     # platform.placement: where flexible components without their own 'placement:' run
-    # ("gpu" by default, "cpu", or "auto"); platform.profile: a `gpucompgen tune` file
-    placement: str = "gpu"
+    # ("gpu", "cpu", "auto", or "" when the model says nothing: decided for the device,
+    # passes/place.py); platform.profile: a `gpucompgen tune` file
+    placement: str = ""
     placement_pos: Pos | None = None
     profile: Path | None = None
     profile_pos: Pos | None = None
@@ -1194,12 +1195,12 @@ def load_system(path: Path, display: str | None = None) -> SystemModel:
                   f"platform.backend must be one of {', '.join(BACKENDS)}, not {backend!r}",
                   did_you_mean(str(backend), list(BACKENDS)))
         backend = DEFAULT_BACKEND
-    placement = platform.get("placement", "gpu")
-    if not _named(placement, PLACEMENTS):
+    placement = platform.get("placement", "")  # "": decided for the device (place.py)
+    if "placement" in platform and not _named(placement, PLACEMENTS):
         rep.error(doc.pos("platform", "placement"),
                   f"platform.placement must be 'gpu', 'cpu' or 'auto', not {placement!r}",
                   "it places the flexible components that say nothing themselves")
-        placement = "gpu"
+        placement = ""
     profile = None
     if "profile" in platform:
         rel = platform["profile"]

@@ -31,6 +31,9 @@ from .passes.place import default_profile, sizes_text
 from .runtime import device_api
 
 TRANSFER_PROBE_BYTES = 64
+# a group and its members apart are timed in turn, this many rounds of `frames` each, and
+# each side's median kept: a burst of load falls on both sides, not on one
+GROUP_ROUNDS = 3
 
 
 def default_profile_path(model_path: Path, model) -> Path:
@@ -95,8 +98,11 @@ def write_profile(out: Path, text: str) -> None:
                 os.unlink(tmp)
 
 
-def tune(model_path: Path, frames: int = 20, display: str | None = None) -> tuple[str, list]:
-    """Measure; return the profile's text and rows (name, type, cpu_us, gpu_us)."""
+def tune(model_path: Path, frames: int = 20, display: str | None = None,
+         groups_out: list | None = None) -> tuple[str, list]:
+    """Measure; return the profile's text and rows (name, type, sizes, cpu_us, gpu_us);
+    groups_out, where given, gets a row (name, members, fused_us, apart_us) for every
+    group measured against its members apart."""
     from . import device as device_mod
     from .errors import Reporter
     from .model import load_system
@@ -124,24 +130,78 @@ def tune(model_path: Path, frames: int = 20, display: str | None = None) -> tupl
         cpu_s = _median(frames, lambda f=function, k=kwargs, n=name, t=t: _call(n, t, f, k))
         gpu_s = _gpu_time(context, queue, system, plan, node, inputs, frames)
         rows.append((name, t.name, sizes_text(system, node), cpu_s * 1e6, gpu_s * 1e6))
+    groups = measure_groups(model, facts, context, queue, system, frames)
+    if groups_out is not None:
+        groups_out += groups
     biggest = max((p.data.nbytes for n in flexible for p in system.nodes[n].ports), default=1)
     latency, bandwidth = _transfer(context, queue, biggest, frames)
     device = api.facts(api.device_of(queue)).name
     lines = [f"# Written by 'gpucompgen tune {display or model_path}' on the OpenCL device",
              f"# '{device}': the median of {frames} frames of each flexible component at the",
              "# model's sizes, on the CPU (its function) and on the device (its kernel, enqueue",
-             "# to finish), and the cost of one copy between host and device. The model names",
-             "# this file (platform.profile) for placement: auto; rerun after changing sizes,",
-             "# device or implementations.",
+             "# to finish), and the cost of one copy between host and device; each group the",
+             "# fuse pass chose, as one kernel and its members' kernels apart (a group that is",
+             "# no faster is refused, and the next choice measured). Placement and fusion read",
+             "# this file (platform.profile, else tune/<system>.yaml); rerun after changing",
+             "# sizes, device or implementations.",
              f"system: {model.name}",
              f"device: {_quote(device)}",
              f"frames: {frames}",
              f"transfer: {{latency_us: {latency * 1e6:.1f}, bandwidth_mb_s: {bandwidth / 1e6:.1f}}}",
-             "components:"]
+             "components:" + ("" if rows else " {}")]
     for name, tname, sizes, cpu_us, gpu_us in rows:
         lines.append(f"  {name}: {{type: {tname}, sizes: {_quote(sizes)}, "
                      f"cpu_us: {cpu_us:.1f}, gpu_us: {gpu_us:.1f}}}")
+    if groups:
+        lines.append("groups:")
+    for name, members, sizes, fused_us, apart_us in groups:
+        lines.append(f"  {name}: {{members: [{', '.join(members)}], sizes: {_quote(sizes)}, "
+                     f"fused_us: {fused_us:.1f}, apart_us: {apart_us:.1f}}}")
     return "\n".join(lines) + "\n", rows
+
+
+def measure_groups(model, facts, context, queue, apart_system, frames: int) -> list:
+    """Every group the fuse pass chooses with every flexible component on the device, as
+    one kernel and as its members' kernels apart (each timed as above, on camera frames of
+    its inputs' shapes): rows (name, members, sizes, fused_us, apart_us).  A group measured
+    no faster is refused on the next build, which may choose another (a smaller one):
+    that one is measured too, until no new group is chosen."""
+    from .passes.fuse import group_sizes_text
+    from .passes.pipeline import PIPELINE, new_system, run_pipeline
+
+    flexible = [n for n, inst in model.components.items() if inst.type.flexible]
+
+    def kernel(stack, system, node):
+        inputs = {p: camera_frame(port.data.size.shape, port.data.dtype, i)
+                  for i, (p, port) in enumerate(node.inputs.items())}
+        return stack.enter_context(_kernel(context, queue, system, system.plan, node, inputs))
+
+    measured: dict[frozenset, tuple[float, float]] = {}
+    rows = []
+    for _ in range(len(model.components)):
+        system = new_system(model, facts, places=dict.fromkeys(flexible, "gpu"),
+                            zero_copy="off", fusion="auto")
+        system.measured_groups = dict(measured)
+        system, _ = run_pipeline(system, PIPELINE)
+        new = [g for g in system.groups if frozenset(m.name for m in g.members) not in measured]
+        if not new:
+            break
+        for g in new:
+            names = [m.name for m in g.members]
+            with contextlib.ExitStack() as stack:  # rounds alternate: load hits both alike
+                one = kernel(stack, system, g)
+                members = [kernel(stack, apart_system, apart_system.nodes[n]) for n in names]
+                rounds = [(one(frames), sum(m(frames) for m in members))
+                          for _ in range(GROUP_ROUNDS)]
+            fused = statistics.median(f for f, _ in rounds)
+            apart = statistics.median(a for _, a in rounds)
+            measured[frozenset(names)] = (fused, apart)
+            label = g.name  # two groups may share first and last member: the label differs
+            while label in {r[0] for r in rows}:
+                label += "_"
+            rows.append((label, names, group_sizes_text(apart_system, set(names)),
+                         fused * 1e6, apart * 1e6))
+    return rows
 
 
 def camera_frame(shape: tuple[int, ...], dtype: str, index: int = 0):
@@ -215,6 +275,14 @@ def _median(frames: int, call, finish=None) -> float:
 
 
 def _gpu_time(context, queue, system, plan, node, inputs, frames) -> float:
+    with _kernel(context, queue, system, plan, node, inputs) as run:
+        return run(frames)
+
+
+@contextlib.contextmanager
+def _kernel(context, queue, system, plan, node, inputs):
+    """The node's kernel built and configured as a build would, with its inputs on the
+    device: yields run(frames) -> the median seconds of a launch, enqueue to finish."""
     import numpy as np
 
     from . import runtime
@@ -246,7 +314,8 @@ def _gpu_time(context, queue, system, plan, node, inputs, frames) -> float:
                      for a in la.arguments]
         comp.config_gpu(la.tile, la.local_size, la.global_size, arguments, la.settings_source)
         buffers = [api.filled_buffer(context, x) for x in inputs.values()]
-        return _median(frames, lambda: comp.execute(*buffers), lambda: api.finish(queue))
+        yield lambda frames: _median(frames, lambda: comp.execute(*buffers),
+                                     lambda: api.finish(queue))
     finally:
         comp.free_memory()
 

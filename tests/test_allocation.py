@@ -127,7 +127,9 @@ def _check_system(system, comps, conns, budget):
 def test_random_pipelines_stay_within_limits_and_budget(tmp_path_factory, pipe, device,
                                                         budget):
     comps, conns = pipe
-    platform = {"device": device}
+    # every flexible component on the GPU: this is about allocating GPU work (a device of
+    # a known class would place some on the CPU by default)
+    platform = {"device": device, "placement": "gpu"}
     if budget:
         platform["thread_budget"] = budget
     model = _write(tmp_path_factory.mktemp("m"), "rand",
@@ -150,7 +152,8 @@ def test_random_pipelines_stay_within_limits_and_budget(tmp_path_factory, pipe, 
         # every thread gives a system to read them from
         roomy = {"profile": device if isinstance(device, str) else device["profile"],
                  **({} if isinstance(device, str) else device), "compute_units": 10 ** 6}
-        model.write_text(yaml.safe_dump({"system": "rand", "platform": {"device": roomy},
+        model.write_text(yaml.safe_dump({"system": "rand", "platform": {"device": roomy,
+                                                                        "placement": "gpu"},
                                          "components": comps, "connections": conns}))
         system = compile_model(model, model.parent / "out", fusion="off").system  # sizes
         reach = _reach(comps, conns)
@@ -172,10 +175,14 @@ def test_random_pipelines_stay_within_limits_and_budget(tmp_path_factory, pipe, 
     _check_system(result.system, comps, conns, budget)
 
 
+# what the allocation tests allocate: GPU work, not what a device's class would place
+EVERY_FLEXIBLE_ON_THE_GPU = {"*": "gpu"}
+
+
 @pytest.mark.parametrize("profile", sorted(PROFILES))
 def test_parallel_branches_share_the_budget_on_every_profile(profile):
     result = compile_model(ROOT / "models" / "parallel_branches.yaml", ROOT / "generated",
-                           device=profile, fusion="off")
+                           device=profile, fusion="off", places=EVERY_FLEXIBLE_ON_THE_GPU)
     system = result.system
     assert ("blur1", "blur2") in system.concurrent
     total = _resident(system, "blur1") + _resident(system, "blur2")
@@ -208,7 +215,7 @@ def test_allocator_shrinks_concurrent_components_it_would_not_shrink_alone(tmp_p
 def test_real_device_allocation_fits_its_limits(tmp_path):
     require_opencl()
     result = compile_model(ROOT / "models" / "parallel_branches.yaml", tmp_path,
-                           device="auto", fusion="off")
+                           device="auto", fusion="off", places=EVERY_FLEXIBLE_ON_THE_GPU)
     base = yaml.safe_load((ROOT / "models" / "parallel_branches.yaml").read_text())
     _check_system(result.system, base["components"], base["connections"], None)
 

@@ -137,16 +137,17 @@ def _benchmark(tmp_path, script: str, *args: str) -> str:
 
 def test_pipelines_benchmark_outputs_equal_opencv_in_every_variant(tmp_path):
     """benchmarks/pipelines.py at an odd tiny size: every pipeline, every variant (default,
-    fusion off, all on the CPU, auto, auto after tune) gives cv2's bytes (it exits 1
-    otherwise) and prints its table, the machine, the device and the load."""
+    on the device fused and not, all on the CPU, auto after tune, on the device after
+    tune) gives cv2's bytes (it exits 1 otherwise) and prints its table, the machine, the
+    device and the load."""
     require_opencl()
     out = _benchmark(tmp_path, "pipelines.py", "--sizes", "33x17", "--rounds", "1",
                      "--frames", "2")
     assert "OpenCL device:" in out and "load average before:" in out
     for name in ("lanes", "colour", "edges", "motion", "pointwise"):
         assert f"| {name} | 33x17 |" in out
-    assert "| pipeline | size | cv2 | default | fusion off | all CPU | placement auto | " \
-           "auto after tune |" in out
+    assert "| pipeline | size | cv2 | default | device | device fusion off | all CPU | " \
+           "auto after tune | device after tune |" in out
 
 
 def test_frame_cost_and_cpu_forms_benchmarks_run(tmp_path):

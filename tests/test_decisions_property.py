@@ -7,11 +7,16 @@ a standard type with two outputs each, sinks of every element type, some of them
 and runs each under combinations of the decisions:
 
     frames in flight 1, 2, 3 · fusion auto, off · zero-copy on, off · staging pinned,
-    pageable · placement all GPU, all CPU, mixed · execution parallel, sequential ·
-    mode gpu-aware, standard
+    pageable · placement all GPU, all CPU, mixed, by the device (nobody asks: the place
+    pass decides for a device class drawn per system, from its estimate) · execution
+    parallel, sequential · mode gpu-aware, standard
 
 Every sink's frames must equal the reference run's (one frame in flight, no fusion,
 sequential, zero-copy off, every flexible component on the GPU), frame by frame, in order.
+And every build's decisions must be the ones its plan reports: each flexible component's
+side and who decided (with the estimate's figures where an estimate decided, and no
+placement estimated slower than all on one side), each group with its estimate fused
+faster than apart, and a reason for every edge between GPU components left unfused.
 
 The combinations are the rows of a pairwise covering array (every pair of values of any
 two decisions is in some row), so each system runs under ~10 combinations instead of 288.
@@ -47,7 +52,7 @@ FRAMES = 5  # frames each run asks for (a source may end sooner)
 
 DECISIONS = {
     "frames_in_flight": (1, 2, 3),
-    "placement": ("gpu", "cpu", "mixed"),
+    "placement": ("gpu", "cpu", "mixed", "device"),
     "fusion": ("auto", "off"),
     "zero_copy": ("on", "off"),
     "staging": ("pinned", "pageable"),
@@ -98,7 +103,7 @@ COMBINATIONS = covering(DECISIONS, 3 if NIGHTLY else 2)
 
 def test_the_covering_array_covers_every_pair_a_valid_row_can_take():
     rows = covering(DECISIONS)
-    assert len(rows) <= 12 and all(valid(r) for r in rows)
+    assert len(rows) <= 13 and all(valid(r) for r in rows)
     for a, b in itertools.combinations(DECISIONS, 2):
         for x in DECISIONS[a]:
             for y in DECISIONS[b]:
@@ -145,7 +150,8 @@ def _params(draw, ctype) -> dict:
 
 @st.composite
 def systems(draw):
-    """(components, connections, flexible components placed on the CPU when 'mixed')."""
+    """(components, connections, flexible components placed on the CPU when 'mixed', the
+    device profile a 'device' placement builds for: one of each class)."""
     types = _stage_types()
     comps: dict[str, dict] = {}
     conns: list[str] = []
@@ -200,7 +206,55 @@ def systems(draw):
     flexible = [n for n, c in comps.items() if types.get(c["type"]) is not None
                 and types[c["type"]].flexible]
     on_cpu = {n for n in flexible if draw(st.booleans())}
-    return comps, conns, sorted(on_cpu)
+    return comps, conns, sorted(on_cpu), draw(st.sampled_from(DEVICES))
+
+
+# --- the decisions, as the plan reports them -------------------------------------------------
+
+# a 'device' placement builds for one device of each class (the runs are on PoCL whatever
+# the class: the program is correct on any device)
+DEVICES = ("pocl-cpu", "embedded-igpu", "nvidia-hopper")
+
+
+def decisions_as_planned(system) -> None:
+    """The placement and fusion the build chose are the ones its plan reports, with the
+    figures that decided them, and none is estimated slower than its alternative."""
+    from gpucompgen.ir import ComponentNode, GroupNode
+    from gpucompgen.passes.place import a_device
+
+    placement, plan = system.placement, system.plan
+    lines = {line.split(":")[0]: line for line in plan.placement}
+    kind = system.device.kind
+    for name, (side, by) in placement.decided.items():
+        node = system.component(name)
+        assert node.placement == side, name
+        line = lines[name]
+        assert line.startswith(f"{name}: {side.upper()} (by {by}"), line
+        if node.asked == "default":  # nobody asked: the device's class decides
+            assert by == (f"default for {a_device(kind)}" if kind else "default"), line
+            assert kind or side == "gpu", line
+        if by == "auto" or by.startswith("default for "):  # an estimate decided
+            cost = placement.costs[name]
+            assert f"est. CPU {cost.cpu_s * 1e3:.3f} ms, GPU {cost.gpu_s * 1e3:.3f} ms" in line
+    if placement.estimate_s is not None:  # the chosen placement is the least estimated
+        assert placement.estimate_s <= min(placement.all_gpu_s, placement.all_cpu_s) + 1e-12
+        assert any(line.startswith("auto (") for line in plan.placement)
+    groups = [g for g in system.groups]
+    assert [[m for m, _, _ in g.members] for g in plan.groups] == \
+        [[m.name for m in g.members] for g in groups]
+    for g, shown in zip(groups, plan.groups):
+        fused, apart = g.estimate_s
+        assert fused < apart, g.name  # never a group estimated slower than its members
+        assert shown.estimate == g.estimate and f"{fused * 1e3:.3f} ms" in g.estimate
+    where = {m.name: g.name for g in system.kernel_groups for m in g.members}
+    unfused = dict(plan.unfused)
+    for e in system.model.connections:
+        a, b = (system.nodes.get(where.get(x.component, x.component))
+                for x in (e.source, e.target))
+        both_gpu = all(isinstance(n, (ComponentNode, GroupNode)) and n.on_gpu
+                       for n in (a, b))
+        if both_gpu and a is not b:  # a GPU-to-GPU connection between two kernels
+            assert f"{e.source} -> {e.target}" in unfused, f"{e.source} -> {e.target}"
 
 
 # --- running them --------------------------------------------------------------------------------
@@ -215,14 +269,19 @@ def _places(comps: dict, on_cpu: list[str], placement: str) -> dict[str, str]:
                 if c["type"] in types and types[c["type"]].flexible]
     if placement == "mixed":
         return {n: "cpu" if n in on_cpu else "gpu" for n in flexible}
+    if placement == "device":  # nobody asks: decided for the device's class
+        return {}
     return dict.fromkeys(flexible, placement)
 
 
-def _sink_frames(model: Path, comps: dict, on_cpu: list[str], row: dict, out: Path):
+def _sink_frames(model: Path, comps: dict, on_cpu: list[str], row: dict, out: Path,
+                 device: str | None = None):
     options = {k: row[k] for k in ("frames_in_flight", "fusion", "zero_copy", "staging",
                                    "execution", "mode")}
     result = compile_model(model, out, places=_places(comps, on_cpu, row["placement"]),
+                           device=device if row["placement"] == "device" else None,
                            **options)
+    decisions_as_planned(result.system)
     write(result, out)
     module = load_generated(out / f"{result.system.model.name}.py",
                             f"decisions_{next(_loaded)}")
@@ -259,7 +318,8 @@ RACE = ({"src0": {"type": "Noise", "params": {"seed": 3, "width": 11, "height": 
          "c3": {"type": "ErodeGray"},
          "sink0": {"type": "Sink_uint8x1"}, "sink1": {"type": "Sink_uint8x1"}},
         ["src0.image -> c0.image", "src0.image -> c2.image", "c0.mask -> c1.image",
-         "c2.mask -> c3.image", "c1.eroded -> sink0.image", "c3.eroded -> sink1.image"], [])
+         "c2.mask -> c3.image", "c1.eroded -> sink0.image", "c3.eroded -> sink1.image"], [],
+        "pocl-cpu")
 # the combinations the issue ran it under
 RACE_ROWS = [{**REFERENCE, "frames_in_flight": 2, "fusion": "auto", "execution": "parallel"},
              {**REFERENCE, "frames_in_flight": 3, "fusion": "auto"}]
@@ -272,7 +332,7 @@ RACE_ROWS = [{**REFERENCE, "frames_in_flight": 2, "fusion": "auto", "execution":
 @example(system=RACE, extra=RACE_ROWS)
 def test_every_decision_gives_the_reference_frames(tmp_path_factory, system, extra):
     require_opencl()
-    comps, conns, on_cpu = system
+    comps, conns, on_cpu, device = system
     folder = tmp_path_factory.mktemp("decisions")
     model = folder / "m.yaml"
     model.write_text(yaml.safe_dump({"system": "decisions", "types": TYPES,
@@ -282,7 +342,7 @@ def test_every_decision_gives_the_reference_frames(tmp_path_factory, system, ext
     frames, want = _sink_frames(model, comps, on_cpu, REFERENCE, folder / "reference")
     assert want and all(len(f) == frames for f in want.values())
     for k, row in enumerate(_rows(model.read_text()) + extra):
-        got_frames, got = _sink_frames(model, comps, on_cpu, row, folder / f"run{k}")
+        got_frames, got = _sink_frames(model, comps, on_cpu, row, folder / f"run{k}", device)
         where = f"{row}\n{yaml.safe_dump({'components': comps, 'connections': conns})}"
         assert got_frames == frames, where
         assert got.keys() == want.keys(), where

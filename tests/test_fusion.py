@@ -117,7 +117,8 @@ def test_plan_and_check_name_groups_and_why_edges_stay_unfused(tmp_path):
     model = tmp_path / "m.yaml"
     model.write_text(
         "system: why\ntypes: [t.yaml]\ncomponents:\n"
-        "  src: {type: StillImage, params: {width: 20, height: 10}}\n"
+        # a frame where recomputing a 5x5 blur 25 times costs more than a launch
+        "  src: {type: StillImage, params: {width: 320, height: 240}}\n"
         "  m1: {type: VerticalMirror}\n  m2: {type: VerticalMirror}\n"
         "  b1: {type: BoxBlur, params: {radius: 2}}\n  b2: {type: BoxBlur, params: {radius: 2}}\n"
         "  m3: {type: VerticalMirror, fuse: false}\n  op: {type: Op}\n"
@@ -132,7 +133,7 @@ def test_plan_and_check_name_groups_and_why_edges_stay_unfused(tmp_path):
     expected = {
         "m1.mirrored -> m2.image": "read by several consumers: m1.mirrored is also read by "
                                    "the CPU (s1.image, through adapter",
-        "b1.smooth -> b2.image": "cost model: with b1 the group's kernel costs an estimated ",
+        "b1.smooth -> b2.image": "cost model: with b1 the group's kernel takes an estimated ",
         "b2.smooth -> m3.image": "fuse: false: the model keeps m3 out of every group",
         "m3.mirrored -> op.image": "opaque type: op (Op) has no fusable form",
         "op.out -> m4.image": "placed on the CPU: m4 runs its CPU function (model)",

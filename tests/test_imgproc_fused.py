@@ -23,6 +23,7 @@ from conftest import ROOT, keep_type_for, load_generated, require_opencl, write_
 from test_imgproc import SPECS, imgproc_types, inputs_for
 
 from gpucompgen.library import cpu_kernels
+from gpucompgen.passes.fuse import FUSION_COSTS
 
 cv2 = pytest.importorskip("cv2")
 skdata = pytest.importorskip("skimage.data")
@@ -225,7 +226,8 @@ def programs(tmp_path_factory, cl_context):
         with pytest.MonkeyPatch.context() as patch:
             # every legal group, whatever the cost model says: this test is about the
             # bytes of every type inside a group (launches made very dear: fusing wins)
-            patch.setattr("gpucompgen.passes.fuse.LAUNCH", 10**15)
+            patch.setattr("gpucompgen.passes.fuse.FUSION_COSTS",
+                          {k: {**v, "launch_s": 1e6} for k, v in FUSION_COSTS.items()})
             built = compile_model(model, out, fusion=fusion)
         write(built, out)
         program = load_generated(out / "imgproc_fused.py", f"imgproc_fused_{variant}")

@@ -116,11 +116,13 @@ def test_every_group_chosen_is_estimated_cheaper_and_plan_reports_it(tmp_path):
         text = "\n".join(plan_lines(plan))
         for g in plan.groups:
             assert g.estimate.startswith("estimate: "), g
-            fused, apart = (int(n.replace(",", "")) for n in
-                            __import__("re").findall(r"([\d,]+) element operations",
-                                                     g.estimate))
+            fused, apart = (float(n) for n in
+                            __import__("re").findall(r"([\d.]+) ms", g.estimate)[:2])
             assert fused < apart, (path.name, g)
             assert f"{g.part}: one kernel" in text
+        for g in result.system.groups:  # the figures the plan shows are the ones decided
+            assert g.estimate_s[0] < g.estimate_s[1], (path.name, g.name)
+            assert f"{g.estimate_s[0] * 1e3:.3f} ms a frame as one kernel" in g.estimate
         assert text.count(": one kernel (") == len(plan.groups)
 
 
@@ -158,10 +160,13 @@ def test_index_maps_that_read_many_times_are_not_fused_into_an_explosion(tmp_pat
         + "".join(f"  - r{i}.out -> r{i + 1}.image\n" for i in range(4))
         + "  - r4.out -> sink.image\n")
     plan = compile_model(model, tmp_path / "out").system.plan
-    assert not plan.groups
+    # on this tiny frame a launch (33 µs on a CPU device) outweighs one level of 40
+    # reads, never two (1,600 evaluations of the first an element)
+    assert all(len(g.members) <= 2 for g in plan.groups), plan.groups
     why = dict(plan.unfused)
-    assert why["r3.out -> r4.image"].startswith("cost model: with r3 ")
-    assert "40 times per output element" in why["r3.out -> r4.image"]
+    refused = [why[e] for e in why if e.startswith("r")]
+    assert refused and all(w.startswith("cost model: with r") for w in refused)
+    assert any("1600 times per output element" in w for w in refused), refused
 
 
 @pytest.mark.parametrize("device,expected", [(None, "runs"), ("pocl-cpu", "runs"),
@@ -176,7 +181,7 @@ def test_the_schedule_follows_the_device(device, expected):
 
 STENCIL_CHAIN = """\
 system: hostile
-platform: {{device: {device}}}
+platform: {{device: {device}, placement: gpu}}
 components:
   src: {{type: StillImage, params: {{width: 23, height: 11}}}}
   t: {{type: Threshold, params: {{thresh: 120, maxval: 255, thresh_type: 2}}}}
@@ -212,7 +217,7 @@ def test_the_gpu_schedule_gives_the_same_bytes(tmp_path):
     require_opencl()
     names = {name: name for name in ("src", "n1", "n2", "n3", "n4", "n5", "sink")}
     text = CHAIN.format(**names).replace(
-        "components:", "platform: {device: nvidia-hopper}\ncomponents:", 1)
+        "components:", "platform: {device: nvidia-hopper, placement: gpu}\ncomponents:", 1)
     model = tmp_path / "m.yaml"
     model.write_text(text)
     fused, got = _frames(model, tmp_path / "gpu", "auto")

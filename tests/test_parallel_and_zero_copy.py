@@ -244,7 +244,8 @@ def test_zero_copy_is_recorded_in_the_code_and_the_plan(tmp_path):
 
 def test_platform_zero_copy_and_execution_in_the_model(tmp_path):
     text = BRANCHES.read_text().replace(
-        "  device: portable\n", "  device: pocl-cpu\n  zero_copy: off\n  execution: sequential\n")
+        "  device: portable\n", "  device: pocl-cpu\n  zero_copy: off\n  execution: sequential\n"
+        "  placement: gpu\n")  # lanes are for GPU work: not the CPU a pocl-cpu default picks
     model = tmp_path / "m.yaml"
     model.write_text(text)
     system = compile_model(model, tmp_path / "o", fusion="off").system

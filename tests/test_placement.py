@@ -49,6 +49,59 @@ def test_flexible_components_stay_on_the_gpu_unless_asked():
                                         "detector": ("gpu", "default")}
 
 
+@pytest.mark.parametrize("device, sides, by", [
+    # no class: the GPU, as the paper's system (and every checked-in example) does
+    ("portable", ("gpu", "gpu"), "default"),
+    # a CPU OpenCL device runs on the cores the CPU forms use: its estimate picks them
+    ("pocl-cpu", ("cpu", "cpu"), "default for a cpu device"),
+    ({"profile": "portable", "kind": "cpu"}, ("cpu", "cpu"), "default for a cpu device"),
+    # a discrete GPU's kernels are fast enough to pay the detector's crossings; the merger's
+    # copy of two frames side by side is not worth a launch and its transfers... or is it:
+    # whatever the estimate says, the plan must say the same (below)
+    ("nvidia-hopper", None, "default for a discrete-gpu device"),
+    ("embedded-igpu", None, "default for an integrated-gpu device"),
+])
+def test_nobody_asking_places_for_the_devices_class(tmp_path, device, sides, by):
+    """The default placement is the estimate of the device's class (or the GPU when the
+    class is unknown); the plan names it with the figures, and the placement chosen is
+    the least estimated of all."""
+    model = load_system(_without_profile(tmp_path))
+    rep = Reporter()
+    facts = resolve(device, Pos(""), rep)
+    rep.raise_if_errors()
+    system, _ = run_passes(model, facts, zero_copy="off")
+    placement = system.placement
+    got = tuple(system.component(n).placement for n in ("merger", "detector"))
+    if sides is not None:
+        assert got == sides
+    assert {b for _, b in placement.decided.values()} == {by}
+    lines = "\n".join(plan_lines(system.plan))
+    for name, side in zip(("merger", "detector"), got):
+        assert f"{name}: {side.upper()} (by {by}" in lines
+    if facts.kind:  # the estimate decided: its figures are shown, and it is the best
+        cost = placement.costs["merger"]
+        assert f"est. CPU {cost.cpu_s * 1e3:.3f} ms, GPU {cost.gpu_s * 1e3:.3f} ms" in lines
+        assert placement.estimate_s <= min(placement.all_gpu_s, placement.all_cpu_s)
+    else:
+        assert placement.estimate_s is None and "est." not in lines
+
+
+def _without_profile(tmp_path: Path) -> Path:
+    """The vision system without its profile (tune's measurements replace the estimate)."""
+    text = "\n".join(line for line in VISION.read_text().splitlines()
+                     if not line.strip().startswith("profile:"))
+    (tmp_path / "vs.yaml").write_text(text.replace("../", str(ROOT) + "/"))
+    return tmp_path / "vs.yaml"
+
+
+def test_an_explicit_placement_wins_over_the_devices_class(tmp_path):
+    model = load_system(_without_profile(tmp_path))
+    facts = resolve("pocl-cpu", Pos(""), Reporter())
+    system, _ = run_passes(model, facts, places={"merger": "gpu"})
+    assert system.placement.decided["merger"] == ("gpu", "command line")
+    assert system.placement.decided["detector"] == ("cpu", "default for a cpu device")
+
+
 def test_adapters_follow_the_placement_and_none_between_same_side_neighbours():
     system, _ = _passes(VISION, {"merger": "cpu"})
     # camera -> merger stays on the CPU; merged crosses to the detector on the GPU
@@ -519,6 +572,19 @@ def test_tune_writes_the_profile_that_auto_reads(tmp_path, capsys):
     assert {c.source for c in system.placement.costs.values()} == {"profile"}
     merger = data["components"]["merger"]
     assert system.placement.costs["merger"].cpu_s == pytest.approx(merger["cpu_us"] * 1e-6)
+    # the group the fuse pass chooses, measured against its members apart
+    (name, group), = data["groups"].items()
+    assert group["members"] == ["merger", "detector"] and group["sizes"] == \
+        "480x640x3, 480x640x3 -> 480x1280x1"
+    assert group["fused_us"] > 0 and group["apart_us"] > 0
+    system, _ = _passes(model)
+    lines = "\n".join(plan_lines(system.plan))
+    if group["fused_us"] < group["apart_us"]:  # kept, its measurement beside its estimate
+        assert [g.name for g in system.groups] == [name]
+        assert f"measured: {group['fused_us'] * 1e-3:.3f} ms as one kernel" in lines
+    else:  # refused, with the figures
+        assert system.groups == []
+        assert "measured: with merger the group's kernel took" in " ".join(lines.split())
 
 
 def test_a_users_flexible_type_runs_on_either_side(tmp_path):

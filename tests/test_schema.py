@@ -152,12 +152,13 @@ def test_every_enum_and_closed_mapping_agrees_with_the_loader():
     """Independently of the generator: each enum in the schemas is one of the loader's
     enums, and each closed mapping's keys are one of the loader's key tables."""
     from gpucompgen.device import FACT_KEYS
+    from gpucompgen.runtime.facts import KINDS
 
     enums = {frozenset(e) for e in (model.KINDS, model.DTYPES, model.MEMORIES,
                                     model.PARAM_TYPES, model.COVERS, model.EXECUTIONS,
                                     model.ZERO_COPY, model.STAGING, model.PLACEMENTS,
                                     model.FUSION, model.BACKENDS, fusable.FORMS, fusable.BORDERS, PROFILES,
-                                    [*PROFILES, "auto"])}
+                                    [*PROFILES, "auto"], KINDS)}
     tables = {frozenset(t) for t in (
         model.SYSTEM_KEYS, model.PLATFORM_KEYS, model.INSTANCE_KEYS, model.TYPE_KEYS,
         model.PORT_KEYS, set(model.PORT_KEYS) - {"height", "width"}, model.PARAM_KEYS,

@@ -14,17 +14,22 @@ and Inductor's scheduler, which records why two nodes were not fused):
   of its output is already in the group (an output read by a component outside the group,
   or by the CPU through an adapter, must be materialized: it ends the group), and the
   cost model says the group with it is cheaper than the group and it apart.
-- Cost model (estimate()): inside a group a member is evaluated once for every read of
-  its output: a stencil reading a producer at 9 taps evaluates it 9 times per output
-  element, a gray conversion reading 3 channels evaluates its producer 3 times.  Reads
-  are counted per snippet (its accessor calls, at least a stencil's window), so an index
-  map reading its input 40 times costs 40 evaluations of its producer.  Fused, each
-  member costs its evaluations times its arithmetic and its loads of group inputs; apart,
-  each member costs one evaluation an element, plus storing its output, reading it back
-  and a launch.  A producer joins only where the estimate with it is lower than without
-  it, so no group chosen is estimated slower than its members apart; `plan` shows the
-  estimate of every group and the figures of every refusal.  Where in doubt (a tie) the
-  producer stays apart.
+- Cost model (estimate(), in seconds a frame, constants per device class in
+  FUSION_COSTS): inside a group a member is evaluated once for every read of its output:
+  a stencil reading a producer at 9 taps evaluates it 9 times per output element, a gray
+  conversion reading 3 channels evaluates its producer 3 times.  Reads are counted per
+  snippet (its accessor calls, at least a stencil's window), so an index map reading its
+  input 40 times costs 40 evaluations of its producer.  Fused, each member costs its
+  evaluations times its arithmetic and its loads of group inputs, and a stencil's taps
+  on a producer inside the group are calls, not vectorized loads; apart, each member is
+  its own kernel: one evaluation an element, its output stored and loaded back, a
+  launch.  A producer joins only where the estimate with it is lower than without it,
+  and the group grown that way is checked whole, so no group chosen is estimated slower
+  than its members apart; `plan` shows the estimate of every group and the figures of
+  every refusal.  Where in doubt (a tie) the producer stays apart.
+- Measured: `gpucompgen tune` times the groups chosen against their members apart and
+  writes them in the profile (passes/place.py load_profile); a group measured no faster
+  is refused, whatever the estimate says.
 - A component of a fusable type that ends up in no group (fusion off, 'fuse: false', a
   producer the cost model refused, no fusable neighbour) becomes a group of one: it runs
   the kernel the generator writes from its form, as a group does (the library's fusable
@@ -36,7 +41,8 @@ Every GPU-to-GPU edge between components that ends up outside a group gets its r
 system.unfused (shown by `plan`, `check` and --print-between-passes), and so does every
 connection between two components with kernels that the placement put through the CPU.
 A reason starts with its kind — "fusion off", "placed on the CPU", "fuse: false",
-"opaque type", "read by several consumers", "cost model", "different groups" — then
+"opaque type", "read by several consumers", "cost model", "measured", "different
+groups" — then
 says what, in the model's names.
 """
 
@@ -76,6 +82,7 @@ class Fuse(Pass):
                 system.unfused[str(e)] = f"fusion off ({system.fusion_reason})"
             _generate_singles(system)
             return system
+        load_measured(system, rep)
         at = {n: i for i, n in enumerate(system.order)}
         assigned: dict[str, str] = {}  # member -> the root of its group
         reasons: dict[str, str] = {}
@@ -99,6 +106,12 @@ class Fuse(Pass):
                             continue
                         members.add(src.component)
                         changed = True
+            why = _group_loses(system, members)
+            if why:  # grown one producer at a time, it may still lose as a whole
+                for e in system.edges:
+                    if e.source.component in members and e.target.component in members:
+                        reasons[str(e)] = why
+                members = {root}
             for m in members:
                 assigned[m] = root
             groups.append(sorted(members, key=at.get))
@@ -111,8 +124,9 @@ class Fuse(Pass):
             system.unfused[str(e)] = why
         for names in groups:
             if len(names) > 1:
-                text = estimate_text(system, set(names))
-                make_group(system, names).estimate = text
+                text, figures = estimate_text(system, set(names)), estimate(system, set(names))
+                group = make_group(system, names)
+                group.estimate, group.estimate_s = text, figures
         _generate_singles(system)
         return system
 
@@ -168,19 +182,48 @@ def _why_not(system: System, src: Endpoint, members: set[str], consumer: str) ->
         return (f"read by several consumers: {src} is also read by {', '.join(outside)}, "
                 "outside the group; its output must be materialized")
     grown = members | {src.component}
+    measured = _measured(system, grown)
+    if measured is not None and measured[0] >= measured[1]:
+        return (f"measured: with {src.component} the group's kernel took "
+                f"{_ms(measured[0])} a frame, its members apart {_ms(measured[1])} "
+                "(the profile 'gpucompgen tune' wrote)")
     fused, _ = estimate(system, grown)
     now, _ = estimate(system, members)
-    alone = apart_cost(system, src.component) + LAUNCH
+    alone = kernel_s(system, [src.component])
     if fused >= now + alone:
         r = evaluations(system, grown)[src.component]
-        return (f"cost model: with {src.component} the group's kernel costs an estimated "
-                f"{_ops(fused)} a frame, against {_ops(now + alone)} with {src.component} "
-                f"apart (it would run {r} times per output element of the group)")
+        return (f"cost model: with {src.component} the group's kernel takes an estimated "
+                f"{_ms(fused)} a frame, against {_ms(now + alone)} with {src.component} "
+                f"apart (it would run {r} times per output element of the group; "
+                f"{_constants(system)})")
     return ""
 
 
-def _ops(n: int) -> str:
-    return f"{n:,} element operations"
+def _group_loses(system: System, members: set[str]) -> str:
+    """Why the group of members as a whole is no faster than its members apart: measured
+    by tune, or estimated ('' when it wins, or is one component)."""
+    if len(members) < 2:
+        return ""
+    names = ", ".join(n for n in system.order if n in members)
+    measured = _measured(system, members)
+    if measured is not None and measured[0] >= measured[1]:
+        return (f"measured: the group of {names} took {_ms(measured[0])} a frame, its "
+                f"members apart {_ms(measured[1])} (the profile 'gpucompgen tune' wrote)")
+    fused, apart = estimate(system, members)
+    if fused >= apart:
+        return (f"cost model: the group of {names} takes an estimated {_ms(fused)} a frame, "
+                f"its members apart {_ms(apart)} ({_constants(system)})")
+    return ""
+
+
+def _ms(seconds: float) -> str:
+    return f"{seconds * 1e3:.3f} ms"
+
+
+def _constants(system: System) -> str:
+    from .place import a_device
+
+    return f"constants for {a_device(device_kind(system) or 'cpu')}"
 
 
 def _reader(system: System, end: Endpoint) -> str:
@@ -192,12 +235,48 @@ def _reader(system: System, end: Endpoint) -> str:
     return str(end)
 
 
-# The cost model, in element operations a frame (an element read, computed or stored
-# costs about one; measured figures in docs/fusion.md).  A buffer between two kernels is
-# written and read back from memory (MATERIALIZE a element more than a read of a value
-# still in registers), and a kernel launch costs LAUNCH.
-MATERIALIZE = 2
-LAUNCH = 20_000
+# The cost model's constants, one row per device class (DeviceFacts.kind; the device the
+# build plans for: platform.device, --device), in seconds: an element operation computed
+# (a snippet's arithmetic), an element loaded from a buffer in memory, an element stored,
+# a kernel's launch (enqueue to done), and a stencil's tap that calls a producer inside
+# the group (PoCL vectorizes a stencil's row of loads, not a row of calls).  A kernel's
+# time is
+#     launch_s + ops * op_s + loads * load_s + stores * store_s + taps * tap_s
+# over what it does for a frame (kernel_features()).  "cpu" is fitted to the generated
+# kernels on PoCL (2 cores): each kernel of benchmarks/pipelines.py's pipelines alone and
+# each group the fuse pass chose, device time, by `python benchmarks/fusion_costs.py`
+# (it prints the row, and for every group its measurement beside the estimate;
+# docs/fusion.md has the figures), refitted after the kernels took their members'
+# parameters as build constants.  The fit cannot tell loads from operations (in the
+# library's snippets a read is both: it put 1.4e-11 on op_s, 0 on load_s); they are split
+# evenly, deciding every measured group alike, so that an index map's reads, which are
+# loads only, still cost (40 reads of 40 reads... is refused).  tap_s is set from the
+# groups of a stencil behind a producer that computes (0.08 to 0.15 ns a tap measured:
+# InRange under an erosion, a gray conversion under a blur); every value from 0 to 0.5 ns
+# decides the measured groups alike.  The GPU rows are not fitted on a device yet:
+# memory-bound element costs at an integrated GPU's (~100 GB/s) and a discrete GPU's
+# (~1 TB/s) bandwidth, and their launch costs.  "" (the 'portable' profile)
+# is scheduled as a CPU device is (backend/opencl/fused.py), so it takes the CPU row.
+# To recalibrate: `python benchmarks/fusion_costs.py` on the device (PYOPENCL_CTX), paste
+# the row it prints under the device's class.
+FEATURES = {"launches": "launch_s", "ops": "op_s", "loads": "load_s", "stores": "store_s",
+            "taps": "tap_s"}  # kernel_features() -> its constant
+FUSION_COSTS: dict[str, dict[str, float]] = {
+    "cpu": {"launch_s": 20e-6, "op_s": 0.7e-11, "load_s": 0.7e-11, "store_s": 4.3e-11,
+            "tap_s": 1e-10},
+    "integrated-gpu": {"launch_s": 20e-6, "op_s": 2e-12, "load_s": 1e-11, "store_s": 1e-11,
+                       "tap_s": 4e-12},
+    "discrete-gpu": {"launch_s": 10e-6, "op_s": 2e-13, "load_s": 1e-12, "store_s": 1e-12,
+                     "tap_s": 4e-13},
+}
+
+
+def device_kind(system: System) -> str:
+    return system.device.kind if system.device is not None else ""
+
+
+def fusion_costs(system: System) -> dict[str, float]:
+    return FUSION_COSTS.get(device_kind(system)) or FUSION_COSTS["cpu"]
 
 
 def reads(node, port: str) -> int:
@@ -221,12 +300,48 @@ def elements(node) -> int:
     return port.data.height * port.data.width * port.channels if port.data else 1
 
 
-def apart_cost(system: System, name: str) -> int:
-    """A member run as its own kernel: its elements computed, its reads loaded, its output
-    stored and read back from memory by its consumer."""
+def kernel_features(system: System, members: list[str] | set[str]) -> dict[str, int]:
+    """What the kernel of members (one, or a group) does for a frame: element operations
+    computed, elements loaded from memory (the group's inputs, once a read of each
+    evaluation), elements stored (its output), launches (one), and taps: a stencil's
+    reads of a producer inside the group that computes, each a call of that producer's
+    function where the stencil alone would load a row it can vectorize."""
+    count = evaluations(system, set(members))
+    order = [n for n in system.order if n in members]
+    root = system.nodes[order[-1]]
+    ops = loads = taps = 0
+    for m in order:
+        node = system.nodes[m]
+        outside = sum(reads(node, p) for p in node.inputs
+                      if (w := system.writer(Endpoint(m, p))) is None or
+                      w.component not in members)
+        ops += count[m] * arithmetic(node)
+        loads += count[m] * outside
+        if node.type.fusable.form == "stencil":
+            taps += count[m] * sum(reads(node, p) for p in node.inputs
+                                   if (w := system.writer(Endpoint(m, p))) is not None
+                                   and w.component in members
+                                   and _computes(system, w.component, members))
+    n = elements(root)
+    return {"ops": n * ops, "loads": n * loads, "stores": n, "launches": 1, "taps": n * taps}
+
+
+def _computes(system: System, name: str, members) -> bool:
+    """Whether evaluating member name computes anything (arithmetic of its own or of a
+    member it reads): an index map over the group's inputs is only a load at another
+    address, which stays a load in a stencil's row."""
     node = system.nodes[name]
-    per = arithmetic(node) + sum(reads(node, p) for p in node.inputs) + 1 + MATERIALIZE
-    return elements(node) * per
+    if arithmetic(node):
+        return True
+    return any(w is not None and w.component in members and
+               _computes(system, w.component, members)
+               for w in (system.writer(Endpoint(name, p)) for p in node.inputs))
+
+
+def kernel_s(system: System, members: list[str] | set[str]) -> float:
+    """The estimated time of the kernel of members, a frame (FUSION_COSTS)."""
+    f, k = kernel_features(system, members), fusion_costs(system)
+    return sum(f[feature] * k[constant] for feature, constant in FEATURES.items())
 
 
 def evaluations(system: System, members: set[str]) -> dict[str, int]:
@@ -244,30 +359,62 @@ def evaluations(system: System, members: set[str]) -> dict[str, int]:
     return count
 
 
-def estimate(system: System, members: set[str]) -> tuple[int, int]:
-    """(the group as one kernel, its members apart), element operations a frame.  Fused,
-    every member runs as often as evaluations() says, loading only the group's inputs;
-    apart, each member runs once an element, and every buffer between them is stored,
-    read back, and costs a launch."""
-    count = evaluations(system, members)
+def estimate(system: System, members: set[str]) -> tuple[float, float]:
+    """(the group as one kernel, its members apart), seconds a frame.  Fused, every member
+    runs as often as evaluations() says, loading only the group's inputs; apart, each
+    member is its own kernel: it runs once an element, stores its output, its consumer
+    loads it back, and each costs a launch."""
+    return kernel_s(system, members), sum(kernel_s(system, [m]) for m in members)
+
+
+def _measured(system: System, members: set[str]) -> tuple[float, float] | None:
+    """(fused_s, apart_s) that `gpucompgen tune` measured for exactly these members at
+    these sizes (the profile's groups), else None."""
+    return (system.measured_groups or {}).get(frozenset(members))
+
+
+def load_measured(system: System, rep) -> None:
+    """system.measured_groups from the profile's groups whose members are components of
+    the system at the sizes measured (unless tune set them itself, measuring)."""
+    from .place import load_profile, record_profile
+
+    if system.measured_groups is not None:
+        return
+    profile = load_profile(system, rep, required=False)
+    groups = system.measured_groups = {}
+    for key, (fused, apart, sizes) in (profile or {}).get("groups", {}).items():
+        if all(isinstance(system.nodes.get(m), ComponentNode) and system.nodes[m].on_gpu
+               for m in key) and sizes in (None, group_sizes_text(system, key)):
+            groups[key] = (fused, apart)
+    if groups:  # the build used the profile: its output records it
+        record_profile(system, profile)
+
+
+def group_sizes_text(system: System, members) -> str:
+    """A group's sizes as a profile records them: its inputs from outside, then its
+    output ('360x640x3 -> 360x640x1'), as place.sizes_text writes a component's."""
     order = [n for n in system.order if n in members]
-    root = system.nodes[order[-1]]
-    per = 1  # the group's output stored
+    ins = []
     for m in order:
         node = system.nodes[m]
-        loads = sum(reads(node, p) for p in node.inputs
-                    if (w := system.writer(Endpoint(m, p))) is None or w.component not in members)
-        per += count[m] * (arithmetic(node) + loads)
-    fused = elements(root) * per + LAUNCH
-    apart = sum(apart_cost(system, m) for m in order) - elements(root) * MATERIALIZE \
-        + LAUNCH * len(order)
-    return fused, apart
+        for p, port in node.inputs.items():
+            w = system.writer(Endpoint(m, p))
+            if (w is None or w.component not in members) and port.data is not None:
+                ins.append(f"{port.data.height}x{port.data.width}x{port.data.channels}")
+    (out,) = system.nodes[order[-1]].outputs.values()
+    tail = f"{out.data.height}x{out.data.width}x{out.data.channels}" if out.data else ""
+    return f"{', '.join(ins)} -> {tail}"
 
 
 def estimate_text(system: System, members: set[str]) -> str:
     fused, apart = estimate(system, members)
-    return (f"estimate: {_ops(fused)} a frame as one kernel, {_ops(apart)} apart "
-            f"({apart / fused:.1f}x)")
+    text = (f"estimate: {_ms(fused)} a frame as one kernel, {_ms(apart)} apart "
+            f"({apart / fused:.1f}x; {_constants(system)})")
+    measured = _measured(system, members)
+    if measured is not None:
+        text += (f"; measured: {_ms(measured[0])} as one kernel, {_ms(measured[1])} apart "
+                 "(profile)")
+    return text
 
 
 def group_name(system: System, names: list[str]) -> str:

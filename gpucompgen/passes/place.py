@@ -2,8 +2,11 @@
 
 A flexible type has a kernel and a CPU function (``kind: flexible``).  Each of its
 components runs where it is asked — ``--place NAME=SIDE`` on the command line, its own
-``placement:``, ``platform.placement``, else the GPU (the default) — and those asked
-``auto`` are placed together, minimising the estimated time of one frame:
+``placement:``, ``platform.placement`` — and those asked ``auto`` are placed together,
+minimising the estimated time of one frame.  A component nobody asked is placed **for the
+device's class** (``DeviceFacts.kind``: the model's ``platform.device``, ``--device``):
+as ``auto`` where the class is known, on the GPU where it is not (the 'portable' profile,
+the checked-in examples: the paper's default).  The frame time:
 
     frame time = sum over auto components of compute(component, side)
                + sum over producing ports whose data crosses memories of transfer(bytes)
@@ -13,7 +16,7 @@ reader there, as insert-adapters makes it); in standard mode a GPU component cop
 of its inputs and outputs itself.  transfer(bytes) = latency + bytes / bandwidth per copy
 (latency only with zero-copy adapters: nothing is copied).  compute() comes from the
 model's profile (``platform.profile``, written by ``gpucompgen tune``), else from the
-static estimate below.  Up to EXHAUSTIVE_LIMIT auto components every combination is
+estimate of the device's class below (PLACEMENT_COSTS).  Up to EXHAUSTIVE_LIMIT auto components every combination is
 tried; beyond, a greedy start (all on the GPU and all on the CPU) improved by moving one
 component at a time while that lowers the estimate, the better of the two kept.  Ties go
 to the GPU (the default placement).
@@ -38,12 +41,42 @@ from .base import Pass
 EXHAUSTIVE_LIMIT = 16
 # the largest time (µs) or bandwidth (MB/s) a profile may give: 1e12 µs is 11 days a frame
 MAX_PROFILE_NUMBER = 1e12
-# The static estimate, used without a profile (documented in docs/placement.md): a component
-# reads its inputs and writes its outputs once; numpy on the CPU moves about 1 GB/s
-# through a filter, a GPU kernel 20 GB/s after a 20 µs launch; a copy between memories
-# costs 10 µs plus its bytes at 6 GB/s (PCIe 3 x8 in practice).
-STATIC = {"cpu_bytes_per_s": 1e9, "gpu_bytes_per_s": 20e9, "gpu_launch_s": 20e-6,
-          "transfer_bytes_per_s": 6e9, "transfer_latency_s": 10e-6}
+# The estimate used without a profile, one row per device class (DeviceFacts.kind; the
+# table and its measurements are in docs/placement.md).  A component reads its inputs and
+# writes its outputs once, at the side's bytes a second; a kernel costs a launch (enqueue to
+# done, as the generated loop waits for it); a copy between memories costs its latency
+# plus its bytes at the transfer's rate (zero-copy adapters: the latency only).
+# - "cpu": a CPU OpenCL device (PoCL) runs on the cores the CPU forms (OpenCV) use: the
+#   generated kernels were 0.5x to 5x OpenCV's time alone (median 1.4x, benchmarks/
+#   kernels.py) and the generated loop paid about 45 µs a kernel more than a CPU form
+#   (benchmarks/pipelines.py, fusion off against all CPU), so the CPU form wins;
+# - "integrated-gpu": a Jetson-class board: slower cores, a GPU sharing their memory;
+# - "discrete-gpu": a GPU behind PCIe: fast kernels, every crossing a copy;
+# - "": no class known (`placement: auto` on the 'portable' profile): the first static
+#   estimate, numpy-speed CPU forms.
+# Recalibrate with `gpucompgen tune` on the device (its profile replaces these figures
+# for one model) or benchmarks/pipelines.py (all CPU against the device's variants).
+PLACEMENT_COSTS: dict[str, dict[str, float]] = {
+    "cpu": {"cpu_bytes_per_s": 5e9, "gpu_bytes_per_s": 3.5e9, "gpu_launch_s": 45e-6,
+            "transfer_bytes_per_s": 5e9, "transfer_latency_s": 10e-6},
+    "integrated-gpu": {"cpu_bytes_per_s": 2e9, "gpu_bytes_per_s": 20e9, "gpu_launch_s": 20e-6,
+                       "transfer_bytes_per_s": 10e9, "transfer_latency_s": 10e-6},
+    "discrete-gpu": {"cpu_bytes_per_s": 5e9, "gpu_bytes_per_s": 200e9, "gpu_launch_s": 10e-6,
+                     "transfer_bytes_per_s": 12e9, "transfer_latency_s": 10e-6},
+    "": {"cpu_bytes_per_s": 1e9, "gpu_bytes_per_s": 20e9, "gpu_launch_s": 20e-6,
+         "transfer_bytes_per_s": 6e9, "transfer_latency_s": 10e-6},
+}
+STATIC = PLACEMENT_COSTS[""]
+
+
+def a_device(kind: str) -> str:
+    """'a cpu device', 'an integrated-gpu device': how plan names a device class."""
+    return f"{'an' if kind[:1] in 'aeiou' else 'a'} {kind} device"
+
+
+def estimate_source(kind: str) -> str:
+    """How plan names the estimate of a device class."""
+    return f"estimate for {a_device(kind)}" if kind else "static estimate"
 
 
 @dataclass(frozen=True)
@@ -52,7 +85,7 @@ class Cost:
 
     cpu_s: float
     gpu_s: float
-    source: str  # "profile" | "static estimate"
+    source: str  # "profile" | "estimate for a cpu device" | ... | "static estimate"
 
 
 @dataclass
@@ -90,10 +123,14 @@ class Place(Pass):
     def apply(self, system, rep):
         flexible = [n for n in system.components.values() if n.type.flexible]
         placement = Placement()
+        kind = system.device.kind
         for node in flexible:
             if node.asked in ("gpu", "cpu"):
                 node.place(node.asked, system.mode)
-        auto = [n for n in flexible if n.asked == "auto"]
+            elif node.asked == "default" and not kind:  # no class known: the paper's GPU
+                node.place("gpu", system.mode)
+        # asked auto, or nobody asked and the device's class is known: placed together
+        auto = [n for n in flexible if n.asked == "auto" or n.asked == "default" and kind]
         if auto:
             profile = read_profile(system, rep)
             model = CostModel(system, profile)
@@ -108,8 +145,12 @@ class Place(Pass):
             placement.all_cpu_s = model.frame(dict.fromkeys(sides, "cpu"))
             placement.search = search
         for node in flexible:
-            placement.decided[node.name] = (node.placement,
-                                            "auto" if node.asked == "auto" else node.placed_by)
+            by = node.placed_by
+            if node.asked == "auto":
+                by = "auto"
+            elif node.asked == "default" and kind:
+                by = node.placed_by = f"default for {a_device(kind)}"
+            placement.decided[node.name] = (node.placement, by)
         system.placement = placement
         return system
 
@@ -122,13 +163,16 @@ class CostModel:
     def __init__(self, system: System, profile: dict | None = None):
         self.system = system
         self.profile = profile or {}
+        kind = system.device.kind if system.device is not None else ""
+        self.costs = PLACEMENT_COSTS.get(kind, STATIC)
+        self.source = estimate_source(kind)
         t = self.profile.get("transfer")
         if t:
             self.latency, self.bandwidth, self.transfer_source = t[0], t[1], "profile"
         else:
-            self.latency = STATIC["transfer_latency_s"]
-            self.bandwidth = STATIC["transfer_bytes_per_s"]
-            self.transfer_source = "static estimate"
+            self.latency = self.costs["transfer_latency_s"]
+            self.bandwidth = self.costs["transfer_bytes_per_s"]
+            self.transfer_source = self.source
         self._compute = {n.name: self.compute(n) for n in system.components.values()
                          if n.type.flexible}
 
@@ -145,9 +189,9 @@ class CostModel:
         if measured is not None:
             return Cost(measured[0], measured[1], "profile")
         nbytes = sum(p.data.nbytes for p in node.ports if p.data is not None)
-        return Cost(nbytes / STATIC["cpu_bytes_per_s"],
-                    STATIC["gpu_launch_s"] + nbytes / STATIC["gpu_bytes_per_s"],
-                    "static estimate")
+        k = self.costs
+        return Cost(nbytes / k["cpu_bytes_per_s"],
+                    k["gpu_launch_s"] + nbytes / k["gpu_bytes_per_s"], self.source)
 
     def side(self, name: str, sides: dict[str, str]) -> str:
         if name in sides:
@@ -263,13 +307,43 @@ def profile_path(model) -> Path | None:
 
 
 def read_profile(system: System, rep: Reporter) -> dict | None:
+    """The profile profile_path() finds, for placement (an error where the model names one
+    that is missing); the build's output records it (--check sees a new one)."""
+    profile = load_profile(system, rep, required=True)
+    if profile is not None:
+        record_profile(system, profile)
+    return profile
+
+
+def record_profile(system: System, profile: dict) -> None:
+    """The build used the profile: its output records the file's digest."""
+    path, text = profile["file"]
+    system.model.add_input(path, text)
+
+
+def load_profile(system: System, rep: Reporter, required: bool) -> dict | None:
     """The profile profile_path() finds as {"components": {name: (cpu_s, gpu_s)},
-    "transfer": (latency_s, bytes_per_s)}; problems are reported at their position."""
+    "transfer": (latency_s, bytes_per_s), "groups": {frozenset(members): (fused_s, apart_s,
+    sizes)}, "file": (path, text)}, read once a build (the place and fuse passes share it);
+    problems are reported at their position.  A missing file is an error where required
+    (placement asks for it), else no profile."""
+    cached = system.profile_cache
+    if cached is not None:
+        return cached or None
+    result = _read_profile(system, rep, required)
+    if result is not None or required:
+        system.profile_cache = result or {}
+    return result
+
+
+def _read_profile(system: System, rep: Reporter, required: bool) -> dict | None:
     model = system.model
     path: Path | None = profile_path(model)
     if path is None:
         return None
     if not path.is_file():
+        if not required:
+            return None
         rel = os.path.relpath(path, model.file.parent)
         rep.error(model.profile_pos, f"profile {rel!r} not found (paths are relative to the "
                   "model)", f"write it with 'gpucompgen tune {model.display}'")
@@ -281,13 +355,12 @@ def read_profile(system: System, rep: Reporter) -> dict | None:
         raise GpucompgenError([Diagnostic(shown, exc.line, exc.col, "error", exc.message,
                                           exc.hint)]) from None
     doc = load_text(text, shown)
-    model.add_input(path, text)  # the build's output records it: --check sees a new one
     data = doc.data
     if not isinstance(data, dict):
         rep.error(doc.pos(), "a profile is a mapping written by 'gpucompgen tune'",
                   f"rewrite it with 'gpucompgen tune {model.display}'")
         return None
-    result: dict = {"components": {}}
+    result: dict = {"components": {}, "groups": {}, "file": (path, text)}
 
     def number(path_, value, what) -> float | None:
         # an int of any length is compared as an int: float() of a 400-digit one overflows
@@ -302,6 +375,13 @@ def read_profile(system: System, rep: Reporter) -> dict | None:
             return None
         return float(value)
 
+    groups = data.get("groups")
+    if isinstance(groups, dict):
+        _read_groups(system, rep, doc, groups, result, number)
+    elif groups is not None:
+        rep.error(doc.pos("groups"), "groups must be a mapping of group names to their "
+                  "members, fused_us and apart_us",
+                  f"rewrite the profile with 'gpucompgen tune {model.display}'")
     t = data.get("transfer")
     if isinstance(t, dict):
         lat = number(("transfer", "latency_us"), t.get("latency_us"), "transfer.latency_us")
@@ -318,6 +398,13 @@ def read_profile(system: System, rep: Reporter) -> dict | None:
                   "the profile lists no components",
                   f"rewrite it with 'gpucompgen tune {model.display}'")
         return result
+    _read_components(system, rep, doc, comps, result, number)
+    return result
+
+
+def _read_components(system: System, rep: Reporter, doc, comps: dict, result: dict,
+                     number) -> None:
+    """Each flexible component's CPU and kernel times, where measured at today's sizes."""
     for name, entry in comps.items():
         node = system.nodes.get(name) if isinstance(name, str) else None
         if not isinstance(node, ComponentNode) or not node.type.flexible:
@@ -340,7 +427,35 @@ def read_profile(system: System, rep: Reporter) -> dict | None:
             continue
         if cpu is not None and gpu is not None:
             result["components"][name] = (cpu * 1e-6, gpu * 1e-6)
-    return result
+
+
+def _read_groups(system: System, rep: Reporter, doc, groups: dict, result: dict,
+                 number) -> None:
+    """The groups tune measured against their members apart: {frozenset(members):
+    (fused_s, apart_s, sizes)}; a group naming a component the system lacks is skipped
+    with a warning (the model changed), one whose sizes changed is kept with its sizes,
+    for the fuse pass to compare."""
+    for name, entry in groups.items():
+        members = entry.get("members") if isinstance(entry, dict) else None
+        if not isinstance(members, list) or not members or \
+                not all(isinstance(m, str) for m in members):
+            rep.error(doc.pos("groups", name), f"profile group '{name}' must be a mapping "
+                      "of members (a list of component names), fused_us and apart_us",
+                      f"rewrite the profile with 'gpucompgen tune {system.model.display}'")
+            continue
+        missing = [m for m in members if not isinstance(system.nodes.get(m), ComponentNode)]
+        if missing:
+            rep.warning(doc.pos("groups", name, "members"),
+                        f"the profile's group '{name}' has {', '.join(missing)}, no "
+                        f"component of '{system.name}'", "rerun 'gpucompgen tune' after "
+                        "changing the model")
+            continue
+        fused = number(("groups", name, "fused_us"), entry.get("fused_us"), "fused_us")
+        apart = number(("groups", name, "apart_us"), entry.get("apart_us"), "apart_us")
+        sizes = entry.get("sizes")
+        if fused is not None and apart is not None:
+            result["groups"][frozenset(members)] = (fused * 1e-6, apart * 1e-6,
+                                                     sizes if isinstance(sizes, str) else None)
 
 
 def sizes_text(system: System, node: ComponentNode) -> str:

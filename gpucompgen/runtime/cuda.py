@@ -176,7 +176,8 @@ class CudaDevice:
             global_mem_size=self.global_mem_size,
             max_mem_alloc_size=self.max_mem_alloc_size,
             host_unified_memory=self.integrated,
-            threads_per_compute_unit=self.max_threads_per_multiprocessor)
+            threads_per_compute_unit=self.max_threads_per_multiprocessor,
+            kind="integrated-gpu" if self.integrated else "discrete-gpu")
 
     def __repr__(self) -> str:
         return f"<CUDA device {self.ordinal}: {self.name} ({self.arch})>"

@@ -25,6 +25,11 @@ class DeviceFacts:
     # Threads one compute unit keeps resident; compute_units * this is the device's total,
     # the default thread budget for components that run at the same time.
     threads_per_compute_unit: int = 2048
+    # The device's class, for the decisions that depend on it (placement by default, the
+    # fusion cost model): "cpu" (a CPU OpenCL device, PoCL or Intel's: it runs on the cores
+    # the CPU forms use), "integrated-gpu" (shares the host's memory), "discrete-gpu"
+    # (behind PCIe), or "" when unknown (the 'portable' profile: any OpenCL 1.2 device).
+    kind: str = ""
 
     @property
     def total_threads(self) -> int:
@@ -34,3 +39,15 @@ class DeviceFacts:
         d = asdict(self)
         d["max_work_item_sizes"] = list(self.max_work_item_sizes)
         return d
+
+
+KINDS = ("cpu", "integrated-gpu", "discrete-gpu")
+
+
+def kind_of(is_cpu: bool, is_gpu: bool, unified: bool) -> str:
+    """A device's class from its type and whether it shares the host's memory."""
+    if is_cpu:
+        return "cpu"
+    if is_gpu:
+        return "integrated-gpu" if unified else "discrete-gpu"
+    return ""  # an accelerator, a custom device: unknown

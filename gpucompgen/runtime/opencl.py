@@ -18,7 +18,7 @@ from typing import Any
 
 from .devices import DeviceStatus, KernelLimits, _build_problem, check_work_group_fits
 from .errors import PipelineError
-from .facts import DeviceFacts
+from .facts import DeviceFacts, kind_of
 from .programs import (
     _captured_stderr,
     _log_from_error,
@@ -185,6 +185,7 @@ def facts(device: Any) -> DeviceFacts:
     """The facts of an OpenCL device (the OpenCL queries, made in this one place)."""
     import pyopencl as cl
 
+    unified = bool(getattr(device, "host_unified_memory", False))
     sizes = tuple(device.max_work_item_sizes)[:3]
     sizes = tuple(sizes) + (1,) * (3 - len(sizes))
     return DeviceFacts(
@@ -195,9 +196,11 @@ def facts(device: Any) -> DeviceFacts:
         local_mem_size=device.local_mem_size,
         global_mem_size=device.global_mem_size,
         max_mem_alloc_size=device.max_mem_alloc_size,
-        host_unified_memory=bool(getattr(device, "host_unified_memory", False)),
+        host_unified_memory=unified,
         threads_per_compute_unit=2048 if device.type & cl.device_type.GPU else
         device.max_work_group_size,
+        kind=kind_of(bool(device.type & cl.device_type.CPU),
+                     bool(device.type & cl.device_type.GPU), unified),
     )
 
 

@@ -22,6 +22,7 @@ from typing import Any
 from .. import device, model, sizeexpr
 from .. import fusable as fusable_forms
 from ..names import MAX_NAME, NAME_RE
+from ..runtime.facts import KINDS
 from . import MODEL, TYPES
 
 HERE = Path(__file__).resolve().parent
@@ -77,6 +78,10 @@ def _fact(key: str) -> dict[str, Any]:
                 "description": "device name shown in the plan"}
     if key == "host_unified_memory":
         return {"type": "boolean"}
+    if key == "kind":
+        return {"type": "string", "enum": list(KINDS),
+                "description": "the device's class: where flexible components run by "
+                               "default, the fusion cost model's constants"}
     low, high = device.FACT_RANGES[key]
     number = {"type": "integer", "minimum": low, "maximum": high}
     if key == "max_work_item_sizes":

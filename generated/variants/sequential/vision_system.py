@@ -45,8 +45,8 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 #     merger_detector: one kernel (group_merger_detector.cl) for
 #       merger (ImageMerger, index_map)
 #       -> detector (ObjectDetector, pointwise)
-#       estimate: 6,164,000 element operations a frame as one kernel, 13,556,800 element
-#       operations apart (2.2x)
+#       estimate: 0.085 ms a frame as one kernel, 0.197 ms apart (2.3x; constants for a cpu
+#       device)
 
 from __future__ import annotations
 
