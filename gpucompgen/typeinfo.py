@@ -55,6 +55,12 @@ def details(ctype: ComponentType) -> list[str]:
              *_row("Declared in", f"{ctype.pos.file}:{ctype.pos.line}"
                                    + (" (library)" if ctype.origin == "library" else ""))]
     lines += _row("Description", " ".join(ctype.description.split()) or "(none)")
+    if ctype.alias_of:
+        lines += _row("Deprecated", f"a name of {ctype.alias_of}"
+                      + (f" with {ctype.alias_channels} channel"
+                         f"{'s' if ctype.alias_channels != 1 else ''}"
+                         if ctype.alias_channels else "")
+                      + f": write 'type: {ctype.alias_of}'")
     for title, ports in (("Inputs", ctype.inputs), ("Outputs", ctype.outputs)):
         lines += ["", f"{title}:"]
         for name, port in ports.items():
@@ -128,15 +134,42 @@ def _kind(ctype: ComponentType) -> str:
 
 
 def _port(port: PortDecl) -> str:
-    channels = f"{port.channels} channel{'s' if port.channels != 1 else ''}"
     memory = "memory where placed" if port.memory == "any" else f"{port.memory.upper()} memory"
-    text = f"{memory}, {port.dtype}, {channels}"
+    text = f"{memory}, {dtypes_text(port)}, {channels_text(port)}"
     if port.direction == "in":
-        return text + ", any size"
-    if port.height is None or port.width is None:
-        return text + ", size: the input's"
-    return (text + f", height {ast.unparse(port.height.body)}, "
-            f"width {ast.unparse(port.width.body)}")
+        text += ", any size"
+    elif port.height is None or port.width is None:
+        text += ", size: the input's"
+    else:
+        text += (f", height {ast.unparse(port.height.body)}, "
+                 f"width {ast.unparse(port.width.body)}")
+    if port.aliases:
+        text += f" (old name{'s' if len(port.aliases) > 1 else ''}: {', '.join(port.aliases)})"
+    return text
+
+
+def _either(values) -> str:
+    values = [str(v) for v in values]
+    return values[0] if len(values) == 1 else ", ".join(values[:-1]) + " or " + values[-1]
+
+
+def dtypes_text(port: PortDecl) -> str:
+    """'uint8', 'uint8, int16 or float32', 'the dtype of src'."""
+    if port.dtype_of:
+        return f"the dtype of {port.dtype_of}"
+    return _either(port.dtypes or [port.dtype])
+
+
+def channels_text(port: PortDecl) -> str:
+    """'3 channels', '1 or 3 channels', 'any channels', 'the channels of src'."""
+    if port.channels_of:
+        return f"the channels of {port.channels_of}"
+    if port.channels_param:
+        return f"channels: parameter {port.channels_param}"
+    if port.any_channels:
+        return "any channels"
+    counts = port.channel_counts or (port.channels,)
+    return f"{_either(counts)} channel{'s' if counts != (1,) else ''}"
 
 
 def _param(decl: ParamDecl) -> str:
