@@ -111,12 +111,16 @@ def run_generated(context, queue, ctype, params: dict, arrays, out_shape: tuple,
     )
     from gpucompgen.model import DTYPES
 
+    if ctype.generic:  # the ports a component fed these arrays gets (resolve-types)
+        first = np.asarray(arrays[0])
+        ctype = ctype.specialized(first.dtype.name, first.shape[2] if first.ndim == 3 else 1)
     (oname, oport), = ctype.outputs.items()
     shapes = {p: a.shape[:2] for p, a in zip(ctype.inputs, arrays, strict=True)}
     shapes[oname] = tuple(out_shape[:2])
     # sizes and a stencil's radius are constants of the kernel; other parameters arguments
     radius = ctype.fusable.radius
-    key = (ctype.name, tuple(sorted(shapes.items())), params.get(radius, radius))
+    key = (ctype.name, tuple(sorted(shapes.items())), params.get(radius, radius),
+           tuple((p.dtype, p.channels) for p in ctype.inputs.values()))
     if key not in _GENERATED:
         group = group_of_one(ctype, params, shapes)
         _GENERATED[key] = cl.Program(context, group_kernel(group, "test")).build(), group

@@ -52,11 +52,13 @@ def test_one_flexible_type_in_full_with_every_form(capsys):
     assert lines[1].startswith("Kind            flexible (runs on the GPU or the CPU, as placed")
     assert re.search(r"^Declared in     <gpucompgen>/library/imgproc\.yaml:\d+ \(library\)$",
                      out, re.MULTILINE)
-    assert "cv2.threshold(image, thresh, maxval, thresh_type)" in " ".join(out.split())
-    # a flexible type's ports live where it runs
-    assert "  image         memory where placed, uint8, 3 channels, any size" in lines
-    assert ("  thresholded   memory where placed, uint8, 3 channels, height image.height, "
-            "width image.width") in lines
+    assert "cv2.threshold(src, thresh, maxval, thresh_type)" in " ".join(out.split())
+    # a flexible type's ports live where it runs; a generic one's channels follow its input
+    assert ("  src           memory where placed, uint8, 1 or 3 channels, any size (old name: "
+            "image)") in lines
+    assert ("  dst           memory where placed, uint8, the channels of src, height src.height, "
+            "width src.width") in lines
+    assert "                (old name: thresholded)" in lines
     assert "  thresh        int, default 127, range 0..255" in lines
     assert "  thresh_type   int, default 0, range 0..4" in lines
     assert "4 TOZERO_INV" in out
@@ -65,25 +67,30 @@ def test_one_flexible_type_in_full_with_every_form(capsys):
         "GPU kernel generated from the fusable form below, for a component alone as for a "
         "fused group; the system chooses its settings CPU function threshold() in cpu_kernels.py, called with the input "
         "arrays and the parameters as keywords; runs where the model places the component "
-        "(placement: cpu, --place) fusable pointwise: const int p = image(y, x, c); const "
+        "(placement: cpu, --place) fusable pointwise: const int p = src(y, x, c); const "
         "bool above = p > thresh; return thresh_type == 0 ? (above ? maxval : 0) : "
         "thresh_type == 1 ? (above ? 0 : maxval) : thresh_type == 2 ? (above ? thresh : p) : "
         "thresh_type == 3 ? (above ? p : 0) : (above ? 0 : p);")
     # a snippet of several lines is printed as written, under its form
     at = forms.index("  fusable       pointwise:")
-    assert forms[at + 1:at + 3] == ["                  const int p = image(y, x, c);",
+    assert forms[at + 1:at + 3] == ["                  const int p = src(y, x, c);",
                                     "                  const bool above = p > thresh;"]
     assert forms[0].startswith("  GPU kernel    ") and any(
         f.startswith("  CPU function  threshold() in cpu_kernels.py") for f in forms)
 
 
 def test_requirements_float_parameters_and_int16_ports(capsys):
-    _, out, _ = run(capsys, "SobelGray")
-    assert "  gradient      memory where placed, int16, 1 channel, height image.height" in out
+    _, out, _ = run(capsys, "SobelGray")  # a deprecated alias: Sobel with 1 channel
+    assert "  dst           memory where placed, int16, 1 channel, height src.height" in out
+    assert "Deprecated      a name of Sobel with 1 channel: write 'type: Sobel'" in out
     assert "dx + dy == 1: give dx=1 dy=0 or dx=0 dy=1" in out
+    _, out, _ = run(capsys, "ConvertScale")  # takes Sobel's int16
+    assert ("  src           memory where placed, uint8, int16 or float32, 1 or 3 channels, "
+            "any size") in out
     _, out, _ = run(capsys, "AddWeighted")
     assert "  gamma         float, default 0.0" in out
-    assert "  src2          memory where placed, uint8, 3 channels, any size" in out
+    assert ("  src2          memory where placed, the dtype of src1, the channels of src1, "
+            "any size") in out
     assert "  CPU function  add_weighted() in cpu_kernels.py" in out
 
 
@@ -149,7 +156,7 @@ def test_docs_show_the_current_listing_and_every_imgproc_type(capsys):
 
 def test_fusable_forms_are_listed_with_their_snippets(capsys):
     _, out, _ = run(capsys, "VerticalMirror")
-    assert "  fusable       index map: image(image_height - 1 - y, x, c)" in out.splitlines()
+    assert "  fusable       index map: src(src_height - 1 - y, x, c)" in out.splitlines()
     _, out, _ = run(capsys, "BoxBlur")
     text = " ".join(out.split())
     assert "fusable stencil; window radius radius, border clamp: const int n =" in text
