@@ -447,7 +447,7 @@ def _load_alias(doc: Document, rep: Reporter, tname: str, spec: dict,
             return None
         if counts and pinned not in counts:
             rep.error(doc.pos(*base, "channels"), f"alias '{tname}' fixes {pinned} channels; "
-                      f"'{target}' takes {'|'.join(map(str, sorted(counts)))}",
+                      f"'{target}' takes {' or '.join(map(str, sorted(counts)))}",
                       "give one of them")
             return None
 

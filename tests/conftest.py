@@ -144,8 +144,9 @@ def run_generated(context, queue, ctype, params: dict, arrays, out_shape: tuple,
     return result
 
 
-# Collectors for tests that build models: one standard type per element type and channel
-# count (Keep3, Keep1, KeepS3, KeepS1), one class for all, keeping a copy of every frame.
+# Collectors for tests that build models, keeping a copy of every frame: Keep takes any
+# element type and channels (a generic port, resolved from what feeds it); the types of
+# one element type and channel count each (Keep3, Keep1, KeepS3, KeepS1) came first.
 KEEP_TYPES = "component_types:\n" + "".join(f"""
   {name}:
     kind: standard
@@ -154,7 +155,8 @@ KEEP_TYPES = "component_types:\n" + "".join(f"""
       image: {{memory: cpu, dtype: {dtype}, channels: {channels}}}
     python: {{file: keep.py, class: Keep}}
 """ for name, dtype, channels in (("Keep3", "uint8", 3), ("Keep1", "uint8", 1),
-                                  ("KeepS3", "int16", 3), ("KeepS1", "int16", 1)))
+                                  ("KeepS3", "int16", 3), ("KeepS1", "int16", 1),
+                                  ("Keep", "any", "any")))
 KEEP_PY = """import numpy as np
 
 
@@ -180,5 +182,7 @@ def write_keep_types(folder: Path) -> None:
 
 
 def keep_type_for(port) -> str:
-    """The Keep type that takes what a port (a PortDecl) carries."""
+    """The Keep type that takes what a port (a PortDecl) carries: Keep, for a generic one."""
+    if port.generic:
+        return "Keep"
     return ("KeepS" if port.dtype == "int16" else "Keep") + str(port.channels)
