@@ -51,6 +51,8 @@ ANY = ("any",)
 # path in it is relative to the model file, and the frame size is read from its header
 PARAM_TYPES = {"int": int, "float": float, "bool": bool, "str": str, "path": str, "input": str}
 KINDS = ("standard", "gpu-aware", "flexible")
+# what 'gpucompgen types' groups the library by (a type's 'family:'), in this order
+FAMILIES = ("colour", "filters", "morphology", "geometry", "arithmetic", "features", "io")
 # where a component runs: "auto" lets the place pass choose (flexible types only)
 PLACEMENTS = ("gpu", "cpu", "auto")
 SETTING_KEYS = ("tile", "block_x", "block_y", "block_z")
@@ -192,6 +194,7 @@ class ComponentType:
     # with its generic channels fixed
     alias_of: str = ""
     alias_channels: int = 0
+    family: str = ""  # one of FAMILIES: how 'gpucompgen types' groups it ("": by file)
 
     @property
     def generic(self) -> bool:
@@ -368,8 +371,8 @@ def _positive_int(doc: Document, rep: Reporter, path: tuple, value: Any, what: s
 
 # --------------------------------------------------------------------------- types
 
-TYPE_KEYS = ("kind", "description", "params", "inputs", "outputs", "requires", "kernel",
-             "python", "gpu", "cpu", "fusable")
+TYPE_KEYS = ("kind", "description", "family", "params", "inputs", "outputs", "requires",
+             "kernel", "python", "gpu", "cpu", "fusable")
 PORT_KEYS = ("memory", "dtype", "channels", "height", "width", "description", "aliases")
 PARAM_KEYS = ("type", "default", "min", "max", "description")
 REQUIRE_KEYS = ("check", "message")
@@ -486,6 +489,14 @@ def _load_type(doc: Document, rep: Reporter, path: Path, origin: str, tname: str
                           "description"),
         params={}, inputs={}, outputs={}, requires=[], decl_file=path, origin=origin,
         pos=doc.key_pos(*base))
+    if "family" in spec:
+        if _named(spec["family"], FAMILIES):
+            ctype.family = spec["family"]
+        else:
+            rep.error(doc.pos(*base, "family"), f"family of '{tname}' must be one of "
+                      f"{', '.join(FAMILIES)}, not {spec['family']!r}",
+                      did_you_mean(str(spec["family"]), FAMILIES) or
+                      "it groups the type in 'gpucompgen types'")
     # parameters
     params = _expect_map(doc, rep, base + ("params",), spec.get("params"), "params")
     if len(params) > MAX_PARAMS:

@@ -74,7 +74,8 @@ class Snippets:
         (oname,) = t.outputs
         shapes[oname] = expected.shape[:2]
         # sizes are constants of the kernel, parameter values its arguments
-        key = (type_name, tuple(sorted(shapes.items())), arrays[0].dtype.str)
+        key = (type_name, tuple(sorted(shapes.items())), arrays[0].dtype.str,
+               arrays[0].shape[2:])
         if key not in self.built:
             source, kparams = one_member_group(type_name, params, shapes, arrays)
             self.built[key] = cl.Program(self.context, source).build(), kparams

@@ -159,7 +159,7 @@ def test_every_enum_and_closed_mapping_agrees_with_the_loader():
                                     model.PARAM_TYPES, model.COVERS, model.EXECUTIONS,
                                     model.ZERO_COPY, model.STAGING, model.PLACEMENTS,
                                     model.FUSION, model.BACKENDS, fusable.FORMS, fusable.BORDERS, PROFILES,
-                                    [*PROFILES, "auto"], model.ANY)}
+                                    [*PROFILES, "auto"], model.ANY, model.FAMILIES)}
     tables = {frozenset(t) for t in (
         model.SYSTEM_KEYS, model.PLATFORM_KEYS, model.INSTANCE_KEYS, model.TYPE_KEYS,
         model.PORT_KEYS, set(model.PORT_KEYS) - {"height", "width"}, model.PARAM_KEYS,

@@ -27,21 +27,33 @@ def test_listing_names_every_library_type_once_with_its_kind(capsys):
     types = library_types()
     assert rows == {name: t.kind for name, t in types.items()}
     assert f"{len(types)} component types" in out
-    assert "<gpucompgen>/library/imgproc.yaml:" in out
+    # grouped by family, in this order; each line says what the type takes and gives
+    titles = ["colour:", "filters:", "morphology:", "geometry:", "arithmetic and thresholds:",
+              "features:", "I/O: sources and sinks:"]
+    assert [line for line in out.splitlines() if line.endswith(":")] == titles
     assert all(len(line) <= 100 for line in out.splitlines())
     # the one-line description is the first sentence
-    assert re.search(r"^  Resize +flexible   Scales a frame to width x height\.$", out, re.MULTILINE)
+    assert re.search(r"^  Resize +flexible   8UC3 -> 8UC3 +Scales a frame to width x height\.$",
+                     out, re.MULTILINE)
+    assert re.search(r"^  Sobel +flexible   8UC1\|3 -> 16S +First derivative", out, re.MULTILINE)
+    assert re.search(r"^  ConvertScale +flexible   8U\|16S\|32F C1\|3 -> 8U ", out, re.MULTILINE)
+    assert re.search(r"^  AbsDiff +flexible   2 x 8UC1\|3 -> 8U ", out, re.MULTILINE)
+    assert re.search(r"^  ErodeGray +flexible   8UC1 -> 8UC1 +deprecated: Erode with 1 channel$",
+                     out, re.MULTILINE)
+    assert re.search(r"^  MaskWriter +standard   8UC3, 8UC1 -> +Sink", out, re.MULTILINE)
+    assert re.search(r"^  Camera +standard   -> 8UC3 +Camera source\.$", out, re.MULTILINE)
 
 
 def test_listing_with_a_model_adds_its_own_types(capsys):
     code, out, _ = run(capsys, "--model", USER_MODEL)
     assert code == 0
     assert "tests/data/user_model/my_types.yaml:" in out
-    assert re.search(r"^  Brighten +gpu-aware  Adds gain to every channel", out, re.MULTILINE)
+    assert re.search(r"^  Brighten +gpu-aware  8UC3 -> 8UC3 +Adds gain to every channel", out,
+                     re.MULTILINE)
     assert re.search(r"^  MeanProbe +standard ", out, re.MULTILINE)
     assert f"{len(library_types()) + 2} component types" in out
     # the library first, the model's files after it
-    assert out.index("<gpucompgen>/library/") < out.index("my_types.yaml:")
+    assert out.index("I/O: sources and sinks:") < out.index("my_types.yaml:")
 
 
 def test_one_flexible_type_in_full_with_every_form(capsys):
@@ -62,7 +74,7 @@ def test_one_flexible_type_in_full_with_every_form(capsys):
     assert "  thresh        int, default 127, range 0..255" in lines
     assert "  thresh_type   int, default 0, range 0..4" in lines
     assert "4 TOZERO_INV" in out
-    forms = lines[lines.index("Forms:") + 1:]
+    forms = lines[lines.index("Forms:") + 1:lines.index("Example:") - 1]
     assert " ".join(" ".join(forms).split()) == (
         "GPU kernel generated from the fusable form below, for a component alone as for a "
         "fused group; the system chooses its settings CPU function threshold() in cpu_kernels.py, called with the input "
@@ -100,7 +112,10 @@ def test_standard_type_and_model_type_in_full(capsys, monkeypatch):
     assert "  image         CPU memory, uint8, 3 channels, height height, width width" in out
     assert "  folder        input, default ''" in out
     assert "  seed          int, default 1, range 0.." in out
-    assert out.splitlines()[-1] == "  CPU (python)  class Camera in camera.py"
+    assert "  CPU (python)  class Camera in camera.py" in out.splitlines()
+    assert out.splitlines()[-3:] == [
+        "    camera: {type: Camera, params: {width: 640, height: 480, seed: 1, buoys: 2, frames: 0}}",
+        "  connections:", "    - camera.image -> <consumer>.<port>  # uint8, 3 channels"]
     monkeypatch.chdir(ROOT)  # paths as the user wrote them, relative to the working folder
     code, out, _ = run(capsys, "Brighten", "--model", USER_MODEL.relative_to(ROOT))
     assert code == 0
@@ -152,6 +167,15 @@ def test_docs_show_the_current_listing_and_every_imgproc_type(capsys):
     for name, ctype in library_types().items():
         if ctype.decl_file.name == "imgproc.yaml":
             assert re.search(rf"\b{name}\b", rows), name
+
+
+def test_one_type_in_full_ends_with_an_example_connection(capsys):
+    _, out, _ = run(capsys, "AbsDiffGray")  # a deprecated name: the example writes the type
+    assert out.splitlines()[out.splitlines().index("Example:"):] == [
+        "Example:", "  components:", "    abs_diff: {type: AbsDiff}", "  connections:",
+        "    - <producer>.<port> -> abs_diff.src1  # uint8, 1 channel",
+        "    - <producer>.<port> -> abs_diff.src2  # the dtype of src1, 1 channel",
+        "    - abs_diff.dst -> <consumer>.<port>   # uint8, 1 channel"]
 
 
 def test_fusable_forms_are_listed_with_their_snippets(capsys):

@@ -226,7 +226,9 @@ def types_schema() -> dict[str, Any]:
                     "alone as in a group, is generated from the form")
     kind_gpu, kind_standard = model.KINDS[1], model.KINDS[0]
     ctype = _object(model.TYPE_KEYS, {
-        "kind": _enum(model.KINDS), "description": TEXT, "params": _named_map(param),
+        "kind": _enum(model.KINDS), "description": TEXT,
+        "family": _enum(model.FAMILIES, "what 'gpucompgen types' groups the type under"),
+        "params": _named_map(param),
         "inputs": inputs, "outputs": outputs, "requires": requires, "kernel": kernel,
         "python": python, "gpu": gpu, "cpu": cpu, "fusable": fusable}, ("kind",), allOf=[
         {"if": {"properties": {"kind": {"const": kind_gpu}}},
