@@ -1794,7 +1794,8 @@ def _parse_connection(doc, rep, path, text, comps, components,
         return None
     src, dst = Endpoint(m[1], m[2]), Endpoint(m[3], m[4])
     ok = True
-    for end, want in ((src, "out"), (dst, "in")):
+    for written, want in ((src, "out"), (dst, "in")):
+        end = written
         if end.component not in components:
             if end.component not in comps:  # else: already reported where it was declared
                 rep.error(pos, f"unknown component '{end.component}' in connection",

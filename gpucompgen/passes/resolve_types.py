@@ -37,12 +37,14 @@ class ResolveTypes(Pass):
                     port = system.nodes[edge.source.component].port(edge.source.port)
                     given[pname] = (port.dtype, port.channels)
             ports = resolve_ports(ctype, given, node.params)
-            for pname, (dtype, channels) in ports.items():
-                port, decl = node.port(pname), ctype.port(pname)
-                if pname in given and decl.generic:
-                    dtype, channels = _checked(rep, edges[Endpoint(name, pname)], decl,
-                                               given[pname], ports, ctype.name)
-                port.dtype, port.channels = dtype, channels
+            for pname, resolved in ports.items():
+                decl = ctype.port(pname)
+                if pname in given and decl.generic:  # what feeds it, reported if not taken
+                    node.port(pname).dtype, node.port(pname).channels = _checked(
+                        rep, edges[Endpoint(name, pname)], decl, given[pname], ports,
+                        ctype.name)
+                else:
+                    node.port(pname).dtype, node.port(pname).channels = resolved
             for pname, decl in ctype.outputs.items():
                 if decl.channels_param and ports[pname][1] != node.params.get(
                         decl.channels_param):
