@@ -263,12 +263,12 @@ def test_out_arrays_are_filled_and_checked():
     mask = np.empty((6, 5), np.uint8)
     assert cpu_kernels.object_detector(image, red_min=0, margin=-255, out=mask) is mask
     assert (mask == 255).all()
-    with pytest.raises(ValueError, match=r"out= for 'mirrored' must be a C-contiguous uint8"):
+    with pytest.raises(ValueError, match=r"out= for 'dst' must be a C-contiguous uint8"):
         cpu_kernels.vertical_mirror(image, out=np.empty((5, 6, 3), np.uint8))
 
 
 @pytest.mark.parametrize("bad,message", [
-    (np.zeros((4, 4), np.uint8), "height x width x 3"),
+    (np.zeros((4, 4, 2), np.uint8), "height x width x 3"),  # one channel or three
     (np.zeros((4, 4, 4), np.uint8), "height x width x 3"),
     (np.zeros((0, 4, 3), np.uint8), "at least 1"),
     (np.zeros((4, 4, 3), np.float32), "uint8 numpy array"),
@@ -276,7 +276,7 @@ def test_out_arrays_are_filled_and_checked():
 def test_bad_inputs_are_refused_with_the_port_named(bad, message):
     with pytest.raises((ValueError, TypeError), match=message) as info:
         cpu_kernels.box_blur(bad, radius=1)
-    assert "BoxBlur: 'image'" in str(info.value)
+    assert "BoxBlur: 'src'" in str(info.value)
 
 
 # -- generic over channels: BoxBlur and VerticalMirror take 1 or 3 ------------------------
