@@ -7,7 +7,6 @@ line and column. Deprecated names (type aliases, old port names) resolve to the 
 
 from __future__ import annotations
 
-
 import pytest
 
 from gpucompgen.device import PROFILES
