@@ -60,33 +60,26 @@ def _checked(rep, edge, decl, fed: tuple[str, int], ports, type_name: str) -> tu
     does not take it (then the port takes it anyway, so check-port-types, which compares
     the ends of every edge, does not report the same edge again)."""
     dtype, channels = fed
-    if decl.dtype_of and dtype != ports[decl.dtype_of][0]:
-        rep.error(edge.pos, f"element type mismatch: '{edge.source}' gives {dtype}, "
-                  f"'{edge.target}' takes {ports[decl.dtype_of][0]}, the element type of "
-                  f"'{edge.target.component}.{decl.dtype_of}'",
-                  f"{type_name} takes {decl.dtype_of} and {decl.name} of one element type: "
-                  "convert one of them (ConvertScale gives uint8)")
-    elif not accepts_dtype(decl, dtype):
-        rep.error(edge.pos, f"element type mismatch: '{edge.source}' gives {dtype}, "
-                  f"'{edge.target}' takes {choices_text(decl, 'dtype')}",
-                  "insert a component that converts (ConvertScale gives uint8), or connect "
-                  "another port")
-    if decl.channels_of and channels != ports[decl.channels_of][1]:
-        rep.error(edge.pos, f"channel mismatch: '{edge.source}' gives {channels} channel(s), "
-                  f"'{edge.target}' takes {ports[decl.channels_of][1]}, the channels of "
-                  f"'{edge.target.component}.{decl.channels_of}'",
-                  f"{type_name} takes {decl.channels_of} and {decl.name} with the same "
-                  "channels: convert one of them (RgbToGray gives 1)")
-    elif decl.channels_param and channels != ports[decl.name][1]:
-        rep.error(edge.pos, f"channel mismatch: '{edge.source}' gives {channels} channel(s), "
-                  f"'{edge.target}' takes {ports[decl.name][1]} (parameter "
-                  f"'{decl.channels_param}')", f"set '{decl.channels_param}: {channels}', or "
-                  "connect another port")
-    elif not accepts_channels(decl, channels):
-        rep.error(edge.pos, f"channel mismatch: '{edge.source}' gives {channels} channel(s), "
-                  f"'{edge.target}' takes {choices_text(decl, 'channels')}",
-                  "insert a component that converts (RgbToGray gives 1), or connect another "
-                  "port")
+    for i, (kind, value, shown, followed, accepts, convert) in enumerate((
+            ("element type", dtype, dtype, decl.dtype_of, accepts_dtype,
+             "ConvertScale gives uint8"),
+            ("channels", channels, f"{channels} channel(s)", decl.channels_of,
+             accepts_channels, "RgbToGray gives 1"))):
+        head = (f"{'channel' if i else kind} mismatch: '{edge.source}' gives {shown}, "
+                f"'{edge.target}' takes ")
+        if followed and value != ports[followed][i]:
+            rep.error(edge.pos, head + f"{ports[followed][i]}, the {kind} of "
+                      f"'{edge.target.component}.{followed}'",
+                      f"{type_name} takes {followed} and {decl.name} with the same {kind}: "
+                      f"convert one of them ({convert})")
+        elif i and decl.channels_param and value != ports[decl.name][1]:
+            rep.error(edge.pos, head + f"{ports[decl.name][1]} (parameter "
+                      f"'{decl.channels_param}')", f"set '{decl.channels_param}: {value}', or "
+                      "connect another port")
+        elif not accepts(decl, value):
+            rep.error(edge.pos, head + choices_text(decl, "channels" if i else "dtype"),
+                      f"insert a component that converts ({convert}), or connect another "
+                      "port")
     return dtype, channels
 
 
