@@ -70,7 +70,7 @@ def _common(p: argparse.ArgumentParser,
                         "pageable arrays; auto is pinned when the device has no unified host "
                         "memory (default: the model's platform.staging, else auto)")
     p.add_argument("--backend", choices=BACKENDS,
-                   help="opencl: pyopencl and OpenCL C kernels; cuda: cuda-python and the "
+                   help="opencl: OpenCL C kernels driven from Python; cuda: cuda-python and the "
                         "same kernels as CUDA C++, for NVIDIA GPUs without OpenCL (Jetson); "
                         "see docs/cuda.md (default: the model's platform.backend, else "
                         "opencl)")
@@ -120,7 +120,7 @@ def parser() -> argparse.ArgumentParser:
     top = argparse.ArgumentParser(
         prog="gpucompgen",
         description="Generate GPU-aware pipe-and-filter systems (Campeanu et al.) as readable "
-                    "Python + pyopencl programs: check a YAML system model, propagate sizes, "
+                    "Python programs over OpenCL (or CUDA): check a YAML system model, propagate sizes, "
                     "insert CPU<->GPU adapters, choose GPU settings, render the program.",
         epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     top.add_argument("--version", action="version", version=f"gpucompgen {__version__}")
@@ -194,7 +194,8 @@ def parser() -> argparse.ArgumentParser:
         "bench", help="standard vs GPU-aware chains of VerticalMirror (paper, Figures 9/10)",
         description="Generate chains of N VerticalMirror components in both modes, run them "
                     "on the OpenCL device (PYOPENCL_CTX), and compare with a hand-written "
-                    "pyopencl loop, the device's copy-bandwidth bound and OpenCV. Prints a "
+                    "loop of copies and launches, the device's copy-bandwidth bound and "
+                    "OpenCV. Prints a "
                     "table; writes bench.csv and bench.png into the output folder.")
     be.add_argument("--sizes", default="1152x864,1152x1782", metavar="WxH,...",
                     help="frame sizes, width x height (default: the paper's 1152x864,1152x1782)")
@@ -648,8 +649,10 @@ def cmd_devices(args) -> int:
 
 def _cuda_devices() -> list:
     """The CUDA devices (for --backend cuda), [] without cuda-python or a driver."""
+    from .backend import runtime_module
+
     try:
-        from .runtime import cuda
+        cuda = runtime_module("cuda")
     except ImportError:
         return []
     return cuda.survey_devices()

@@ -18,39 +18,13 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
+from .dataflow import Data, Endpoint
 from .errors import Pos
-from .model import DTYPES, ComponentType, Endpoint, SystemModel
+from .model import ComponentType, SystemModel
 from .runtime.facts import DeviceFacts
-from .runtime.sizes import Size
+from .runtime.sizes import Size  # noqa: F401  (the passes take it from here)
 
 MODES = ("gpu-aware", "standard")
-
-
-@dataclass(frozen=True)
-class Data:
-    """What flows on a port each frame: its Size (the runtime's one Size) and element type."""
-
-    size: Size
-    dtype: str
-
-    @property
-    def height(self) -> int:
-        return self.size.height
-
-    @property
-    def width(self) -> int:
-        return self.size.width
-
-    @property
-    def channels(self) -> int:
-        return self.size.channels
-
-    @property
-    def nbytes(self) -> int:
-        return self.size.height * self.size.width * self.size.channels * DTYPES[self.dtype][2]
-
-    def __str__(self) -> str:
-        return f"{self.height}x{self.width}x{self.channels} {self.dtype}"
 
 
 @dataclass(frozen=True)

@@ -117,9 +117,9 @@ def run_generated(context, queue, ctype, params: dict, arrays, out_shape: tuple,
     (oname, oport), = ctype.outputs.items()
     shapes = {p: a.shape[:2] for p, a in zip(ctype.inputs, arrays, strict=True)}
     shapes[oname] = tuple(out_shape[:2])
-    # sizes and a stencil's radius are constants of the kernel; other parameters arguments
-    radius = ctype.fusable.radius
-    key = (ctype.name, tuple(sorted(shapes.items())), params.get(radius, radius),
+    # sizes and parameters are constants of the kernel: one build for each (and for each
+    # element type and channel count of a generic type's ports)
+    key = (ctype.name, tuple(sorted(shapes.items())), tuple(sorted(params.items())),
            tuple((p.dtype, p.channels) for p in ctype.inputs.values()))
     if key not in _GENERATED:
         group = group_of_one(ctype, params, shapes)
@@ -134,7 +134,7 @@ def run_generated(context, queue, ctype, params: dict, arrays, out_shape: tuple,
     out = cl.Buffer(context, mf.READ_WRITE, max(result.nbytes, 1))
     cl.enqueue_fill_buffer(queue, out, np.uint8(0xA5), 0, max(result.nbytes, 1))
     kernel = cl.Kernel(program, kernel_name(group))
-    kernel.set_args(*launch_arguments(group, buffers, out, params, tile))
+    kernel.set_args(*launch_arguments(group, buffers, out, tile))
     rows = -(-shapes[oname][0] // tile)
     cl.enqueue_nd_range_kernel(queue, kernel, (bx, rows * by, bz), (bx, by, bz))
     cl.enqueue_copy(queue, result, out)

@@ -15,7 +15,7 @@ import math
 import re
 from dataclasses import replace
 
-from ..backend.opencl.convention import PARAM_C_TYPES, group_parameters, kernel_parameters
+from ..convention import group_constants, group_parameters, kernel_parameters
 from ..ir import AdapterNode, ComponentNode, GroupNode, System
 from ..model import DTYPES, ComponentType, Endpoint
 from ..plan import (
@@ -25,6 +25,7 @@ from ..plan import (
     GroupPlan,
     KernelClass,
     Launch,
+    LibSource,
     Part,
     Program,
     ProgramPlan,
@@ -169,6 +170,41 @@ def cpu_used_types(system: System) -> list[ComponentType]:
     return [t for t in used_types(system, "cpu") if t.flexible]
 
 
+def lib_sources(system: System, files: dict[str, str]) -> tuple[LibSource, ...]:
+    """Every kernel and user Python file the lib folder holds, once each, with its checked
+    text: per used type, its kernel (a GPU one), its CPU function file (a user's flexible
+    type on the CPU), its class file (a user's standard type); then the kernels built only
+    to check them; then each fused group's generated kernel (no text: the backend writes
+    it)."""
+    found: list[LibSource] = []
+    written: set[str] = set()
+    gpu, cpu, used = gpu_used_types(system), cpu_used_types(system), used_types(system)
+
+    def add(key: str, kind: str, users: list[str], text: str, origin) -> None:
+        name = files[key]
+        if name not in written:  # a file several types share is copied once
+            written.add(name)
+            found.append(LibSource(name, kind, tuple(sorted(users)), text, str(origin)))
+
+    for t in used:
+        if t in gpu:
+            add(kernel_key(t), "kernel", [u.name for u in gpu if kernel_key(u) == kernel_key(t)],
+                t.kernel_text, t.kernel_file)
+        if t.flexible and t.origin == "user" and t in cpu:
+            add(cpu_lib_key(t), "cpu", [u.name for u in cpu if u.origin == "user"
+                                        and cpu_lib_key(u) == cpu_lib_key(t)],
+                t.cpu_text, t.cpu_file)
+        if not t.gpu_aware and t.origin == "user":
+            add(lib_key(t), "python", [u.name for u in used if not u.gpu_aware
+                                       and u.origin == "user" and lib_key(u) == lib_key(t)],
+                t.python_text, t.python_file)
+    for t in checked_kernel_types(system):
+        add(kernel_key(t), "checked_kernel", [t.name], t.kernel_text, t.kernel_file)
+    for g in system.kernel_groups:  # the backend's kernel generator writes their text
+        found.append(LibSource(files[lib_key(g.type)], "group", (g.name,), ""))
+    return tuple(found)
+
+
 def np_name(dtype: str) -> str:
     return DTYPES[dtype][0]
 
@@ -208,6 +244,19 @@ def kernel_class(t: ComponentType, file: str, group: GroupNode | None = None) ->
         grid=t.grid, rows=t.cover == "rows")
 
 
+def param_argument(node: ComponentNode, p) -> Argument:
+    """A parameter's value as the kernel takes it: an argument of a hand kernel, a
+    constant (build option) of a group's generated kernel (p.param 'member.param')."""
+    group = isinstance(node, GroupNode)
+    owner, pname = (node.member(p.param.split(".")[0]), p.param.split(".")[1]) \
+        if group else (node, p.param)
+    host = p.dtype
+    value = owner.params[pname]
+    value = float(value) if host == "float32" else int(value)
+    return Argument(p.name, p.kind, host_type=host, value=value,
+                    param=f"{owner.name}.{pname}")
+
+
 def launch(system: System, node: ComponentNode, program: str) -> Launch:
     """The kernel launch of a GPU component: arguments in convention order, sizes decided."""
     s = system.settings[node.name]
@@ -226,13 +275,7 @@ def launch(system: System, node: ComponentNode, program: str) -> Launch:
             args.append(Argument(p.name, "scalar", port=p.port, host_type="int32",
                                  value=getattr(data, p.dim)))
         elif p.role == "param":
-            owner, pname = (node.member(p.param.split(".")[0]), p.param.split(".")[1]) \
-                if group else (node, p.param)
-            host = PARAM_C_TYPES[owner.type.params[pname].type][1].removeprefix("np.")
-            value = owner.params[pname]
-            value = float(value) if host == "float32" else int(value)
-            args.append(Argument(p.name, "scalar", host_type=host, value=value,
-                                 param=f"{owner.name}.{pname}"))
+            args.append(param_argument(node, p))
         else:  # the tile
             args.append(Argument(p.name, "scalar", host_type="int32", value=s.tile))
     grid = system.data(Endpoint(node.name, t.grid))
@@ -242,6 +285,13 @@ def launch(system: System, node: ComponentNode, program: str) -> Launch:
                   (s.block_x, s.block_y, s.block_z),
                   (groups_x * s.block_x, groups_y * s.block_y, s.block_z), s.source,
                   resident_threads(system, node.name))
+
+
+def _defines(group: GroupNode | None) -> tuple[Argument, ...]:
+    """The build options of a group's generated kernel: its members' parameters."""
+    if group is None:
+        return ()
+    return tuple(param_argument(group, p) for p in group_constants(group))
 
 
 def lower(system: System) -> ProgramPlan:
@@ -445,6 +495,7 @@ def lower(system: System) -> ProgramPlan:
             w for w, names in (("fused", fused), ("its generated kernel alone", alone),
                                ("on the CPU", on_cpu)) if names) + ": built only to check it"
     groups = {g.type.name: g for g in system.kernel_groups}
+    groups_by_key = {_type_key(g.type): g for g in system.kernel_groups}
     asked = model.thread_budget
     budget_source = ("platform.thread_budget" if asked and asked <= system.thread_budget else
                      "device total" if not asked else
@@ -456,7 +507,8 @@ def lower(system: System) -> ProgramPlan:
         programs=tuple(Program(programs[_type_key(m[0])], files[lib_key(m[0])],
                                ", ".join(f"{users[_type_key(t)]} "
                                          f"({t.name}{why.get(_type_key(t), '')})"
-                                         for t in m))
+                                         for t in m),
+                               _defines(groups_by_key.get(_type_key(m[0]))))
                        for m in sharing.values()),
         imports=tuple(sorted(imports)), user_classes=tuple(user_classes),
         kernel_classes=tuple(kernel_class(t, files[lib_key(t)], groups.get(t.name))
@@ -479,6 +531,7 @@ def lower(system: System) -> ProgramPlan:
         concurrent=tuple((g, sum(resident_threads(system, n) for n in g))
                          for g in system.concurrent),
         lib_files={v: k for k, v in files.items()},
+        lib_dir=lib_dir_name(system.name), lib_sources=lib_sources(system, files),
         frames_in_flight=n_sets, stages=flight_stages(system, steps),
         flight_notes=tuple(system.flight_notes), buffer_sets=tuple(system.buffer_sets.items()),
         staging=system.staging, staging_reason=system.staging_reason,
