@@ -377,31 +377,8 @@ def run_bench(sizes, lengths, frames: int, out_dir: Path, opencv: bool = True,
             ring = CopyRing(context, image.nbytes)
             bar.update(1)
             for n in lengths:
-                runners = {"standard": Generated(Path(tmp), n, size, "standard", context),
-                           "gpu-aware": Generated(Path(tmp), n, size, "gpu-aware", context),
-                           "zero-copy": Generated(Path(tmp), n, size, "zero-copy", context),
-                           "fused": Generated(Path(tmp), n, size, "fused", context),
-                           "hand-written": HandWritten(n, image, context),
-                           "bound": Bound(n, ring)}
-                if opencv:
-                    runners["opencv-cpu"] = OpenCvCpu(n, image)
-                samples: dict[str, list[float]] = {v: [] for v in runners}
-                want = expected_output(image, n)
-                for r in range(rounds):
-                    k = frames // rounds + (1 if r < frames % rounds else 0)
-                    for variant, runner in runners.items():
-                        bar.set_postfix_str(f"{size[0]}x{size[1]} N={n} {variant}")
-                        times, last = runner.run(k)
-                        if last is not None and not np.array_equal(last, want):
-                            raise BenchError(f"{variant} chain of {n} at {size[0]}x{size[1]} "
-                                             "gave a wrong image")
-                        samples[variant] += times
-                        bar.update(1)
-                for variant in ("hand-written", "opencv-cpu"):
-                    if variant in runners:
-                        runners[variant].release()
-                for variant, s in samples.items():
-                    figures.append(Figure(size, n, variant, s))
+                figures += _time_chain(n, size, image, Path(tmp), context, ring, opencv,
+                                       frames, rounds, bar)
             ring.release()
             if opencv:
                 bar.set_postfix_str(f"{size[0]}x{size[1]} OpenCV")
@@ -425,6 +402,36 @@ def run_bench(sizes, lengths, frames: int, out_dir: Path, opencv: bool = True,
     print(text, file=stdout)
     print(f"wrote {csv_path}\nwrote {png_path}", file=stdout)
     return {"figures": figures, "csv": csv_path, "png": png_path, "text": text}
+
+
+def _time_chain(n: int, size, image, tmp: Path, context, ring: CopyRing, opencv: bool,
+                frames: int, rounds: int, bar) -> list[Figure]:
+    """Every variant of a chain of n mirrors at one size, timed in rounds taking turns
+    (each output checked against the expected image)."""
+    runners = {"standard": Generated(tmp, n, size, "standard", context),
+               "gpu-aware": Generated(tmp, n, size, "gpu-aware", context),
+               "zero-copy": Generated(tmp, n, size, "zero-copy", context),
+               "fused": Generated(tmp, n, size, "fused", context),
+               "hand-written": HandWritten(n, image, context),
+               "bound": Bound(n, ring)}
+    if opencv:
+        runners["opencv-cpu"] = OpenCvCpu(n, image)
+    samples: dict[str, list[float]] = {v: [] for v in runners}
+    want = expected_output(image, n)
+    for r in range(rounds):
+        k = frames // rounds + (1 if r < frames % rounds else 0)
+        for variant, runner in runners.items():
+            bar.set_postfix_str(f"{size[0]}x{size[1]} N={n} {variant}")
+            times, last = runner.run(k)
+            if last is not None and not np.array_equal(last, want):
+                raise BenchError(f"{variant} chain of {n} at {size[0]}x{size[1]} "
+                                 "gave a wrong image")
+            samples[variant] += times
+            bar.update(1)
+    for variant in ("hand-written", "opencv-cpu"):
+        if variant in runners:
+            runners[variant].release()
+    return [Figure(size, n, variant, s) for variant, s in samples.items()]
 
 
 def _key(f: Figure):

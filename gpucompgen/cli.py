@@ -129,6 +129,20 @@ def parser() -> argparse.ArgumentParser:
     sub = top.add_subparsers(dest="command", metavar="COMMAND", required=True,
                              title="commands")
 
+    _add_model_commands(sub)
+    _add_tool_commands(sub)
+    _add_types_command(sub)
+    add_replay_parser(sub, _sub, _common)
+
+    sc = sub.add_parser("schema", help="print the JSON Schema of model files",
+                        description="Print the JSON Schema of system models (or, with "
+                                    "--types, of component-type files) for editors and tools.")
+    sc.add_argument("--types", action="store_true", help="the schema of component-type files")
+    return top
+
+
+def _add_model_commands(sub) -> None:
+    """build, run, check and plan: the commands that read a model and plan it."""
     b = _sub(sub, "build", "check a model and generate its program",
              "Check MODEL and write <system>.py and <system>_lib/ into the output folder,\n"
              "replacing what an earlier build wrote there. With --check or --diff nothing\n"
@@ -168,6 +182,9 @@ def parser() -> argparse.ArgumentParser:
               "between CPU and GPU per frame.")
     _common(pl)
 
+
+def _add_tool_commands(sub) -> None:
+    """tune, graph, bench and devices."""
     tu = _sub(sub, "tune", "time flexible components on the CPU and the device (profile)",
               "Run every flexible component of MODEL at the model's sizes, its CPU function\n"
               "and its kernel on the OpenCL device (PYOPENCL_CTX), for a few frames each, and\n"
@@ -216,6 +233,9 @@ def parser() -> argparse.ArgumentParser:
     dv.add_argument("-q", "--quiet", action="store_true",
                     help="print nothing; only the exit code says whether a device is usable")
 
+
+def _add_types_command(sub) -> None:
+    """types: the component types a model can use (gst-inspect style)."""
     ty = sub.add_parser(
         "types", help="list the component types a model can use, or show one in full",
         description="List every component type available to a model: the library's, plus the "
@@ -225,14 +245,6 @@ def parser() -> argparse.ArgumentParser:
     ty.add_argument("name", nargs="?", metavar="NAME", help="the type to show in full")
     ty.add_argument("--model", type=Path, metavar="MODEL",
                     help="also the types this system model declares (its 'types:' files)")
-
-    add_replay_parser(sub, _sub, _common)
-
-    sc = sub.add_parser("schema", help="print the JSON Schema of model files",
-                        description="Print the JSON Schema of system models (or, with "
-                                    "--types, of component-type files) for editors and tools.")
-    sc.add_argument("--types", action="store_true", help="the schema of component-type files")
-    return top
 
 
 def main(argv: list[str] | None = None) -> int:

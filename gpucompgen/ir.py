@@ -457,6 +457,8 @@ def dump(system: System) -> str:
         lines += ["  " + line for line in _node_lines(system, system.nodes[n])]
     for e in system.edges:
         lines.append(f"  edge {e}" + (f" : {e.data}" if e.data else ""))
+    if system.placement is not None:  # place: each flexible component's side, and why
+        lines += [f"  placed {line}" for line in system.placement.lines()]
     for edge, why in system.unfused.items():
         lines.append(f"  not fused {edge}: {why}")
     if system.concurrent:
