@@ -160,11 +160,8 @@ def _local_file(suffix: str) -> dict[str, Any]:
                            "'..', no link out of the folder)"}
 
 
-def types_schema() -> dict[str, Any]:
-    param_types = _enum(model.PARAM_TYPES)
-    param = {"oneOf": [param_types, _object(model.PARAM_KEYS, {
-        "type": param_types, "default": VALUE, "min": {"type": "number"},
-        "max": {"type": "number"}, "description": TEXT}, ("type",))]}
+def _port() -> dict[str, Any]:
+    """A port's keys: memory, a dtype and channels that may be generic, old names."""
     follows = "^" + NAME["pattern"].strip("^$") + "\\.{}$"
     dtype = {"oneOf": [
         _enum(model.DTYPES), _enum(model.ANY, "any element type"),
@@ -183,10 +180,18 @@ def types_schema() -> dict[str, Any]:
         dict(NAME, description="an int parameter's value")],
         "description": "channels: a number, a list, 'any', '<input>.channels' or an int "
                        "parameter (generic ports, resolved for each component)"}
-    port = {"memory": _enum(model.MEMORIES), "dtype": dtype,
+    return {"memory": _enum(model.MEMORIES), "dtype": dtype,
             "channels": channels, "description": TEXT,
             "aliases": {"type": "array", "items": NAME, "uniqueItems": True,
                         "description": "old names of the port, still accepted (deprecated)"}}
+
+
+def types_schema() -> dict[str, Any]:
+    param_types = _enum(model.PARAM_TYPES)
+    param = {"oneOf": [param_types, _object(model.PARAM_KEYS, {
+        "type": param_types, "default": VALUE, "min": {"type": "number"},
+        "max": {"type": "number"}, "description": TEXT}, ("type",))]}
+    port = _port()
     inputs = _named_map(_object(tuple(k for k in model.PORT_KEYS if k in port), port))
     outputs = _named_map(_object(model.PORT_KEYS, dict(port, height=SIZE_EXPR,
                                                          width=SIZE_EXPR)))
