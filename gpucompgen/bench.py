@@ -174,8 +174,11 @@ class HandWritten:
         h, w = image.shape[:2]
         # VerticalMirror's kernel: the one the generator writes from its form for a mirror
         # alone, with the settings the generated program gives it (work-groups of rows)
-        group = group_of_one(library_types()["VerticalMirror"], {},
-                             {"image": (h, w), "mirrored": (h, w)}, "m", "vertical_mirror")
+        # (a mirror fed these frames: VerticalMirror over uint8 of their channels)
+        mirror = library_types()["VerticalMirror"].specialized(
+            "uint8", image.shape[2] if image.ndim == 3 else 1)
+        group = group_of_one(mirror, {}, {"src": (h, w), "dst": (h, w)}, "m",
+                             "vertical_mirror")
         program = api.build_source(context, group_kernel(group, "bench"))
         self.kernel = api.kernel(program, "vertical_mirror")
         tile, bx, by, _ = GROUP_GPU.prefer

@@ -8,10 +8,11 @@ shows all problems at once.
 from __future__ import annotations
 
 import ast
+import copy
 import hashlib
 import math
 import re
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -43,11 +44,15 @@ DTYPES = {  # element type → (numpy name, OpenCL C type, bytes)
     "float32": ("float32", "float", 4),
 }
 MEMORIES = ("gpu", "cpu")
+# a generic port's 'dtype: any' (every element type) or 'channels: any' (any count)
+ANY = ("any",)
 # "path": a string naming a file or folder; a relative one is relative to the model file
 # "input": a source URI (gpucompgen.io: images, video, camera, stream, recording); a plain
 # path in it is relative to the model file, and the frame size is read from its header
 PARAM_TYPES = {"int": int, "float": float, "bool": bool, "str": str, "path": str, "input": str}
 KINDS = ("standard", "gpu-aware", "flexible")
+# what 'gpucompgen types' groups the library by (a type's 'family:'), in this order
+FAMILIES = ("colour", "filters", "morphology", "geometry", "arithmetic", "features", "io")
 # where a component runs: "auto" lets the place pass choose (flexible types only)
 PLACEMENTS = ("gpu", "cpu", "auto")
 SETTING_KEYS = ("tile", "block_x", "block_y", "block_z")
@@ -84,18 +89,55 @@ class PortDecl:
     name: str
     direction: str  # "in" | "out"
     memory: str  # "gpu" | "cpu" | "any" (a flexible type's port: where it is placed)
-    dtype: str
+    dtype: str  # a generic port: the first it accepts (a component's own is resolved)
     channels: int
     height: ast.Expression | None = None  # outputs only
     width: ast.Expression | None = None
     pos: Pos = Pos("")
+    # A generic port (docs/component-types.md#generic-ports): what it may carry, resolved
+    # for each component when the model is checked (passes/resolve_types.py), from what
+    # feeds it or from the port or parameter it follows.  Empty: the fixed dtype/channels.
+    dtypes: tuple[str, ...] = ()  # 'dtype: [uint8, int16]': any of these
+    dtype_of: str = ""  # 'dtype: src.dtype': the element type of input port src
+    channel_counts: tuple[int, ...] = ()  # 'channels: [1, 3]': any of these
+    any_channels: bool = False  # 'channels: any'
+    channels_of: str = ""  # 'channels: src.channels': those of input port src
+    channels_param: str = ""  # 'channels: n': the value of int parameter n
+    aliases: tuple[str, ...] = ()  # old names of the port, still accepted (deprecated)
 
     @property
     def itemsize(self) -> int:
         return DTYPES[self.dtype][2]
 
+    @property
+    def generic(self) -> bool:
+        return bool(self.dtypes or self.dtype_of or self.channel_counts or self.any_channels
+                    or self.channels_of or self.channels_param)
+
+    def dtype_text(self) -> str:
+        """The element type as declared: 'uint8', 'uint8|int16' or 'as src'."""
+        if self.dtype_of:
+            return f"as {self.dtype_of}"
+        return "|".join(self.dtypes) if self.dtypes else self.dtype
+
+    def channels_text(self) -> str:
+        """The channels as declared: '3', '1|3', 'any', 'as src' or 'parameter n'."""
+        if self.channels_of:
+            return f"as {self.channels_of}"
+        if self.channels_param:
+            return f"parameter {self.channels_param}"
+        if self.any_channels:
+            return "any"
+        return "|".join(map(str, self.channel_counts)) if self.channel_counts \
+            else str(self.channels)
+
     def describe(self) -> str:
-        return f"{self.memory.upper()} {self.dtype}x{self.channels}"
+        return f"{self.memory.upper()} {self.dtype_text()}x{self.channels_text()}"
+
+    def fixed(self, dtype: str, channels: int) -> PortDecl:
+        """The port with this element type and these channels, generic no more."""
+        return PortDecl(self.name, self.direction, self.memory, dtype, channels, self.height,
+                        self.width, self.pos, aliases=self.aliases)
 
 
 @dataclass(frozen=True)
@@ -148,6 +190,37 @@ class ComponentType:
     cpu_file: Path | None = None
     cpu_function: str = ""
     cpu_text: str = ""
+    # a deprecated alias ('ErodeGray: {alias: Erode, channels: 1}'): the type it names,
+    # with its generic channels fixed
+    alias_of: str = ""
+    alias_channels: int = 0
+    family: str = ""  # one of FAMILIES: how 'gpucompgen types' groups it ("": by file)
+
+    @property
+    def generic(self) -> bool:
+        """Some port's channels or element type are resolved per component."""
+        return any(p.generic for p in (*self.inputs.values(), *self.outputs.values()))
+
+    def canonical_port(self, name: str) -> str | None:
+        """The port a name (its own or a deprecated alias) stands for, or None."""
+        if name in self.inputs or name in self.outputs:
+            return name
+        return next((p.name for p in (*self.inputs.values(), *self.outputs.values())
+                     if name in p.aliases), None)
+
+    def specialized(self, dtype: str | None = None, channels: int | None = None) -> ComponentType:
+        """A copy whose generic ports are fixed: inputs that accept several take dtype and
+        channels (their first choice when not given), ports that follow another port or a
+        parameter take its value.  For tests, benchmarks and examples: a model's
+        components are resolved from what feeds them (passes/resolve_types.py)."""
+        from .typeresolve import resolve_ports
+
+        given = {p: (dtype, channels) for p in self.inputs}
+        ports = resolve_ports(self, given, {p: d.default for p, d in self.params.items()})
+        twin = copy.copy(self)
+        twin.inputs = {p: d.fixed(*ports[p]) for p, d in self.inputs.items()}
+        twin.outputs = {p: d.fixed(*ports[p]) for p, d in self.outputs.items()}
+        return twin
 
     @property
     def gpu_aware(self) -> bool:
@@ -290,9 +363,9 @@ def _positive_int(doc: Document, rep: Reporter, path: tuple, value: Any, what: s
 
 # --------------------------------------------------------------------------- types
 
-TYPE_KEYS = ("kind", "description", "params", "inputs", "outputs", "requires", "kernel",
-             "python", "gpu", "cpu", "fusable")
-PORT_KEYS = ("memory", "dtype", "channels", "height", "width", "description")
+TYPE_KEYS = ("kind", "description", "family", "params", "inputs", "outputs", "requires",
+             "kernel", "python", "gpu", "cpu", "fusable")
+PORT_KEYS = ("memory", "dtype", "channels", "height", "width", "description", "aliases")
 PARAM_KEYS = ("type", "default", "min", "max", "description")
 REQUIRE_KEYS = ("check", "message")
 KERNEL_KEYS = ("file", "function", "grid", "cover")
@@ -320,10 +393,68 @@ def load_types_file(path: Path, display: str, origin: str, rep: Reporter,
                   "add 'component_types:' with one or more types")
     result = {}
     for tname, spec in types_map.items():
+        if isinstance(spec, dict) and "alias" in spec:
+            continue
         ctype = _load_type(doc, rep, path, origin, tname, spec)
         if ctype is not None:
             result[tname] = ctype
+    for tname, spec in types_map.items():
+        if isinstance(spec, dict) and "alias" in spec:
+            ctype = _load_alias(doc, rep, tname, spec, result)
+            if ctype is not None:
+                result[tname] = ctype
     return result
+
+
+ALIAS_KEYS = ("alias", "channels", "description")
+
+
+def _load_alias(doc: Document, rep: Reporter, tname: str, spec: dict,
+                types: dict[str, ComponentType]) -> ComponentType | None:
+    """A deprecated name of a type of the same file: ``GaussianBlurGray: {alias:
+    GaussianBlur, channels: 1}`` is GaussianBlur with every port whose channels are generic
+    fixed to 1 (the ports that follow them too).  Components of the alias build and run
+    as before; check notes the type to use instead."""
+    base = ("component_types", tname)
+    problem = name_problem(tname, "component type name", top_level=True)
+    if problem:
+        rep.error(doc.key_pos(*base), problem, "use a CamelCase name such as 'ImageMerger'")
+        return None
+    _unknown_keys(doc, rep, base, spec, ALIAS_KEYS, f"alias '{tname}'")
+    target = spec.get("alias")
+    if not _named(target, types) or types[target].alias_of:
+        rep.error(doc.pos(*base, "alias"), f"alias '{tname}' names {target!r}, which is no "
+                  "type of this file", did_you_mean(str(target), [
+                      n for n, t in types.items() if not t.alias_of])
+                  or "an alias names a type declared in the same file")
+        return None
+    real = types[target]
+    channels = spec.get("channels")
+    twin = copy.copy(real)
+    twin.name, twin.alias_of, twin.pos = tname, target, doc.key_pos(*base)
+    twin.description = _text(doc, rep, base + ("description",), spec.get("description"),
+                             "description") or real.description
+    if channels is not None:
+        pinned = _positive_int(doc, rep, base + ("channels",), channels, "channels")
+        counts = {c for p in (*real.inputs.values(), *real.outputs.values())
+                  for c in p.channel_counts}
+        if pinned is None:
+            return None
+        if counts and pinned not in counts:
+            rep.error(doc.pos(*base, "channels"), f"alias '{tname}' fixes {pinned} channels; "
+                      f"'{target}' takes {' or '.join(map(str, sorted(counts)))}",
+                      "give one of them")
+            return None
+
+        def pin(port: PortDecl) -> PortDecl:
+            if port.channel_counts or port.any_channels or port.channels_of:
+                return replace(port, channels=pinned, channel_counts=(), any_channels=False,
+                               channels_of="")
+            return port
+        twin.alias_channels = pinned
+        twin.inputs = {p: pin(d) for p, d in real.inputs.items()}
+        twin.outputs = {p: pin(d) for p, d in real.outputs.items()}
+    return twin
 
 
 def _load_type(doc: Document, rep: Reporter, path: Path, origin: str, tname: str,
@@ -350,6 +481,14 @@ def _load_type(doc: Document, rep: Reporter, path: Path, origin: str, tname: str
                           "description"),
         params={}, inputs={}, outputs={}, requires=[], decl_file=path, origin=origin,
         pos=doc.key_pos(*base))
+    if "family" in spec:
+        if _named(spec["family"], FAMILIES):
+            ctype.family = spec["family"]
+        else:
+            rep.error(doc.pos(*base, "family"), f"family of '{tname}' must be one of "
+                      f"{', '.join(FAMILIES)}, not {spec['family']!r}",
+                      did_you_mean(str(spec["family"]), FAMILIES) or
+                      "it groups the type in 'gpucompgen types'")
     # parameters
     params = _expect_map(doc, rep, base + ("params",), spec.get("params"), "params")
     if len(params) > MAX_PARAMS:
@@ -426,7 +565,14 @@ def _load_type(doc: Document, rep: Reporter, path: Path, origin: str, tname: str
                           "input and output ports of a type need distinct names")
                 continue
             seen_ports[fold(pname)] = pname
+            for alias in port.aliases:
+                if fold(alias) in seen_ports:
+                    rep.error(doc.pos(*base, key, pname, "aliases"),
+                              f"alias '{alias}' of port '{pname}' collides with port "
+                              f"'{seen_ports[fold(alias)]}'", "give each port its own names")
+                seen_ports.setdefault(fold(alias), f"{pname}' (alias '{alias}')")
             (ctype.inputs if direction == "in" else ctype.outputs)[pname] = port
+    _check_generic(doc, rep, base, ctype, spec)
     if not ctype.inputs and not ctype.outputs:
         rep.error(ctype.pos, f"component type '{tname}' has no ports",
                   "declare 'inputs:' and/or 'outputs:'")
@@ -593,20 +739,115 @@ def _load_port(doc, rep, path, ctype, direction, pname, pspec) -> PortDecl | Non
                   "kernel components read and write device buffers; let the system insert "
                   "adapters by declaring 'memory: gpu'")
         return None
-    dtype = pspec.get("dtype", "uint8")
-    if not _named(dtype, DTYPES):
-        rep.error(doc.pos(*path, "dtype"), f"port '{pname}': unknown element type {dtype!r}",
-                  did_you_mean(str(dtype), DTYPES))
+    generic = _generic_spec(doc, rep, path, ctype, pname, pspec)
+    if generic is None:
         return None
-    channels = _positive_int(doc, rep, path + ("channels",), pspec.get("channels"),
-                             "channels", 1)
+    dtype, channels, extra = generic
     if direction == "in":
         for key in ("height", "width"):
             if key in pspec:
                 rep.error(doc.key_pos(*path, key),
                           f"input port '{pname}' takes its size from what feeds it",
                           f"remove '{key}'; sizes are declared on outputs")
-    return PortDecl(pname, direction, memory, dtype, channels, pos=doc.key_pos(*path))
+    aliases = pspec.get("aliases", [])
+    if not isinstance(aliases, list) or any(name_problem(a, "port alias") for a in aliases):
+        rep.error(doc.pos(*path, "aliases"), f"aliases of port '{pname}' must be a list of "
+                  "port names", "e.g. 'aliases: [image]': old names still accepted")
+        aliases = []
+    return PortDecl(pname, direction, memory, dtype, channels, pos=doc.key_pos(*path),
+                    aliases=tuple(aliases), **extra)
+
+
+FOLLOW_RE = re.compile(r"^\s*([A-Za-z_]\w*)\s*\.\s*(dtype|channels)\s*$")
+
+
+def _generic_spec(doc, rep, path, ctype, pname, pspec) -> tuple[str, int, dict] | None:
+    """A port's dtype and channels as declared: fixed, a list of choices, 'any', another
+    port's ('src.dtype', 'src.channels') or an int parameter's value (channels only).
+    Returns (dtype, channels, the PortDecl fields of a generic port); which port or
+    parameter is followed is checked once every port is known (_check_generic)."""
+    extra: dict[str, Any] = {}
+    dtype = pspec.get("dtype", "uint8")
+    follow = FOLLOW_RE.match(dtype) if isinstance(dtype, str) else None
+    if follow and follow[2] == "dtype":
+        extra["dtype_of"], dtype = follow[1], "uint8"
+    elif dtype in ANY or isinstance(dtype, list):
+        choices = list(DTYPES) if dtype in ANY else dtype
+        bad = [d for d in choices if not _named(d, DTYPES)]
+        if bad or not choices or len(set(choices)) != len(choices):
+            rep.error(doc.pos(*path, "dtype"), f"port '{pname}': dtype must list distinct "
+                      f"element types of {', '.join(DTYPES)}"
+                      + (f"; {bad[0]!r} is none" if bad else ""),
+                      did_you_mean(str(bad[0]), DTYPES) if bad else "e.g. [uint8, int16]")
+            return None
+        if len(choices) > 1:
+            extra["dtypes"] = tuple(choices)
+        dtype = choices[0]
+    elif not _named(dtype, DTYPES):
+        rep.error(doc.pos(*path, "dtype"), f"port '{pname}': unknown element type {dtype!r}",
+                  did_you_mean(str(dtype), DTYPES) or
+                  "an element type, a list of them, 'any', or '<input>.dtype'")
+        return None
+    channels = pspec.get("channels")
+    follow = FOLLOW_RE.match(channels) if isinstance(channels, str) else None
+    if follow and follow[2] == "channels":
+        extra["channels_of"], channels = follow[1], 1
+    elif channels in ANY:
+        extra["any_channels"], channels = True, 1
+    elif isinstance(channels, str) and channels.isidentifier():
+        extra["channels_param"], channels = channels, 1
+    elif isinstance(channels, list):
+        if not channels or len(set(channels)) != len(channels) or not all(
+                isinstance(c, int) and not isinstance(c, bool) and c >= 1 for c in channels):
+            rep.error(doc.pos(*path, "channels"), f"port '{pname}': channels must list "
+                      "distinct positive integers", "e.g. 'channels: [1, 3]'")
+            return None
+        if len(channels) > 1:
+            extra["channel_counts"] = tuple(channels)
+        channels = channels[0]
+    else:
+        channels = _positive_int(doc, rep, path + ("channels",), channels, "channels", 1)
+    return dtype, channels, extra
+
+
+def _check_generic(doc, rep, base, ctype: ComponentType, spec: dict) -> None:
+    """What generic ports follow exists, and every generic port can be resolved: an input
+    follows an earlier input, an output an input or an int parameter; an output never
+    chooses among several (nothing would choose); a hand-written kernel is written for
+    one element type and channel count."""
+    inputs = list(ctype.inputs)
+    for key, ports in (("inputs", ctype.inputs), ("outputs", ctype.outputs)):
+        for pname, port in ports.items():
+            path = base + (key, pname)
+            for what, followed in (("dtype", port.dtype_of), ("channels", port.channels_of)):
+                if not followed:
+                    continue
+                earlier = inputs[:inputs.index(pname)] if key == "inputs" else inputs
+                if followed not in earlier:
+                    rep.error(doc.pos(*path, what), f"port '{pname}' of '{ctype.name}' takes "
+                              f"the {what} of '{followed}', which is no "
+                              + ("earlier input" if key == "inputs" else "input") + " port",
+                              did_you_mean(followed, earlier) or
+                              f"write '{what}: <input>.{what}' with one of its inputs")
+            if port.channels_param and ctype.params.get(port.channels_param, ParamDecl(
+                    "", "")).type != "int":
+                rep.error(doc.pos(*path, "channels"), f"channels of port '{pname}' of "
+                          f"'{ctype.name}' name {port.channels_param!r}, which is no int "
+                          "parameter", did_you_mean(port.channels_param, _int_params(ctype))
+                          or "give a number, a list, 'any', '<input>.channels' or an int "
+                          "parameter")
+            if key == "outputs" and (port.dtypes or port.channel_counts or port.any_channels):
+                what = "dtype" if port.dtypes else "channels"
+                rep.error(doc.pos(*path, what), f"output '{pname}' of '{ctype.name}' may "
+                          f"have several {what}: nothing would choose one",
+                          f"give one, or follow an input: '{what}: "
+                          f"{inputs[0] if inputs else '<input>'}.{what}'"
+                          + (" or an int parameter" if what == "channels" else ""))
+    if ctype.generic and "kernel" in spec:
+        rep.error(doc.key_pos(*base, "kernel"), f"'{ctype.name}' has generic ports and a "
+                  "hand-written kernel, which is written for one element type and channel "
+                  "count", "give the type a fusable form instead (its kernel is generated "
+                  "for each component), or fix its ports' dtype and channels")
 
 
 def _port_sizes(doc, rep, path, ctype, port: PortDecl, quiet: bool = False) -> PortDecl:
@@ -632,8 +873,7 @@ def _port_sizes(doc, rep, path, ctype, port: PortDecl, quiet: bool = False) -> P
             trees[dim] = sizeexpr.parse(text, set(ctype.inputs), set(_int_params(ctype)))
         except sizeexpr.SizeExprError as exc:
             rep.error(doc.pos(*path, dim), f"output '{port.name}' of '{ctype.name}': {exc}")
-    return PortDecl(port.name, port.direction, port.memory, port.dtype, port.channels,
-                    trees.get("height"), trees.get("width"), port.pos)
+    return replace(port, height=trees.get("height"), width=trees.get("width"))
 
 
 def _resolve_file(doc, rep, path, decl_dir: Path, value: Any, suffix: str,
@@ -1304,11 +1544,14 @@ def load_system(path: Path, display: str | None = None) -> SystemModel:
                   f"the system has {len(conns):,} connections; at most {MAX_CONNECTIONS:,} "
                   "are allowed", "split it into several systems")
         rep.raise_if_errors()
+    renamed: dict[str, tuple[Pos, dict[str, str]]] = {}  # component -> old port names used
     for i, text in enumerate(conns):
-        conn = _parse_connection(doc, rep, ("connections", i), text, comps, components)
+        conn = _parse_connection(doc, rep, ("connections", i), text, comps, components,
+                                 renamed)
         if conn is not None:
             connections.append(conn)
     rep.raise_if_errors()
+    notes += sorted(_deprecation_notes(doc, components, library | types, renamed))
     model_bytes = path.read_bytes()
     model = SystemModel(name=name, description=description, file=path, display=display,
                        text_sha256=hashlib.sha256(model_bytes).hexdigest(),
@@ -1492,7 +1735,45 @@ def _sizes_from_input(doc, rep, cpath, ctype: ComponentType, params: dict, given
                       f"set '{p}: {value}', or leave it out: it is read from the input")
 
 
-def _parse_connection(doc, rep, path, text, comps, components) -> Connection | None:
+def _deprecation_notes(doc: Document, components: dict[str, Instance],
+                       types: dict[str, ComponentType], renamed: dict[str, tuple[Pos, dict[str, str]]]) -> list[Diagnostic]:
+    """check's notes on deprecated names the model uses: a type alias ('ErodeGray'), old
+    port names ('erode.eroded').  Both keep working; the notes say what to write."""
+    notes = []
+    for inst in components.values():
+        t = inst.type
+        if t.alias_of:
+            pos = doc.pos("components", inst.name, "type") if isinstance(
+                doc.data["components"][inst.name], dict) else doc.pos("components", inst.name)
+            notes.append(Diagnostic(pos.file, pos.line, pos.col, "note",
+                                    f"'{t.name}' of '{inst.name}' is a deprecated name of "
+                                    f"'{t.alias_of}' with {_alias_channels(t)}",
+                                    f"write 'type: {t.alias_of}': it takes "
+                                    f"{_generic_channels(types.get(t.alias_of))} channels, "
+                                    "from what feeds it"))
+        if inst.name in renamed:
+            pos, old = renamed[inst.name]
+            notes.append(Diagnostic(pos.file, pos.line, pos.col, "note",
+                                    f"'{inst.name}' ({t.name}) is connected by old port "
+                                    f"names: " + ", ".join(f"'{o}' is now '{n}'"
+                                                           for o, n in old.items()),
+                                    "the old names work for now; write "
+                                    + ", ".join(f"'{inst.name}.{n}'" for n in old.values())))
+    return notes
+
+
+def _alias_channels(t: ComponentType) -> str:
+    n = t.alias_channels
+    return f"{n} channel{'s' if n != 1 else ''}" if n else "the same ports"
+
+
+def _generic_channels(real: ComponentType | None) -> str:
+    port = next(iter(real.inputs.values()), None) if real is not None else None
+    return port.channels_text().replace("|", " or ") if port is not None else "any"
+
+
+def _parse_connection(doc, rep, path, text, comps, components,
+                      renamed: dict | None = None) -> Connection | None:
     pos = doc.pos(*path)
     if isinstance(text, dict) and set(text) == {"from", "to"}:
         text = f"{text['from']} -> {text['to']}"
@@ -1506,7 +1787,8 @@ def _parse_connection(doc, rep, path, text, comps, components) -> Connection | N
         return None
     src, dst = Endpoint(m[1], m[2]), Endpoint(m[3], m[4])
     ok = True
-    for end, want in ((src, "out"), (dst, "in")):
+    for written, want in ((src, "out"), (dst, "in")):
+        end = written
         if end.component not in components:
             if end.component not in comps:  # else: already reported where it was declared
                 rep.error(pos, f"unknown component '{end.component}' in connection",
@@ -1514,6 +1796,15 @@ def _parse_connection(doc, rep, path, text, comps, components) -> Connection | N
             ok = False
             continue
         ctype = components[end.component].type
+        canonical = ctype.canonical_port(end.port)
+        if canonical is not None and canonical != end.port:  # a deprecated name
+            if renamed is not None:
+                renamed.setdefault(end.component, (pos, {}))[1][end.port] = canonical
+            end = Endpoint(end.component, canonical)
+            if want == "out":
+                src = end
+            else:
+                dst = end
         port = ctype.port(end.port)
         if port is None:
             rep.error(pos, f"'{end.component}' ({ctype.name}) has no port '{end.port}'",

@@ -111,11 +111,16 @@ def run_generated(context, queue, ctype, params: dict, arrays, out_shape: tuple,
     )
     from gpucompgen.model import DTYPES
 
+    if ctype.generic:  # the ports a component fed these arrays gets (resolve-types)
+        first = np.asarray(arrays[0])
+        ctype = ctype.specialized(first.dtype.name, first.shape[2] if first.ndim == 3 else 1)
     (oname, oport), = ctype.outputs.items()
     shapes = {p: a.shape[:2] for p, a in zip(ctype.inputs, arrays, strict=True)}
     shapes[oname] = tuple(out_shape[:2])
-    # sizes and parameters are constants of the kernel: one build for each
-    key = (ctype.name, tuple(sorted(shapes.items())), tuple(sorted(params.items())))
+    # sizes and parameters are constants of the kernel: one build for each (and for each
+    # element type and channel count of a generic type's ports)
+    key = (ctype.name, tuple(sorted(shapes.items())), tuple(sorted(params.items())),
+           tuple((p.dtype, p.channels) for p in ctype.inputs.values()))
     if key not in _GENERATED:
         group = group_of_one(ctype, params, shapes)
         _GENERATED[key] = cl.Program(context, group_kernel(group, "test")).build(), group
@@ -139,8 +144,9 @@ def run_generated(context, queue, ctype, params: dict, arrays, out_shape: tuple,
     return result
 
 
-# Collectors for tests that build models: one standard type per element type and channel
-# count (Keep3, Keep1, KeepS3, KeepS1), one class for all, keeping a copy of every frame.
+# Collectors for tests that build models, keeping a copy of every frame: Keep takes any
+# element type and channels (a generic port, resolved from what feeds it); the types of
+# one element type and channel count each (Keep3, Keep1, KeepS3, KeepS1) came first.
 KEEP_TYPES = "component_types:\n" + "".join(f"""
   {name}:
     kind: standard
@@ -149,7 +155,8 @@ KEEP_TYPES = "component_types:\n" + "".join(f"""
       image: {{memory: cpu, dtype: {dtype}, channels: {channels}}}
     python: {{file: keep.py, class: Keep}}
 """ for name, dtype, channels in (("Keep3", "uint8", 3), ("Keep1", "uint8", 1),
-                                  ("KeepS3", "int16", 3), ("KeepS1", "int16", 1)))
+                                  ("KeepS3", "int16", 3), ("KeepS1", "int16", 1),
+                                  ("Keep", "any", "any")))
 KEEP_PY = """import numpy as np
 
 
@@ -175,5 +182,7 @@ def write_keep_types(folder: Path) -> None:
 
 
 def keep_type_for(port) -> str:
-    """The Keep type that takes what a port (a PortDecl) carries."""
+    """The Keep type that takes what a port (a PortDecl) carries: Keep, for a generic one."""
+    if port.generic:
+        return "Keep"
     return ("KeepS" if port.dtype == "int16" else "Keep") + str(port.channels)

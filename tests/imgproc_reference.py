@@ -121,7 +121,7 @@ def convert_scale(image: np.ndarray, *, alpha: float, beta: float,
     |fma(p, alpha, beta)| in float32 (one rounding, as OpenCV's vector code and the
     kernel's fma compute it), rounded half to even and saturated to 0..255.
     """
-    _planes("ConvertScale", "image", image)
+    _planes("ConvertScale", "image", image, (np.uint8, np.int16, np.float32))
     return _store(_saturate(np.abs(_fma32(image, alpha, beta))), out, "ConvertScale", "scaled")
 
 
@@ -138,10 +138,10 @@ def add_weighted(src1: np.ndarray, src2: np.ndarray, *, alpha: float, beta: floa
 
 
 def _fma32(a: np.ndarray, b: float, c) -> np.ndarray:
-    """fma(a, b, c) in float32 for uint8 a, float32 b and c: the exact a * b + c rounded
-    once to float32 (OpenCL's fma, correctly rounded).
+    """fma(a, b, c) in float32 for uint8, int16 or float32 a, float32 b and c: the exact a
+    * b + c rounded once to float32 (OpenCL's fma, correctly rounded).
 
-    a * b is exact in float64 (8 + 24 bits); the sum is rounded to float64 with "round to
+    a * b is exact in float64 (at most 24 + 24 bits); the sum is rounded to float64 with "round to
     odd" (a rounded sum that is not exact gets an odd last bit), after which rounding to
     float32 is the correct rounding of the exact value (Boldo and Melquiond, 2008).
     """
@@ -300,14 +300,15 @@ def _saturate(values: np.ndarray) -> np.ndarray:
     return np.clip(np.rint(values), 0, 255).astype(np.uint8)
 
 
-def _planes(type_name: str, port: str, array: np.ndarray) -> np.ndarray:
+def _planes(type_name: str, port: str, array: np.ndarray, dtypes=(np.uint8,)) -> np.ndarray:
     """A one-channel (height x width) or three-channel image as height x width x c."""
-    if not isinstance(array, np.ndarray) or array.dtype != np.uint8:
+    if not isinstance(array, np.ndarray) or array.dtype not in dtypes:
         dtype = getattr(array, "dtype", type(array).__name__)
         raise TypeError(f"{type_name}: '{port}' must be a uint8 numpy array, not {dtype}")
     if array.ndim == 2 and 0 not in array.shape:
         return array[..., None]
-    _check_image(type_name, port, array, 3)
+    if array.ndim != 3 or array.shape[2] != 3 or 0 in array.shape:
+        raise ValueError(f"{type_name}: '{port}' must be height x width x 3")
     return array
 
 

@@ -263,12 +263,12 @@ def test_out_arrays_are_filled_and_checked():
     mask = np.empty((6, 5), np.uint8)
     assert cpu_kernels.object_detector(image, red_min=0, margin=-255, out=mask) is mask
     assert (mask == 255).all()
-    with pytest.raises(ValueError, match=r"out= for 'mirrored' must be a C-contiguous uint8"):
+    with pytest.raises(ValueError, match=r"out= for 'dst' must be a C-contiguous uint8"):
         cpu_kernels.vertical_mirror(image, out=np.empty((5, 6, 3), np.uint8))
 
 
 @pytest.mark.parametrize("bad,message", [
-    (np.zeros((4, 4), np.uint8), "height x width x 3"),
+    (np.zeros((4, 4, 2), np.uint8), "height x width x 3"),  # one channel or three
     (np.zeros((4, 4, 4), np.uint8), "height x width x 3"),
     (np.zeros((0, 4, 3), np.uint8), "at least 1"),
     (np.zeros((4, 4, 3), np.float32), "uint8 numpy array"),
@@ -276,4 +276,51 @@ def test_out_arrays_are_filled_and_checked():
 def test_bad_inputs_are_refused_with_the_port_named(bad, message):
     with pytest.raises((ValueError, TypeError), match=message) as info:
         cpu_kernels.box_blur(bad, radius=1)
-    assert "BoxBlur: 'image'" in str(info.value)
+    assert "BoxBlur: 'src'" in str(info.value)
+
+
+# -- generic over channels: BoxBlur and VerticalMirror take 1 or 3 ------------------------
+@PROPERTY
+@given(height=sizes, width=sizes, seed=images, radius=st.integers(0, 7),
+       setting=gpu_settings("BoxBlur"))
+@example(height=1, width=1, seed=0, radius=7, setting=(8, 1, 1))
+def test_box_blur_and_mirror_over_one_channel(kernels, height, width, seed, radius, setting):
+    """A gray frame, as a component fed one gets it (resolve-types): the kernel generated
+    for one channel, the CPU function, the reference and OpenCV agree."""
+    cv2 = pytest.importorskip("cv2")
+    gray = np.ascontiguousarray(random_image(seed, height, width)[..., 1])
+    side = 2 * radius + 1
+    cpu = cpu_kernels.box_blur(gray, radius=radius)
+    np.testing.assert_array_equal(cpu, cv2.blur(gray, (side, side),
+                                                 borderType=cv2.BORDER_REPLICATE))
+    np.testing.assert_array_equal(cpu, blur_reference(gray, radius))
+    (gpu,) = kernels.run("BoxBlur", {"src": gray}, {"dst": (height, width)},
+                         {"radius": radius}, setting)
+    np.testing.assert_array_equal(gpu, cpu)
+    mirrored = cpu_kernels.vertical_mirror(gray)
+    np.testing.assert_array_equal(mirrored, cv2.flip(gray, 0))
+    (gpu,) = kernels.run("VerticalMirror", {"src": gray}, {"dst": (height, width)}, {},
+                         setting)
+    np.testing.assert_array_equal(gpu, mirrored)
+
+
+@pytest.mark.parametrize("channels", [1, 3])
+def test_box_blur_and_mirror_on_photographs(kernels, channels):
+    cv2 = pytest.importorskip("cv2")
+    skdata = pytest.importorskip("skimage.data")
+    for load in (skdata.chelsea, skdata.coffee, skdata.astronaut):
+        image = np.ascontiguousarray(load())
+        if channels == 1:
+            image = cv2.cvtColor(image, cv2.COLOR_RGB2GRAY)
+        shape = image.shape
+        for radius in (1, 3):
+            side = 2 * radius + 1
+            expected = cv2.blur(image, (side, side), borderType=cv2.BORDER_REPLICATE)
+            np.testing.assert_array_equal(cpu_kernels.box_blur(image, radius=radius), expected)
+            (gpu,) = kernels.run("BoxBlur", {"src": image}, {"dst": shape},
+                                 {"radius": radius}, (16, 16, 4))
+            np.testing.assert_array_equal(gpu, expected)
+        expected = cv2.flip(image, 0)
+        np.testing.assert_array_equal(cpu_kernels.vertical_mirror(image), expected)
+        (gpu,) = kernels.run("VerticalMirror", {"src": image}, {"dst": shape}, {}, (16, 16, 4))
+        np.testing.assert_array_equal(gpu, expected)

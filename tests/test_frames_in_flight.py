@@ -429,5 +429,5 @@ def test_plan_says_why_every_buffer_has_its_sets_fused_or_not(tmp_path, zero_cop
         sets[fusion] = {b.what: b.sets for b in plan.buffers}
         text = program.read_text()
         assert "buffer sets (2, one a frame in flight" in text
-    assert sets["auto"]["in2_erode2.eroded"] == sets["off"]["erode2.eroded"] == 2
+    assert sets["auto"]["in2_erode2.dst"] == sets["off"]["erode2.dst"] == 2
     assert "written in stage2, read in stage4 by adapter3_gpu2cpu" in text

@@ -131,12 +131,12 @@ def test_plan_and_check_name_groups_and_why_edges_stay_unfused(tmp_path):
     plan = compile_model(model, tmp_path / "out").system.plan
     why = dict(plan.unfused)
     expected = {
-        "m1.mirrored -> m2.image": "read by several consumers: m1.mirrored is also read by "
+        "m1.dst -> m2.src": "read by several consumers: m1.dst is also read by "
                                    "the CPU (s1.image, through adapter",
-        "b1.smooth -> b2.image": "cost model: with b1 the group's kernel takes an estimated ",
-        "b2.smooth -> m3.image": "fuse: false: the model keeps m3 out of every group",
-        "m3.mirrored -> op.image": "opaque type: op (Op) has no fusable form",
-        "op.out -> m4.image": "placed on the CPU: m4 runs its CPU function (model)",
+        "b1.dst -> b2.src": "cost model: with b1 the group's kernel takes an estimated ",
+        "b2.dst -> m3.src": "fuse: false: the model keeps m3 out of every group",
+        "m3.dst -> op.image": "opaque type: op (Op) has no fusable form",
+        "op.out -> m4.src": "placed on the CPU: m4 runs its CPU function (model)",
     }
     assert set(why) == set(expected)
     for edge, text in expected.items():
@@ -155,10 +155,10 @@ def test_plan_and_check_name_groups_and_why_edges_stay_unfused(tmp_path):
                           "--fusion", "off"], capture_output=True, text=True, check=False)
     out = " ".join(off.stdout.split())
     assert "fusion: off, 0 groups" in out
-    assert "not fused: m2.mirrored -> b1.image: fusion off (--fusion)" in out
-    assert "not fused: op.out -> m4.image: placed on the CPU" in out
+    assert "not fused: m2.dst -> b1.src: fusion off (--fusion)" in out
+    assert "not fused: op.out -> m4.src: placed on the CPU" in out
     standard = compile_model(model, tmp_path / "std", "standard").system.plan
-    assert dict(standard.unfused)["m2.mirrored -> b1.image"] == \
+    assert dict(standard.unfused)["m2.dst -> b1.src"] == \
         "fusion off (standard mode: one kernel per component)"
 
 

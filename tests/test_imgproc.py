@@ -139,11 +139,39 @@ def photos():
     return out
 
 
-def channels_of(type_name: str) -> int:
-    return next(iter(imgproc_types()[type_name].inputs.values())).channels
+def variants(type_name: str) -> list[tuple[int, str]]:
+    """(channels, dtype) of every input a type takes: each channel count and element type
+    of a generic type (a deprecated alias: its one channel count)."""
+    port = next(iter(imgproc_types()[type_name].inputs.values()))
+    return [(c, d) for c in port.channel_counts or (port.channels,)
+            for d in port.dtypes or (port.dtype,)]
 
 
-def inputs_for(type_name: str, image: np.ndarray) -> list[np.ndarray]:
+# every type over every channel count and element type it takes; the deprecated aliases
+# ('GaussianBlurGray': GaussianBlur with 1 channel) are the same operation, run in the
+# pipelines of test_imgproc_pipeline.py under their old names
+VARIANTS = [(name, c, d) for name in TYPES if not imgproc_types()[name].alias_of
+            for c, d in variants(name)]
+
+
+def variant_id(value) -> str:
+    return str(value) if isinstance(value, str) else f"{value}ch" if isinstance(value, int) \
+        else ""
+
+
+def as_dtype(image: np.ndarray, dtype: str) -> np.ndarray:
+    """A photograph as a frame of another element type, as a pipeline would make it: int16
+    as Sobel's x gradient (-1020..1020), float32 scaled and shifted to fractions and
+    negative values."""
+    if dtype == "uint8":
+        return image
+    if dtype == "int16":
+        return cv2.Sobel(image, cv2.CV_16S, 1, 0, ksize=3)
+    return np.ascontiguousarray(image.astype(np.float32) * np.float32(0.73) - np.float32(41.5))
+
+
+def inputs_for(type_name: str, image: np.ndarray, dtype: str = "uint8") -> list[np.ndarray]:
+    image = as_dtype(image, dtype)
     if SPECS[type_name].inputs == 2:  # a second, different frame of the same size
         return [image, np.ascontiguousarray(image[::-1, ::-1] // 2 + image // 3)]
     return [image]
@@ -165,6 +193,9 @@ class Kernels:
         from gpucompgen.model import DTYPES
 
         ctype = imgproc_types()[type_name]
+        if ctype.generic:  # the ports of a component fed these arrays (resolve-types)
+            ctype = ctype.specialized(arrays[0].dtype.name,
+                                      arrays[0].shape[2] if arrays[0].ndim == 3 else 1)
         inputs = dict(zip(ctype.inputs, arrays))
         sizes = {k: v.shape[:2] for k, v in inputs.items()}
         ints = {k: v for k, v in params.items() if ctype.params[k].type == "int"}
@@ -223,15 +254,15 @@ def largest_difference(ours: np.ndarray, reference: np.ndarray) -> int:
     return int(np.abs(ours.astype(np.int32) - reference.astype(np.int32)).max(initial=0))
 
 
-@pytest.mark.parametrize("type_name", TYPES)
-def test_photographs_cpu_and_gpu_against_opencv(type_name, photos, kernels):
-    """On each photograph and parameter set: GPU == CPU, and both within max_diff of cv2."""
+@pytest.mark.parametrize("type_name,channels,dtype", VARIANTS, ids=variant_id)
+def test_photographs_cpu_and_gpu_against_opencv(type_name, channels, dtype, photos, kernels):
+    """On each photograph and parameter set: GPU == CPU, and both within max_diff of cv2,
+    for every channel count and element type the type takes."""
     spec = SPECS[type_name]
     cpu_function = cpu_kernels.CPU_IMPLEMENTATIONS[type_name]
-    channels = channels_of(type_name)
     worst = 0
     for name, versions in photos.items():
-        arrays = inputs_for(type_name, versions[channels])
+        arrays = inputs_for(type_name, versions[channels], dtype)
         for i, params in enumerate(spec.cases):
             reference = spec.opencv(*arrays, **params)
             cpu = cpu_function(*arrays, **params)
@@ -299,14 +330,25 @@ def params_for(draw, type_name: str) -> dict:
     return params
 
 
+def random_frame(rng, shape, dtype: str) -> np.ndarray:
+    """Values over the element type's range: every int16, float32 with fractions and
+    exact halves (the rounding's ties)."""
+    if dtype == "uint8":
+        return rng.integers(0, 256, shape, dtype=np.uint8)
+    if dtype == "int16":
+        return rng.integers(-32768, 32768, shape, dtype=np.int16)
+    values = rng.uniform(-700.0, 700.0, shape).astype(np.float32)
+    halves = rng.random(shape) < 0.2
+    values[halves] = np.round(values[halves] * 2) / 2
+    return values
+
+
 @st.composite
-def cases(draw, type_name: str):
+def cases(draw, type_name: str, channels: int = 1, dtype: str = "uint8"):
     height, width = draw(sizes), draw(sizes)
-    channels = channels_of(type_name)
     shape = (height, width) if channels == 1 else (height, width, channels)
     rng = np.random.default_rng(draw(st.integers(0, 2 ** 32 - 1)))
-    arrays = [rng.integers(0, 256, shape, dtype=np.uint8)
-              for _ in range(SPECS[type_name].inputs)]
+    arrays = [random_frame(rng, shape, dtype) for _ in range(SPECS[type_name].inputs)]
     params = draw(params_for(type_name))
     if type_name.startswith("Crop"):  # a rectangle inside the frame
         params["width"] = draw(st.integers(1, width))
@@ -316,12 +358,12 @@ def cases(draw, type_name: str):
     return arrays, params, draw(st.sampled_from(SETTINGS))
 
 
-@pytest.mark.parametrize("type_name", TYPES)
-def test_random_frames_gpu_equals_cpu_and_opencv(type_name, kernels):
+@pytest.mark.parametrize("type_name,channels,dtype", VARIANTS, ids=variant_id)
+def test_random_frames_gpu_equals_cpu_and_opencv(type_name, channels, dtype, kernels):
     spec = SPECS[type_name]
 
     @PROPERTY
-    @given(case=cases(type_name))
+    @given(case=cases(type_name, channels, dtype))
     def check(case):
         arrays, params, setting = case
         cpu = cpu_kernels.CPU_IMPLEMENTATIONS[type_name](*arrays, **params)
@@ -343,7 +385,7 @@ def test_bilinear_resize_every_path_of_the_kernel(type_name, kernels):
     chunks (widths past RESIZE_CHUNK), equals the CPU form, and the CPU form stays within
     1 of OpenCV."""
     rng = np.random.default_rng(24)
-    channels = channels_of(type_name)
+    (channels, _), = variants(type_name)
     for out_width, factor, height, out_height in ((5, 2, 7, 3), (37, 2, 30, 15), (1, 2, 4, 4),
                                                  (29, 3, 9, 13), (70, 4, 33, 8), (3, 4, 1, 1),
                                                  (40, 1, 12, 5), (13, 5, 10, 10),

@@ -20,7 +20,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from conftest import ROOT, keep_type_for, load_generated, require_opencl, write_keep_types
-from test_imgproc import SPECS, imgproc_types, inputs_for
+from test_imgproc import SPECS, imgproc_types, inputs_for, random_frame, variant_id, variants
 
 from gpucompgen.library import cpu_kernels
 from gpucompgen.passes.fuse import FUSION_COSTS
@@ -43,14 +43,21 @@ def test_every_imgproc_type_is_fusable_but_crop_and_resize():
     assert not set(FUSABLE) & set(OPAQUE)
 
 
-def one_member_group(type_name: str, params: dict, shapes: dict[str, tuple]):
+def one_member_group(type_name: str, params: dict, shapes: dict[str, tuple], arrays):
     """The group kernel's source and its parameter list for one member named 'm', for
     ports of the given (height, width) shapes: sizes are constants of a group kernel."""
     from gpucompgen.backend.opencl.convention import group_parameters
     from gpucompgen.backend.opencl.fused import group_kernel, group_of_one
 
-    group = group_of_one(imgproc_types()[type_name], params, shapes)
+    group = group_of_one(specialized(type_name, arrays), params, shapes)
     return group_kernel(group, f"test of {type_name}"), group_parameters(group)
+
+
+def specialized(type_name: str, arrays):
+    """The type with the ports a component fed these arrays gets (resolve-types)."""
+    t = imgproc_types()[type_name]
+    return t.specialized(arrays[0].dtype.name, arrays[0].shape[2] if arrays[0].ndim == 3
+                         else 1) if t.generic else t
 
 
 class Snippets:
@@ -67,10 +74,12 @@ class Snippets:
         shapes = {p: a.shape[:2] for p, a in zip(t.inputs, arrays, strict=True)}
         (oname,) = t.outputs
         shapes[oname] = expected.shape[:2]
-        # sizes and parameter values are constants of the kernel: one build for each
-        key = (type_name, tuple(sorted(shapes.items())), tuple(sorted(params.items())))
+        # sizes and parameter values are constants of the kernel: one build for each (and
+        # for each element type and channel count of a generic type)
+        key = (type_name, tuple(sorted(shapes.items())), tuple(sorted(params.items())),
+               arrays[0].dtype.str, arrays[0].shape[2:])
         if key not in self.built:
-            source, kparams = one_member_group(type_name, params, shapes)
+            source, kparams = one_member_group(type_name, params, shapes, arrays)
             self.built[key] = cl.Program(self.context, source).build(), kparams
         program, kparams = self.built[key]
         kernel = cl.Kernel(program, "only")
@@ -114,21 +123,20 @@ def photos():
     return out
 
 
-def channels_of(type_name: str) -> int:
-    return next(iter(imgproc_types()[type_name].inputs.values())).channels
-
-
-@pytest.mark.parametrize("type_name", FUSABLE)
+@pytest.mark.parametrize("type_name,n,dtype", [
+    (name, c, d) for name in FUSABLE if not imgproc_types()[name].alias_of
+    for c, d in variants(name)], ids=variant_id)
 def test_snippet_gives_the_kernels_bytes_on_photos_and_tiny_frames(snippets, photos,
-                                                                   type_name):
+                                                                   type_name, n, dtype):
+    """Every channel count and element type of a generic type: the kernel is generated
+    for each component's resolved ports."""
     rng = np.random.default_rng(17)
-    n = channels_of(type_name)
     frames = [p[n] for p in photos]
-    frames += [rng.integers(0, 256, (h, w, 3) if n == 3 else (h, w), np.uint8)
-               for h, w in TINY]
+    frames += [random_frame(rng, (h, w, 3) if n == 3 else (h, w), "uint8") for h, w in TINY]
     for params in SPECS[type_name].cases:
         for frame in frames:
-            got, expected = snippets.run(type_name, inputs_for(type_name, frame), params)
+            got, expected = snippets.run(type_name, inputs_for(type_name, frame, dtype),
+                                         params)
             assert got.dtype == expected.dtype
             np.testing.assert_array_equal(got, expected, err_msg=f"{type_name} {params} "
                                                                  f"{frame.shape}")
@@ -182,9 +190,17 @@ CHAIN: dict[str, tuple[str, dict, tuple[str, ...]]] = {
     "gerode": ("ErodeGray", {}, ("gband",)),
     "ginv": ("ThresholdGray", {"thresh": 127, "maxval": 255, "thresh_type": 1}, ("gerode",)),
     "gsobel": ("SobelGray", {"dx": 0, "dy": 1}, ("ginv",)),
+    # generic types under their own names over one channel, and int16 gradients made
+    # 8-bit (convertScaleAbs): Sobel -> ConvertScale recomputed by a median; the
+    # three-channel gradient (read by the CPU too, so not fused) under a dilate
+    "s16": ("Sobel", {"dx": 1, "dy": 0}, ("gerode",)),
+    "sabs": ("ConvertScale", {"alpha": 0.5, "beta": 1.5}, ("s16",)),
+    "smedian": ("MedianBlur", {}, ("sabs",)),
+    "sabs3": ("ConvertScale", {"alpha": 0.25, "beta": 0.0}, ("sobel",)),
+    "sdilate": ("Dilate", {}, ("sabs3",)),
 }
 ENDS = ["blur", "median", "erode", "dilate", "sobel", "reddil", "gblur", "gmedian", "gerode",
-        "gsobel"]
+        "gsobel", "smedian", "sdilate"]
 def output_port(type_name: str) -> str:
     return next(iter(imgproc_types()[type_name].outputs))
 

@@ -1,9 +1,10 @@
 """Every imgproc type in generated programs, placed on the GPU, on the CPU and mixed.
 
-One model chains all 30 library types over the photographs of models/photos/ (a folder
+One model chains every imgproc type over the photographs of models/photos/ (a folder
 camera, 301x200): crops and nearest resizes make odd sizes on the way, both Resize
 interpolations, both GaussianBlur sizes, float and int parameters, fan-outs, two-input
-joins and int16 Sobel outputs. A collector (a standard type written here) keeps every
+joins, int16 Sobel outputs made 8-bit again by ConvertScale, the generic types over three
+channels and one, and the deprecated one-channel names ('GaussianBlurGray'). A collector (a standard type written here) keeps every
 component's output of every frame. The model is built three times — every flexible
 component on the GPU (their OpenCL kernels), every one on the CPU (their numpy functions,
 no device buffers at all), and alternating sides (adapters between neighbours) — and each
@@ -68,6 +69,14 @@ CHAIN: dict[str, tuple[str, dict, tuple[str, ...]]] = {
     "gband": ("InRangeGray", {"lowerb": 40, "upperb": 150}, ("gdilate",)),
     "gsobel": ("SobelGray", {"dx": 1, "dy": 0}, ("gray",)),
     "ginv": ("ThresholdGray", {"thresh": 100, "maxval": 200, "thresh_type": 1}, ("gcrop",)),
+    # -- the generic types under their own names: one channel, and Sobel's int16 gradients
+    # made 8-bit again (convertScaleAbs), a fused stencil chain over one channel ---------
+    "sabs": ("ConvertScale", {"alpha": 0.25, "beta": 0.0}, ("sobel",)),
+    "gsabs": ("ConvertScale", {"alpha": 0.5, "beta": 3.0}, ("gsobel",)),
+    "g1blur": ("GaussianBlur", {"ksize": 3}, ("gray",)),
+    "g1erode": ("Erode", {}, ("g1blur",)),
+    "g1median": ("MedianBlur", {}, ("g1erode",)),
+    "g1sobel": ("Sobel", {"dx": 0, "dy": 1}, ("g1median",)),
 }
 
 def keep_type(type_name: str) -> str:

@@ -22,6 +22,7 @@ from gpucompgen.passes.check_port_types import CheckPortTypes
 from gpucompgen.passes.insert_adapters import InsertAdapters
 from gpucompgen.passes.name_variables import NameVariables
 from gpucompgen.passes.propagate_sizes import PropagateSizes
+from gpucompgen.passes.resolve_types import ResolveTypes
 from gpucompgen.passes.schedule import Schedule
 from gpucompgen.runtime import Size
 
@@ -59,15 +60,15 @@ def apply(system: System, *passes) -> Reporter:
 
 def chain() -> System:
     """camera -> mirror -> blur -> sink: one upload, one download."""
-    return hand_built("camera.image -> mirror.image", "mirror.mirrored -> blur.image",
-                      "blur.smooth -> sink.image", camera="Camera", mirror="VerticalMirror",
+    return hand_built("camera.image -> mirror.src", "mirror.dst -> blur.src",
+                      "blur.dst -> sink.image", camera="Camera", mirror="VerticalMirror",
                       blur="BoxBlur", sink="FrameSink")
 
 
 def test_schedule_orders_a_hand_built_chain_given_backwards():
-    system = hand_built("b.mirrored -> c.image", "a.image -> b.image",
+    system = hand_built("b.dst -> c.image", "a.image -> b.src",
                         c="FrameSink", b="VerticalMirror", a="Camera")
-    rep = apply(system, CheckConnections(), Schedule())
+    rep = apply(system, CheckConnections(), ResolveTypes(), Schedule())
     assert not rep.has_errors
     # the model order (c, b, a) only breaks ties; the edges decide
     assert system.order == ["a", "b", "c"]
@@ -75,7 +76,7 @@ def test_schedule_orders_a_hand_built_chain_given_backwards():
 
 
 def test_schedule_reports_a_cycle():
-    system = hand_built("m1.mirrored -> m2.image", "m2.mirrored -> m1.image",
+    system = hand_built("m1.dst -> m2.src", "m2.dst -> m1.src",
                         m1="VerticalMirror", m2="VerticalMirror")
     rep = apply(system, Schedule())
     assert [d.message for d in rep.diagnostics if d.severity == "error"] == [
@@ -93,20 +94,20 @@ def test_check_connections_drops_a_second_writer_and_reports_it():
 
 def test_propagate_sizes_puts_data_on_ports_and_edges():
     system = chain()
-    apply(system, CheckConnections(), Schedule(), PropagateSizes())
+    apply(system, CheckConnections(), ResolveTypes(), Schedule(), PropagateSizes())
     frame = Data(Size(480, 640, 3), "uint8")
     assert all(e.data == frame for e in system.edges)
-    assert system.data(E("blur.smooth")) == frame and frame.nbytes == 921_600
+    assert system.data(E("blur.dst")) == frame and frame.nbytes == 921_600
 
 
 def test_insert_adapters_rewires_the_edges_through_new_nodes():
     system = chain()
-    apply(system, CheckConnections(), Schedule(), PropagateSizes(), InsertAdapters())
+    apply(system, CheckConnections(), ResolveTypes(), Schedule(), PropagateSizes(), InsertAdapters())
     assert system.order == ["camera", "adapter1_cpu2gpu", "mirror", "blur",
                             "adapter2_gpu2cpu", "sink"]
     assert sorted(str(e) for e in system.edges) == sorted([
-        "camera.image -> adapter1_cpu2gpu.input", "adapter1_cpu2gpu.output -> mirror.image",
-        "mirror.mirrored -> blur.image", "blur.smooth -> adapter2_gpu2cpu.input",
+        "camera.image -> adapter1_cpu2gpu.input", "adapter1_cpu2gpu.output -> mirror.src",
+        "mirror.dst -> blur.src", "blur.dst -> adapter2_gpu2cpu.input",
         "adapter2_gpu2cpu.output -> sink.image"])
     up = system.nodes["adapter1_cpu2gpu"]
     assert isinstance(up, AdapterNode) and up.source == E("camera.image")
@@ -115,37 +116,37 @@ def test_insert_adapters_rewires_the_edges_through_new_nodes():
 
 def test_insert_adapters_serves_every_output_of_a_node_that_crosses():
     """Issue 12, section 1: the second output crossing memories crashed with a KeyError."""
-    system = hand_built("camera.image -> m.image", "m.mirrored -> s1.image",
-                        "m.mirrored -> s2.image", "camera.image -> b.image",
-                        "b.smooth -> s3.image", camera="Camera", m="VerticalMirror",
+    system = hand_built("camera.image -> m.src", "m.dst -> s1.image",
+                        "m.dst -> s2.image", "camera.image -> b.src",
+                        "b.dst -> s3.image", camera="Camera", m="VerticalMirror",
                         b="BoxBlur", s1="FrameSink", s2="FrameSink", s3="FrameSink")
-    apply(system, CheckConnections(), Schedule(), PropagateSizes(), InsertAdapters(),
+    apply(system, CheckConnections(), ResolveTypes(), Schedule(), PropagateSizes(), InsertAdapters(),
           NameVariables())
     adapters = [a.name for a in system.adapters]
     # one upload shared by both GPU consumers, one download per GPU output
     assert adapters == ["adapter1_cpu2gpu", "adapter2_gpu2cpu", "adapter3_gpu2cpu"]
     assert sorted(map(str, system.readers(E("adapter1_cpu2gpu.output")))) == [
-        "b.image", "m.image"]
+        "b.src", "m.src"]
     assert sorted(map(str, system.readers(E("adapter2_gpu2cpu.output")))) == [
         "s1.image", "s2.image"]
-    assert system.output_vars[E("adapter3_gpu2cpu.output")] == "b_smooth_cpu"
+    assert system.output_vars[E("adapter3_gpu2cpu.output")] == "b_dst_cpu"
 
 
 def test_standard_mode_needs_no_adapters():
-    system = hand_built("camera.image -> m.image", "m.mirrored -> s.image", mode="standard",
+    system = hand_built("camera.image -> m.src", "m.dst -> s.image", mode="standard",
                         camera="Camera", m="VerticalMirror", s="FrameSink")
-    apply(system, CheckConnections(), Schedule(), PropagateSizes(), InsertAdapters())
+    apply(system, CheckConnections(), ResolveTypes(), Schedule(), PropagateSizes(), InsertAdapters())
     assert system.adapters == [] and len(system.edges) == 2
 
 
 def test_dump_prints_every_node_port_and_edge():
     system = chain()
-    apply(system, CheckConnections(), Schedule(), PropagateSizes(), InsertAdapters())
+    apply(system, CheckConnections(), ResolveTypes(), Schedule(), PropagateSizes(), InsertAdapters())
     text = system.dump()
     for line in ("component mirror: VerticalMirror on GPU [stage 2]",
-                 "in image: GPU uint8x3 = 480x640x3 uint8",
-                 "adapter adapter2_gpu2cpu: gpu2cpu of blur.smooth [stage 3]",
-                 "edge blur.smooth -> adapter2_gpu2cpu.input : 480x640x3 uint8"):
+                 "in src: GPU uint8x3 = 480x640x3 uint8",
+                 "adapter adapter2_gpu2cpu: gpu2cpu of blur.dst [stage 3]",
+                 "edge blur.dst -> adapter2_gpu2cpu.input : 480x640x3 uint8"):
         assert line in text, text
     assert text == system.dump()  # deterministic
 
@@ -154,7 +155,7 @@ def test_dump_prints_every_node_port_and_edge():
 
 def checked_chain() -> System:
     system = chain()
-    apply(system, CheckConnections(), CheckPortTypes(), Schedule(), PropagateSizes(),
+    apply(system, CheckConnections(), ResolveTypes(), CheckPortTypes(), Schedule(), PropagateSizes(),
           InsertAdapters(), NameVariables())
     return system
 
@@ -164,20 +165,20 @@ def _break_missing_endpoint(s):
 
 
 def _break_second_writer(s):
-    s.edges.append(Edge(E("mirror.mirrored"), E("sink.image")))
+    s.edges.append(Edge(E("mirror.dst"), E("sink.image")))
 
 
 def _break_unfed_input(s):
-    s.edges = [e for e in s.edges if e.target != E("blur.image")]
+    s.edges = [e for e in s.edges if e.target != E("blur.src")]
 
 
 def _break_crossing_without_adapter(s):
     s.remove_node("adapter1_cpu2gpu")
-    s.edges.append(Edge(E("camera.image"), E("mirror.image"), data=s.data(E("camera.image"))))
+    s.edges.append(Edge(E("camera.image"), E("mirror.src"), data=s.data(E("camera.image"))))
 
 
 def _break_size(s):
-    s.nodes["blur"].outputs["smooth"].data = None
+    s.nodes["blur"].outputs["dst"].data = None
 
 
 def _break_order(s):
@@ -206,10 +207,10 @@ def _break_port_types(s):
 @pytest.mark.parametrize("breakage,message", [
     (_break_missing_endpoint, "edge ghost.out -> sink.image: no output 'ghost.out'"),
     (_break_second_writer, "input 'sink.image' has 2 writers"),
-    (_break_unfed_input, "input 'blur.image' has 0 writers"),
-    (_break_crossing_without_adapter, "edge camera.image -> mirror.image crosses from CPU to "
+    (_break_unfed_input, "input 'blur.src' has 0 writers"),
+    (_break_crossing_without_adapter, "edge camera.image -> mirror.src crosses from CPU to "
                                       "GPU memory without an adapter"),
-    (_break_size, "port 'blur.smooth' has no size"),
+    (_break_size, "port 'blur.dst' has no size"),
     (_break_order, "the order runs 'blur' before 'mirror', which feeds it"),
     (_break_name, "node 'sink' is filed as 'renamed'"),
     (_break_group, "'blur' is a member of group 'g' and a node"),

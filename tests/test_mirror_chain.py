@@ -166,7 +166,7 @@ def test_rows_cover_is_printed_and_planned(tmp_path):
     out = tmp_path / "out"
     write(compile_model(MODEL, out, fusion="off"), out)  # the mirrors' own kernels
     text = (out / "mirror_chain.py").read_text()
-    assert "covers tile whole rows of\n    'mirrored'" in text
+    assert "covers tile whole rows of\n    'dst'" in text
     # rows: one group across, 864 rows / tile 32 = 27 groups of 8x8 threads down
     assert "tile=32, local_size=(8, 8, 1), global_size=(8, 216, 1)," in text
     assert "mirror1: settings preferred, 1,728 resident threads" in text

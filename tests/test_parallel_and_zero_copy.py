@@ -284,7 +284,7 @@ def test_parallel_program_uses_one_queue_per_branch(tmp_path):
     text = compile_model(BRANCHES, tmp_path, fusion="off").files[0].text
     assert ("queue0 = runtime.create_queue(context, profile)\n"
             "    queue1 = runtime.create_queue(context, profile)") in text
-    assert "merger.execute(blur1_smooth, blur2_smooth, wait_for=[blur2.event])" in text
+    assert "merger.execute(blur1_dst, blur2_dst, wait_for=[blur2.event])" in text
     assert "blocking=False" in text
     seq = compile_model(BRANCHES, tmp_path, execution="sequential", fusion="off").files[0].text
     assert "wait_for" not in seq and "queue1" not in seq and "blocking=False" not in seq

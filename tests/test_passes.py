@@ -23,6 +23,7 @@ from gpucompgen.passes.insert_adapters import InsertAdapters
 from gpucompgen.passes.name_variables import NameVariables
 from gpucompgen.passes.place import Place
 from gpucompgen.passes.propagate_sizes import PropagateSizes
+from gpucompgen.passes.resolve_types import ResolveTypes
 from gpucompgen.passes.schedule import Schedule
 from gpucompgen.passes.stage_frames import StageFrames
 
@@ -50,8 +51,12 @@ def hand_built(components: dict[str, str], *edges: str, mode: str = "gpu-aware",
         system.add_node(component_node(name, t, params, Pos("hand.yaml", i + 1, 1), i, mode,
                                        asked, by))
     for e in edges:
-        src, dst = (Endpoint(*s.strip().split(".")) for s in e.split("->"))
+        ends = [Endpoint(*s.strip().split(".")) for s in e.split("->")]
+        # an old port name of a library type (an alias) names its port, as in a model
+        src, dst = (Endpoint(x.component, system.nodes[x.component].type.canonical_port(
+            x.port) or x.port) if x.component in system.nodes else x for x in ends)
         system.edges.append(Edge(src, dst))
+    ResolveTypes().apply(system, Reporter())  # generic ports take what feeds them
     return system
 
 
@@ -81,6 +86,7 @@ UP_TO_ADAPTERS = (CheckConnections(), CheckPortTypes(), Schedule(), PropagateSiz
 
 
 def test_check_connections_keeps_the_first_writer_and_reports_the_rest():
+    # m, fed by nothing, keeps its generic ports' first choice (one channel)
     system = hand_built({"a": "StillImage width=8 height=4", "b": "StillImage width=8 height=4",
                          "m": "VerticalMirror", "sink": "FrameSink"},
                         "a.image -> sink.image", "b.image -> sink.image")
@@ -90,8 +96,8 @@ def test_check_connections_keeps_the_first_writer_and_reports_the_rest():
       component b: StillImage on CPU (width=8, height=4, seed=1, frames=0)
         out image: CPU uint8x3
       component m: VerticalMirror on GPU
-        in image: GPU uint8x3
-        out mirrored: GPU uint8x3
+        in src: GPU uint8x1
+        out dst: GPU uint8x1
       component sink: FrameSink on CPU (output='')
         in image: CPU uint8x3
       edge a.image -> sink.image
@@ -104,8 +110,8 @@ def test_check_connections_keeps_the_first_writer_and_reports_the_rest():
       component b: StillImage on CPU (width=8, height=4, seed=1, frames=0)
         out image: CPU uint8x3
       component m: VerticalMirror on GPU
-        in image: GPU uint8x3
-        out mirrored: GPU uint8x3
+        in src: GPU uint8x1
+        out dst: GPU uint8x1
       component sink: FrameSink on CPU (output='')
         in image: CPU uint8x3
       edge a.image -> sink.image
@@ -114,8 +120,8 @@ def test_check_connections_keeps_the_first_writer_and_reports_the_rest():
         "input 'sink.image' has two writers: 'a.image' and 'b.image'",
         "output 'b.image' is not connected",
         "component 'b' is connected to nothing",
-        "input 'm.image' is not connected",
-        "output 'm.mirrored' is not connected",
+        "input 'm.src' is not connected",
+        "output 'm.dst' is not connected",
         "component 'm' is connected to nothing",
     ]
 
@@ -123,30 +129,30 @@ def test_check_connections_keeps_the_first_writer_and_reports_the_rest():
 def test_schedule_orders_by_the_edges_and_numbers_the_stages():
     system = hand_built({"sink": "FrameSink", "m": "VerticalMirror",
                          "cam": "StillImage width=8 height=4"},
-                        "m.mirrored -> sink.image", "cam.image -> m.image")
+                        "m.dst -> sink.image", "cam.image -> m.src")
     apply(system, CheckConnections(), CheckPortTypes())
     expect(system, """
       component sink: FrameSink on CPU (output='')
         in image: CPU uint8x3
       component m: VerticalMirror on GPU
-        in image: GPU uint8x3
-        out mirrored: GPU uint8x3
+        in src: GPU uint8x3
+        out dst: GPU uint8x3
       component cam: StillImage on CPU (width=8, height=4, seed=1, frames=0)
         out image: CPU uint8x3
-      edge m.mirrored -> sink.image
-      edge cam.image -> m.image
+      edge m.dst -> sink.image
+      edge cam.image -> m.src
     """)
     assert not apply(system, Schedule()).diagnostics
     expect(system, """
       component cam: StillImage on CPU (width=8, height=4, seed=1, frames=0) [stage 1]
         out image: CPU uint8x3
       component m: VerticalMirror on GPU [stage 2]
-        in image: GPU uint8x3
-        out mirrored: GPU uint8x3
+        in src: GPU uint8x3
+        out dst: GPU uint8x3
       component sink: FrameSink on CPU (output='') [stage 3]
         in image: CPU uint8x3
-      edge m.mirrored -> sink.image
-      edge cam.image -> m.image
+      edge m.dst -> sink.image
+      edge cam.image -> m.src
     """)
 
 
@@ -187,8 +193,8 @@ def test_propagate_sizes_from_the_source_down():
 def test_place_moves_a_component_and_its_ports_to_the_side_asked():
     system = hand_built({"cam": "StillImage width=8 height=4", "flip": "FlipHorizontal",
                          "blur": "BoxBlur on=cpu", "sink": "FrameSink"},
-                        "cam.image -> flip.image", "flip.flipped -> blur.image",
-                        "blur.smooth -> sink.image")
+                        "cam.image -> flip.src", "flip.dst -> blur.src",
+                        "blur.dst -> sink.image")
     # asked by the command line after the node was built (on the GPU, the default)
     flip = system.nodes["flip"]
     flip.asked, flip.placed_by = "cpu", "command line"
@@ -197,32 +203,32 @@ def test_place_moves_a_component_and_its_ports_to_the_side_asked():
       component cam: StillImage on CPU (width=8, height=4, seed=1, frames=0) [stage 1]
         out image: CPU uint8x3 = 4x8x3 uint8
       component flip: FlipHorizontal on GPU [asked cpu by command line] [stage 2]
-        in image: GPU uint8x3 = 4x8x3 uint8
-        out flipped: GPU uint8x3 = 4x8x3 uint8
+        in src: GPU uint8x3 = 4x8x3 uint8
+        out dst: GPU uint8x3 = 4x8x3 uint8
       component blur: BoxBlur on CPU [asked cpu by model] (radius=1) [stage 3]
-        in image: CPU uint8x3 = 4x8x3 uint8
-        out smooth: CPU uint8x3 = 4x8x3 uint8
+        in src: CPU uint8x3 = 4x8x3 uint8
+        out dst: CPU uint8x3 = 4x8x3 uint8
       component sink: FrameSink on CPU (output='') [stage 4]
         in image: CPU uint8x3 = 4x8x3 uint8
-      edge cam.image -> flip.image : 4x8x3 uint8
-      edge flip.flipped -> blur.image : 4x8x3 uint8
-      edge blur.smooth -> sink.image : 4x8x3 uint8
+      edge cam.image -> flip.src : 4x8x3 uint8
+      edge flip.dst -> blur.src : 4x8x3 uint8
+      edge blur.dst -> sink.image : 4x8x3 uint8
     """)
     assert not apply(system, Place()).diagnostics
     expect(system, """
       component cam: StillImage on CPU (width=8, height=4, seed=1, frames=0) [stage 1]
         out image: CPU uint8x3 = 4x8x3 uint8
       component flip: FlipHorizontal on CPU [asked cpu by command line] [stage 2]
-        in image: CPU uint8x3 = 4x8x3 uint8
-        out flipped: CPU uint8x3 = 4x8x3 uint8
+        in src: CPU uint8x3 = 4x8x3 uint8
+        out dst: CPU uint8x3 = 4x8x3 uint8
       component blur: BoxBlur on CPU [asked cpu by model] (radius=1) [stage 3]
-        in image: CPU uint8x3 = 4x8x3 uint8
-        out smooth: CPU uint8x3 = 4x8x3 uint8
+        in src: CPU uint8x3 = 4x8x3 uint8
+        out dst: CPU uint8x3 = 4x8x3 uint8
       component sink: FrameSink on CPU (output='') [stage 4]
         in image: CPU uint8x3 = 4x8x3 uint8
-      edge cam.image -> flip.image : 4x8x3 uint8
-      edge flip.flipped -> blur.image : 4x8x3 uint8
-      edge blur.smooth -> sink.image : 4x8x3 uint8
+      edge cam.image -> flip.src : 4x8x3 uint8
+      edge flip.dst -> blur.src : 4x8x3 uint8
+      edge blur.dst -> sink.image : 4x8x3 uint8
       placed flip: CPU (by command line)
       placed blur: CPU (by model)
     """)
@@ -230,18 +236,18 @@ def test_place_moves_a_component_and_its_ports_to_the_side_asked():
 
 def test_insert_adapters_puts_a_copy_on_each_edge_that_crosses_memories():
     system = hand_built({"cam": "StillImage width=8 height=4", "blur": "BoxBlur on=gpu",
-                       "sink": "FrameSink"}, "cam.image -> blur.image", "blur.smooth -> sink.image")
+                       "sink": "FrameSink"}, "cam.image -> blur.src", "blur.dst -> sink.image")
     apply(system, CheckConnections(), CheckPortTypes(), Schedule(), PropagateSizes(), Place())
     expect(system, """
       component cam: StillImage on CPU (width=8, height=4, seed=1, frames=0) [stage 1]
         out image: CPU uint8x3 = 4x8x3 uint8
       component blur: BoxBlur on GPU [asked gpu by model] (radius=1) [stage 2]
-        in image: GPU uint8x3 = 4x8x3 uint8
-        out smooth: GPU uint8x3 = 4x8x3 uint8
+        in src: GPU uint8x3 = 4x8x3 uint8
+        out dst: GPU uint8x3 = 4x8x3 uint8
       component sink: FrameSink on CPU (output='') [stage 3]
         in image: CPU uint8x3 = 4x8x3 uint8
-      edge cam.image -> blur.image : 4x8x3 uint8
-      edge blur.smooth -> sink.image : 4x8x3 uint8
+      edge cam.image -> blur.src : 4x8x3 uint8
+      edge blur.dst -> sink.image : 4x8x3 uint8
       placed blur: GPU (by model)
     """)
     assert not apply(system, InsertAdapters()).diagnostics
@@ -252,16 +258,16 @@ def test_insert_adapters_puts_a_copy_on_each_edge_that_crosses_memories():
         in input: CPU uint8x3 = 4x8x3 uint8
         out output: GPU uint8x3 = 4x8x3 uint8
       component blur: BoxBlur on GPU [asked gpu by model] (radius=1) [stage 2]
-        in image: GPU uint8x3 = 4x8x3 uint8
-        out smooth: GPU uint8x3 = 4x8x3 uint8
-      adapter adapter2_gpu2cpu: gpu2cpu of blur.smooth [stage 2]
+        in src: GPU uint8x3 = 4x8x3 uint8
+        out dst: GPU uint8x3 = 4x8x3 uint8
+      adapter adapter2_gpu2cpu: gpu2cpu of blur.dst [stage 2]
         in input: GPU uint8x3 = 4x8x3 uint8
         out output: CPU uint8x3 = 4x8x3 uint8
       component sink: FrameSink on CPU (output='') [stage 3]
         in image: CPU uint8x3 = 4x8x3 uint8
       edge cam.image -> adapter1_cpu2gpu.input : 4x8x3 uint8
-      edge adapter1_cpu2gpu.output -> blur.image : 4x8x3 uint8
-      edge blur.smooth -> adapter2_gpu2cpu.input : 4x8x3 uint8
+      edge adapter1_cpu2gpu.output -> blur.src : 4x8x3 uint8
+      edge blur.dst -> adapter2_gpu2cpu.input : 4x8x3 uint8
       edge adapter2_gpu2cpu.output -> sink.image : 4x8x3 uint8
       placed blur: GPU (by model)
     """)
@@ -269,7 +275,7 @@ def test_insert_adapters_puts_a_copy_on_each_edge_that_crosses_memories():
 
 def test_allocate_gpu_gives_each_gpu_node_its_settings_within_the_budget():
     system = hand_built({"cam": "StillImage width=8 height=4", "blur": "BoxBlur on=gpu",
-                       "sink": "FrameSink"}, "cam.image -> blur.image", "blur.smooth -> sink.image")
+                       "sink": "FrameSink"}, "cam.image -> blur.src", "blur.dst -> sink.image")
     apply(system, *UP_TO_ADAPTERS)
     expect(system, """
       component cam: StillImage on CPU (width=8, height=4, seed=1, frames=0) [stage 1]
@@ -278,16 +284,16 @@ def test_allocate_gpu_gives_each_gpu_node_its_settings_within_the_budget():
         in input: CPU uint8x3 = 4x8x3 uint8
         out output: GPU uint8x3 = 4x8x3 uint8
       component blur: BoxBlur on GPU [asked gpu by model] (radius=1) [stage 2]
-        in image: GPU uint8x3 = 4x8x3 uint8
-        out smooth: GPU uint8x3 = 4x8x3 uint8
-      adapter adapter2_gpu2cpu: gpu2cpu of blur.smooth [stage 2]
+        in src: GPU uint8x3 = 4x8x3 uint8
+        out dst: GPU uint8x3 = 4x8x3 uint8
+      adapter adapter2_gpu2cpu: gpu2cpu of blur.dst [stage 2]
         in input: GPU uint8x3 = 4x8x3 uint8
         out output: CPU uint8x3 = 4x8x3 uint8
       component sink: FrameSink on CPU (output='') [stage 3]
         in image: CPU uint8x3 = 4x8x3 uint8
       edge cam.image -> adapter1_cpu2gpu.input : 4x8x3 uint8
-      edge adapter1_cpu2gpu.output -> blur.image : 4x8x3 uint8
-      edge blur.smooth -> adapter2_gpu2cpu.input : 4x8x3 uint8
+      edge adapter1_cpu2gpu.output -> blur.src : 4x8x3 uint8
+      edge blur.dst -> adapter2_gpu2cpu.input : 4x8x3 uint8
       edge adapter2_gpu2cpu.output -> sink.image : 4x8x3 uint8
       placed blur: GPU (by model)
     """)
@@ -299,17 +305,17 @@ def test_allocate_gpu_gives_each_gpu_node_its_settings_within_the_budget():
         in input: CPU uint8x3 = 4x8x3 uint8
         out output: GPU uint8x3 = 4x8x3 uint8
       component blur: BoxBlur on GPU [asked gpu by model] (radius=1) [stage 2]
-        in image: GPU uint8x3 = 4x8x3 uint8
-        out smooth: GPU uint8x3 = 4x8x3 uint8
+        in src: GPU uint8x3 = 4x8x3 uint8
+        out dst: GPU uint8x3 = 4x8x3 uint8
         config_gpu: tile=32 block=(16, 16, 1) [preferred]
-      adapter adapter2_gpu2cpu: gpu2cpu of blur.smooth [stage 2]
+      adapter adapter2_gpu2cpu: gpu2cpu of blur.dst [stage 2]
         in input: GPU uint8x3 = 4x8x3 uint8
         out output: CPU uint8x3 = 4x8x3 uint8
       component sink: FrameSink on CPU (output='') [stage 3]
         in image: CPU uint8x3 = 4x8x3 uint8
       edge cam.image -> adapter1_cpu2gpu.input : 4x8x3 uint8
-      edge adapter1_cpu2gpu.output -> blur.image : 4x8x3 uint8
-      edge blur.smooth -> adapter2_gpu2cpu.input : 4x8x3 uint8
+      edge adapter1_cpu2gpu.output -> blur.src : 4x8x3 uint8
+      edge blur.dst -> adapter2_gpu2cpu.input : 4x8x3 uint8
       edge adapter2_gpu2cpu.output -> sink.image : 4x8x3 uint8
       placed blur: GPU (by model)
       thread budget 16,384
@@ -320,8 +326,8 @@ def test_allocate_gpu_gives_each_gpu_node_its_settings_within_the_budget():
 def test_assign_queues_runs_branches_on_two_lanes_with_waits_where_they_meet():
     system = hand_built({"cam": "StillImage width=8 height=4", "m": "VerticalMirror",
                          "blur": "BoxBlur", "merge": "ImageMerger", "sink": "FrameSink"},
-                        "cam.image -> m.image", "cam.image -> blur.image",
-                        "m.mirrored -> merge.left", "blur.smooth -> merge.right",
+                        "cam.image -> m.src", "cam.image -> blur.src",
+                        "m.dst -> merge.left", "blur.dst -> merge.right",
                         "merge.merged -> sink.image")
     apply(system, *UP_TO_ADAPTERS, AllocateGpu(), NameVariables())
     expect(system, """
@@ -331,12 +337,12 @@ def test_assign_queues_runs_branches_on_two_lanes_with_waits_where_they_meet():
         in input: CPU uint8x3 = 4x8x3 uint8
         out output: GPU uint8x3 = 4x8x3 uint8 -> var cam_image_gpu
       component m: VerticalMirror on GPU [stage 2]
-        in image: GPU uint8x3 = 4x8x3 uint8
-        out mirrored: GPU uint8x3 = 4x8x3 uint8 -> var m_mirrored
+        in src: GPU uint8x3 = 4x8x3 uint8
+        out dst: GPU uint8x3 = 4x8x3 uint8 -> var m_dst
         config_gpu: tile=32 block=(16, 16, 1) [preferred]
       component blur: BoxBlur on GPU (radius=1) [stage 2]
-        in image: GPU uint8x3 = 4x8x3 uint8
-        out smooth: GPU uint8x3 = 4x8x3 uint8 -> var blur_smooth
+        in src: GPU uint8x3 = 4x8x3 uint8
+        out dst: GPU uint8x3 = 4x8x3 uint8 -> var blur_dst
         config_gpu: tile=32 block=(16, 16, 1) [preferred]
       component merge: ImageMerger on GPU [stage 3]
         in left: GPU uint8x3 = 4x8x3 uint8
@@ -349,10 +355,10 @@ def test_assign_queues_runs_branches_on_two_lanes_with_waits_where_they_meet():
       component sink: FrameSink on CPU (output='') [stage 4]
         in image: CPU uint8x3 = 4x16x3 uint8
       edge cam.image -> adapter1_cpu2gpu.input : 4x8x3 uint8
-      edge adapter1_cpu2gpu.output -> m.image : 4x8x3 uint8
-      edge adapter1_cpu2gpu.output -> blur.image : 4x8x3 uint8
-      edge m.mirrored -> merge.left : 4x8x3 uint8
-      edge blur.smooth -> merge.right : 4x8x3 uint8
+      edge adapter1_cpu2gpu.output -> m.src : 4x8x3 uint8
+      edge adapter1_cpu2gpu.output -> blur.src : 4x8x3 uint8
+      edge m.dst -> merge.left : 4x8x3 uint8
+      edge blur.dst -> merge.right : 4x8x3 uint8
       edge merge.merged -> adapter2_gpu2cpu.input : 4x16x3 uint8
       edge adapter2_gpu2cpu.output -> sink.image : 4x16x3 uint8
       placed m: GPU (by default)
@@ -371,13 +377,13 @@ def test_assign_queues_runs_branches_on_two_lanes_with_waits_where_they_meet():
         out output: GPU uint8x3 = 4x8x3 uint8 -> var cam_image_gpu
         queue 0
       component m: VerticalMirror on GPU [stage 2]
-        in image: GPU uint8x3 = 4x8x3 uint8
-        out mirrored: GPU uint8x3 = 4x8x3 uint8 -> var m_mirrored
+        in src: GPU uint8x3 = 4x8x3 uint8
+        out dst: GPU uint8x3 = 4x8x3 uint8 -> var m_dst
         config_gpu: tile=32 block=(16, 16, 1) [preferred]
         queue 0
       component blur: BoxBlur on GPU (radius=1) [stage 2]
-        in image: GPU uint8x3 = 4x8x3 uint8
-        out smooth: GPU uint8x3 = 4x8x3 uint8 -> var blur_smooth
+        in src: GPU uint8x3 = 4x8x3 uint8
+        out dst: GPU uint8x3 = 4x8x3 uint8 -> var blur_dst
         config_gpu: tile=32 block=(16, 16, 1) [preferred]
         queue 1, waits adapter1_cpu2gpu
       component merge: ImageMerger on GPU [stage 3]
@@ -393,10 +399,10 @@ def test_assign_queues_runs_branches_on_two_lanes_with_waits_where_they_meet():
       component sink: FrameSink on CPU (output='') [stage 4]
         in image: CPU uint8x3 = 4x16x3 uint8
       edge cam.image -> adapter1_cpu2gpu.input : 4x8x3 uint8
-      edge adapter1_cpu2gpu.output -> m.image : 4x8x3 uint8
-      edge adapter1_cpu2gpu.output -> blur.image : 4x8x3 uint8
-      edge m.mirrored -> merge.left : 4x8x3 uint8
-      edge blur.smooth -> merge.right : 4x8x3 uint8
+      edge adapter1_cpu2gpu.output -> m.src : 4x8x3 uint8
+      edge adapter1_cpu2gpu.output -> blur.src : 4x8x3 uint8
+      edge m.dst -> merge.left : 4x8x3 uint8
+      edge blur.dst -> merge.right : 4x8x3 uint8
       edge merge.merged -> adapter2_gpu2cpu.input : 4x16x3 uint8
       edge adapter2_gpu2cpu.output -> sink.image : 4x16x3 uint8
       placed m: GPU (by default)
@@ -410,7 +416,7 @@ def test_assign_queues_runs_branches_on_two_lanes_with_waits_where_they_meet():
 
 def test_stage_frames_cuts_stages_and_doubles_the_buffers_between_them():
     system = hand_built({"cam": "StillImage width=8 height=4", "blur": "BoxBlur on=gpu",
-                       "sink": "FrameSink"}, "cam.image -> blur.image", "blur.smooth -> sink.image")
+                       "sink": "FrameSink"}, "cam.image -> blur.src", "blur.dst -> sink.image")
     system.frames_in_flight = 2
     apply(system, *UP_TO_ADAPTERS, AllocateGpu(), NameVariables(), AssignQueues())
     expect(system, """
@@ -421,19 +427,19 @@ def test_stage_frames_cuts_stages_and_doubles_the_buffers_between_them():
         out output: GPU uint8x3 = 4x8x3 uint8 -> var cam_image_gpu
         queue 0
       component blur: BoxBlur on GPU [asked gpu by model] (radius=1) [stage 2]
-        in image: GPU uint8x3 = 4x8x3 uint8
-        out smooth: GPU uint8x3 = 4x8x3 uint8 -> var blur_smooth
+        in src: GPU uint8x3 = 4x8x3 uint8
+        out dst: GPU uint8x3 = 4x8x3 uint8 -> var blur_dst
         config_gpu: tile=32 block=(16, 16, 1) [preferred]
         queue 0
-      adapter adapter2_gpu2cpu: gpu2cpu of blur.smooth [stage 2]
+      adapter adapter2_gpu2cpu: gpu2cpu of blur.dst [stage 2]
         in input: GPU uint8x3 = 4x8x3 uint8
-        out output: CPU uint8x3 = 4x8x3 uint8 -> var blur_smooth_cpu
+        out output: CPU uint8x3 = 4x8x3 uint8 -> var blur_dst_cpu
         queue 0
       component sink: FrameSink on CPU (output='') [stage 3]
         in image: CPU uint8x3 = 4x8x3 uint8
       edge cam.image -> adapter1_cpu2gpu.input : 4x8x3 uint8
-      edge adapter1_cpu2gpu.output -> blur.image : 4x8x3 uint8
-      edge blur.smooth -> adapter2_gpu2cpu.input : 4x8x3 uint8
+      edge adapter1_cpu2gpu.output -> blur.src : 4x8x3 uint8
+      edge blur.dst -> adapter2_gpu2cpu.input : 4x8x3 uint8
       edge adapter2_gpu2cpu.output -> sink.image : 4x8x3 uint8
       placed blur: GPU (by model)
       thread budget 16,384
@@ -448,19 +454,19 @@ def test_stage_frames_cuts_stages_and_doubles_the_buffers_between_them():
         out output: GPU uint8x3 = 4x8x3 uint8 -> var cam_image_gpu
         queue 0
       component blur: BoxBlur on GPU [asked gpu by model] (radius=1) [stage 2]
-        in image: GPU uint8x3 = 4x8x3 uint8
-        out smooth: GPU uint8x3 = 4x8x3 uint8 -> var blur_smooth
+        in src: GPU uint8x3 = 4x8x3 uint8
+        out dst: GPU uint8x3 = 4x8x3 uint8 -> var blur_dst
         config_gpu: tile=32 block=(16, 16, 1) [preferred]
         queue 0
-      adapter adapter2_gpu2cpu: gpu2cpu of blur.smooth [stage 2]
+      adapter adapter2_gpu2cpu: gpu2cpu of blur.dst [stage 2]
         in input: GPU uint8x3 = 4x8x3 uint8
-        out output: CPU uint8x3 = 4x8x3 uint8 -> var blur_smooth_cpu
+        out output: CPU uint8x3 = 4x8x3 uint8 -> var blur_dst_cpu
         queue 0
       component sink: FrameSink on CPU (output='') [stage 3]
         in image: CPU uint8x3 = 4x8x3 uint8
       edge cam.image -> adapter1_cpu2gpu.input : 4x8x3 uint8
-      edge adapter1_cpu2gpu.output -> blur.image : 4x8x3 uint8
-      edge blur.smooth -> adapter2_gpu2cpu.input : 4x8x3 uint8
+      edge adapter1_cpu2gpu.output -> blur.src : 4x8x3 uint8
+      edge blur.dst -> adapter2_gpu2cpu.input : 4x8x3 uint8
       edge adapter2_gpu2cpu.output -> sink.image : 4x8x3 uint8
       placed blur: GPU (by model)
       thread budget 16,384

@@ -93,12 +93,14 @@ def test_schema_keys_agree_with_the_loader():
     assert tuple(setting["properties"]) == model.SETTING_KEYS
     inst = m["components"]["additionalProperties"]["oneOf"][1]["properties"]
     assert set(inst) == set(model.INSTANCE_KEYS)
-    t = schema(TYPES)["properties"]["component_types"]["additionalProperties"]
+    named = schema(TYPES)["properties"]["component_types"]["additionalProperties"]
+    t, alias = named["else"], named["then"]  # a type, or a deprecated alias of one
+    assert set(alias["properties"]) == set(model.ALIAS_KEYS)
     assert set(t["properties"]) == set(model.TYPE_KEYS)
     assert set(t["properties"]["kind"]["enum"]) == set(model.KINDS)
     out = t["properties"]["outputs"]["additionalProperties"]["properties"]
     assert set(out) == set(model.PORT_KEYS)
-    assert set(out["dtype"]["enum"]) == set(model.DTYPES)
+    assert set(out["dtype"]["oneOf"][0]["enum"]) == set(model.DTYPES)
     assert set(out["memory"]["enum"]) == set(model.MEMORIES)
     param = t["properties"]["params"]["additionalProperties"]["oneOf"]
     assert set(param[0]["enum"]) == set(model.PARAM_TYPES)
@@ -158,12 +160,12 @@ def test_every_enum_and_closed_mapping_agrees_with_the_loader():
                                     model.PARAM_TYPES, model.COVERS, model.EXECUTIONS,
                                     model.ZERO_COPY, model.STAGING, model.PLACEMENTS,
                                     model.FUSION, model.BACKENDS, fusable.FORMS, fusable.BORDERS, PROFILES,
-                                    [*PROFILES, "auto"], KINDS)}
+                                    [*PROFILES, "auto"], KINDS, model.ANY, model.FAMILIES)}
     tables = {frozenset(t) for t in (
         model.SYSTEM_KEYS, model.PLATFORM_KEYS, model.INSTANCE_KEYS, model.TYPE_KEYS,
         model.PORT_KEYS, set(model.PORT_KEYS) - {"height", "width"}, model.PARAM_KEYS,
         model.REQUIRE_KEYS, model.KERNEL_KEYS, model.GPU_KEYS, model.PYTHON_KEYS,
-        model.CPU_KEYS, model.FUSABLE_KEYS,
+        model.CPU_KEYS, model.FUSABLE_KEYS, model.ALIAS_KEYS,
         model.SETTING_KEYS, set(FACT_KEYS) | {"profile"}, ("from", "to"),
         ("component_types",))}
     seen_enums, seen_tables = set(), set()

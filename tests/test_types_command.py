@@ -27,21 +27,33 @@ def test_listing_names_every_library_type_once_with_its_kind(capsys):
     types = library_types()
     assert rows == {name: t.kind for name, t in types.items()}
     assert f"{len(types)} component types" in out
-    assert "<gpucompgen>/library/imgproc.yaml:" in out
+    # grouped by family, in this order; each line says what the type takes and gives
+    titles = ["colour:", "filters:", "morphology:", "geometry:", "arithmetic and thresholds:",
+              "features:", "I/O: sources and sinks:"]
+    assert [line for line in out.splitlines() if line.endswith(":")] == titles
     assert all(len(line) <= 100 for line in out.splitlines())
     # the one-line description is the first sentence
-    assert re.search(r"^  Resize +flexible   Scales a frame to width x height\.$", out, re.MULTILINE)
+    assert re.search(r"^  Resize +flexible   8UC3 -> 8UC3 +Scales a frame to width x height\.$",
+                     out, re.MULTILINE)
+    assert re.search(r"^  Sobel +flexible   8UC1\|3 -> 16S +First derivative", out, re.MULTILINE)
+    assert re.search(r"^  ConvertScale +flexible   8U\|16S\|32F C1\|3 -> 8U ", out, re.MULTILINE)
+    assert re.search(r"^  AbsDiff +flexible   2 x 8UC1\|3 -> 8U ", out, re.MULTILINE)
+    assert re.search(r"^  ErodeGray +flexible   8UC1 -> 8UC1 +deprecated: Erode with 1 channel$",
+                     out, re.MULTILINE)
+    assert re.search(r"^  MaskWriter +standard   8UC3, 8UC1 -> +Sink", out, re.MULTILINE)
+    assert re.search(r"^  Camera +standard   -> 8UC3 +Camera source\.$", out, re.MULTILINE)
 
 
 def test_listing_with_a_model_adds_its_own_types(capsys):
     code, out, _ = run(capsys, "--model", USER_MODEL)
     assert code == 0
     assert "tests/data/user_model/my_types.yaml:" in out
-    assert re.search(r"^  Brighten +gpu-aware  Adds gain to every channel", out, re.MULTILINE)
+    assert re.search(r"^  Brighten +gpu-aware  8UC3 -> 8UC3 +Adds gain to every channel", out,
+                     re.MULTILINE)
     assert re.search(r"^  MeanProbe +standard ", out, re.MULTILINE)
     assert f"{len(library_types()) + 2} component types" in out
     # the library first, the model's files after it
-    assert out.index("<gpucompgen>/library/") < out.index("my_types.yaml:")
+    assert out.index("I/O: sources and sinks:") < out.index("my_types.yaml:")
 
 
 def test_one_flexible_type_in_full_with_every_form(capsys):
@@ -52,38 +64,45 @@ def test_one_flexible_type_in_full_with_every_form(capsys):
     assert lines[1].startswith("Kind            flexible (runs on the GPU or the CPU, as placed")
     assert re.search(r"^Declared in     <gpucompgen>/library/imgproc\.yaml:\d+ \(library\)$",
                      out, re.MULTILINE)
-    assert "cv2.threshold(image, thresh, maxval, thresh_type)" in " ".join(out.split())
-    # a flexible type's ports live where it runs
-    assert "  image         memory where placed, uint8, 3 channels, any size" in lines
-    assert ("  thresholded   memory where placed, uint8, 3 channels, height image.height, "
-            "width image.width") in lines
+    assert "cv2.threshold(src, thresh, maxval, thresh_type)" in " ".join(out.split())
+    # a flexible type's ports live where it runs; a generic one's channels follow its input
+    assert ("  src           memory where placed, uint8, 1 or 3 channels, any size (old name: "
+            "image)") in lines
+    assert ("  dst           memory where placed, uint8, the channels of src, height src.height, "
+            "width src.width") in lines
+    assert "                (old name: thresholded)" in lines
     assert "  thresh        int, default 127, range 0..255" in lines
     assert "  thresh_type   int, default 0, range 0..4" in lines
     assert "4 TOZERO_INV" in out
-    forms = lines[lines.index("Forms:") + 1:]
+    forms = lines[lines.index("Forms:") + 1:lines.index("Example:") - 1]
     assert " ".join(" ".join(forms).split()) == (
         "GPU kernel generated from the fusable form below, for a component alone as for a "
         "fused group; the system chooses its settings CPU function threshold() in cpu_kernels.py, called with the input "
         "arrays and the parameters as keywords; runs where the model places the component "
-        "(placement: cpu, --place) fusable pointwise: const int p = image(y, x, c); const "
+        "(placement: cpu, --place) fusable pointwise: const int p = src(y, x, c); const "
         "bool above = p > thresh; return thresh_type == 0 ? (above ? maxval : 0) : "
         "thresh_type == 1 ? (above ? 0 : maxval) : thresh_type == 2 ? (above ? thresh : p) : "
         "thresh_type == 3 ? (above ? p : 0) : (above ? 0 : p);")
     # a snippet of several lines is printed as written, under its form
     at = forms.index("  fusable       pointwise:")
-    assert forms[at + 1:at + 3] == ["                  const int p = image(y, x, c);",
+    assert forms[at + 1:at + 3] == ["                  const int p = src(y, x, c);",
                                     "                  const bool above = p > thresh;"]
     assert forms[0].startswith("  GPU kernel    ") and any(
         f.startswith("  CPU function  threshold() in cpu_kernels.py") for f in forms)
 
 
 def test_requirements_float_parameters_and_int16_ports(capsys):
-    _, out, _ = run(capsys, "SobelGray")
-    assert "  gradient      memory where placed, int16, 1 channel, height image.height" in out
+    _, out, _ = run(capsys, "SobelGray")  # a deprecated alias: Sobel with 1 channel
+    assert "  dst           memory where placed, int16, 1 channel, height src.height" in out
+    assert "Deprecated      a name of Sobel with 1 channel: write 'type: Sobel'" in out
     assert "dx + dy == 1: give dx=1 dy=0 or dx=0 dy=1" in out
+    _, out, _ = run(capsys, "ConvertScale")  # takes Sobel's int16
+    assert ("  src           memory where placed, uint8, int16 or float32, 1 or 3 channels, "
+            "any size") in out
     _, out, _ = run(capsys, "AddWeighted")
     assert "  gamma         float, default 0.0" in out
-    assert "  src2          memory where placed, uint8, 3 channels, any size" in out
+    assert ("  src2          memory where placed, the dtype of src1, the channels of src1, "
+            "any size") in out
     assert "  CPU function  add_weighted() in cpu_kernels.py" in out
 
 
@@ -93,7 +112,10 @@ def test_standard_type_and_model_type_in_full(capsys, monkeypatch):
     assert "  image         CPU memory, uint8, 3 channels, height height, width width" in out
     assert "  folder        input, default ''" in out
     assert "  seed          int, default 1, range 0.." in out
-    assert out.splitlines()[-1] == "  CPU (python)  class Camera in camera.py"
+    assert "  CPU (python)  class Camera in camera.py" in out.splitlines()
+    assert out.splitlines()[-3:] == [
+        "    camera: {type: Camera, params: {width: 640, height: 480, seed: 1, buoys: 2, frames: 0}}",
+        "  connections:", "    - camera.image -> <consumer>.<port>  # uint8, 3 channels"]
     monkeypatch.chdir(ROOT)  # paths as the user wrote them, relative to the working folder
     code, out, _ = run(capsys, "Brighten", "--model", USER_MODEL.relative_to(ROOT))
     assert code == 0
@@ -147,9 +169,18 @@ def test_docs_show_the_current_listing_and_every_imgproc_type(capsys):
             assert re.search(rf"\b{name}\b", rows), name
 
 
+def test_one_type_in_full_ends_with_an_example_connection(capsys):
+    _, out, _ = run(capsys, "AbsDiffGray")  # a deprecated name: the example writes the type
+    assert out.splitlines()[out.splitlines().index("Example:"):] == [
+        "Example:", "  components:", "    abs_diff: {type: AbsDiff}", "  connections:",
+        "    - <producer>.<port> -> abs_diff.src1  # uint8, 1 channel",
+        "    - <producer>.<port> -> abs_diff.src2  # the dtype of src1, 1 channel",
+        "    - abs_diff.dst -> <consumer>.<port>   # uint8, 1 channel"]
+
+
 def test_fusable_forms_are_listed_with_their_snippets(capsys):
     _, out, _ = run(capsys, "VerticalMirror")
-    assert "  fusable       index map: image(image_height - 1 - y, x, c)" in out.splitlines()
+    assert "  fusable       index map: src(src_height - 1 - y, x, c)" in out.splitlines()
     _, out, _ = run(capsys, "BoxBlur")
     text = " ".join(out.split())
     assert "fusable stencil; window radius radius, border clamp: const int n =" in text

@@ -2,12 +2,12 @@
 // Group mirror1_to_mirror5: one kernel for mirror1 (VerticalMirror, index_map), mirror2
 // (VerticalMirror, index_map), mirror3 (VerticalMirror, index_map), mirror4
 // (VerticalMirror, index_map), mirror5 (VerticalMirror, index_map).
-// It computes mirror5.mirrored from the group's inputs directly: no buffers between members.
+// It computes mirror5.dst from the group's inputs directly: no buffers between members.
 // Each member's snippet is a function of the element (y, x, c) it computes;
 // an input read <port>(y, x, c) calls the producing member, or loads from a
 // group input.  Sizes are constants: the system fixed them at build time.
-// Kernel arguments, in the calling convention's order: _in0 = mirror1_image, _out =
-// mirror5_mirrored.
+// Kernel arguments, in the calling convention's order: _in0 = mirror1_src, _out =
+// mirror5_dst.
 
 #define _PARAMS \
     __global const uchar *restrict _in0, \
@@ -18,54 +18,54 @@
     _out
 
 // mirror1: VerticalMirror (index_map); every element
-#define image(y_, x_, c_) _in0[(size_t)(y_) * 3456 + (x + ((x_) - x) * 3)]
+#define src(y_, x_, c_) _in0[(size_t)(y_) * 3456 + (x + ((x_) - x) * 3)]
 static inline uchar _f0_mirror1(_PARAMS, const int y, const int x, const int c)
 {
-    const int image_height = 864, image_width = 1152;
-    const int mirrored_height = 864, mirrored_width = 1152;
-    return image(image_height - 1 - y, x, c);
+    const int src_height = 864, src_width = 1152;
+    const int dst_height = 864, dst_width = 1152;
+    return src(src_height - 1 - y, x, c);
 }
-#undef image
+#undef src
 
 // mirror2: VerticalMirror (index_map); every element
-#define image(y_, x_, c_) _f0_mirror1(_ARGS, (y_), (x + ((x_) - x) * 3), (c_))
+#define src(y_, x_, c_) _f0_mirror1(_ARGS, (y_), (x + ((x_) - x) * 3), (c_))
 static inline uchar _f1_mirror2(_PARAMS, const int y, const int x, const int c)
 {
-    const int image_height = 864, image_width = 1152;
-    const int mirrored_height = 864, mirrored_width = 1152;
-    return image(image_height - 1 - y, x, c);
+    const int src_height = 864, src_width = 1152;
+    const int dst_height = 864, dst_width = 1152;
+    return src(src_height - 1 - y, x, c);
 }
-#undef image
+#undef src
 
 // mirror3: VerticalMirror (index_map); every element
-#define image(y_, x_, c_) _f1_mirror2(_ARGS, (y_), (x + ((x_) - x) * 3), (c_))
+#define src(y_, x_, c_) _f1_mirror2(_ARGS, (y_), (x + ((x_) - x) * 3), (c_))
 static inline uchar _f2_mirror3(_PARAMS, const int y, const int x, const int c)
 {
-    const int image_height = 864, image_width = 1152;
-    const int mirrored_height = 864, mirrored_width = 1152;
-    return image(image_height - 1 - y, x, c);
+    const int src_height = 864, src_width = 1152;
+    const int dst_height = 864, dst_width = 1152;
+    return src(src_height - 1 - y, x, c);
 }
-#undef image
+#undef src
 
 // mirror4: VerticalMirror (index_map); every element
-#define image(y_, x_, c_) _f2_mirror3(_ARGS, (y_), (x + ((x_) - x) * 3), (c_))
+#define src(y_, x_, c_) _f2_mirror3(_ARGS, (y_), (x + ((x_) - x) * 3), (c_))
 static inline uchar _f3_mirror4(_PARAMS, const int y, const int x, const int c)
 {
-    const int image_height = 864, image_width = 1152;
-    const int mirrored_height = 864, mirrored_width = 1152;
-    return image(image_height - 1 - y, x, c);
+    const int src_height = 864, src_width = 1152;
+    const int dst_height = 864, dst_width = 1152;
+    return src(src_height - 1 - y, x, c);
 }
-#undef image
+#undef src
 
 // mirror5: VerticalMirror (index_map); every element
-#define image(y_, x_, c_) _f3_mirror4(_ARGS, (y_), (x + ((x_) - x) * 3), (c_))
+#define src(y_, x_, c_) _f3_mirror4(_ARGS, (y_), (x + ((x_) - x) * 3), (c_))
 static inline uchar _f4_mirror5(_PARAMS, const int y, const int x, const int c)
 {
-    const int image_height = 864, image_width = 1152;
-    const int mirrored_height = 864, mirrored_width = 1152;
-    return image(image_height - 1 - y, x, c);
+    const int src_height = 864, src_width = 1152;
+    const int dst_height = 864, dst_width = 1152;
+    return src(src_height - 1 - y, x, c);
 }
-#undef image
+#undef src
 
 // 864 rows of 1152 pixels, 3 channels as 3456 elements a row.  Work-group g computes the
 // rows [g * tile, g * tile + tile); its threads take them in turn, each a whole row (a CPU

@@ -25,11 +25,11 @@ import cv2
 import numpy as np
 
 
-def vertical_mirror(image: np.ndarray, *, out: np.ndarray | None = None) -> np.ndarray:
+def vertical_mirror(src: np.ndarray, *, out: np.ndarray | None = None) -> np.ndarray:
     """VerticalMirror (vertical_mirror.cl): row y of the output is row height-1-y of image:
-    cv2.flip(image, 0)."""
-    _check_image("VerticalMirror", "image", image, 3)
-    return cv2.flip(image, 0, dst=_output(out, image.shape, "VerticalMirror", "mirrored"))
+    cv2.flip(src, 0)."""
+    _channels("VerticalMirror", "src", src)
+    return cv2.flip(src, 0, dst=_output(out, src.shape, "VerticalMirror", "dst"))
 
 
 def image_merger(left: np.ndarray, right: np.ndarray, *,
@@ -69,9 +69,9 @@ def object_detector(frame: np.ndarray, *, red_min: int, margin: int,
     return np.multiply(hit.view(np.uint8), 255, out=mask)
 
 
-def box_blur(image: np.ndarray, *, radius: int, out: np.ndarray | None = None) -> np.ndarray:
+def box_blur(src: np.ndarray, *, radius: int, out: np.ndarray | None = None) -> np.ndarray:
     """BoxBlur (box_blur.cl): each channel the mean of the (2 radius + 1)^2 window:
-    cv2.blur(image, (side, side), borderType=cv2.BORDER_REPLICATE).
+    cv2.blur(src, (side, side), borderType=cv2.BORDER_REPLICATE).
 
     Window coordinates are clamped to the frame (the edge pixels repeat, BORDER_REPLICATE;
     OpenCV's default border, BORDER_REFLECT_101, differs), and the mean is rounded half
@@ -79,12 +79,12 @@ def box_blur(image: np.ndarray, *, radius: int, out: np.ndarray | None = None) -
     (n is odd, so OpenCV's rounding of sum / n never meets a tie).  Any radius >= 0, also
     one larger than the frame.
     """
-    _check_image("BoxBlur", "image", image, 3)
+    _channels("BoxBlur", "src", src)
     radius = int(radius)
     if radius < 0:
         raise ValueError(f"BoxBlur: radius must be 0 or more, not {radius}")
     side = 2 * radius + 1
-    return cv2.blur(image, (side, side), dst=_output(out, image.shape, "BoxBlur", "smooth"),
+    return cv2.blur(src, (side, side), dst=_output(out, src.shape, "BoxBlur", "dst"),
                     borderType=cv2.BORDER_REPLICATE)
 
 
@@ -100,62 +100,62 @@ RESIZE_BITS = 11  # bilinear weights in 1/2048, as OpenCV's INTER_RESIZE_COEF_BI
 MORPH_KERNEL = np.ones((3, 3), np.uint8)  # Erode and Dilate: the 3x3 rectangle
 
 
-def rgb_to_gray(image: np.ndarray, *, out: np.ndarray | None = None) -> np.ndarray:
+def rgb_to_gray(src: np.ndarray, *, out: np.ndarray | None = None) -> np.ndarray:
     """RgbToGray: cv2.cvtColor(image, cv2.COLOR_RGB2GRAY): (19596 r + 38470 g + 7470 b +
     2^15) >> 16, OpenCV's fixed-point weights (0.299, 0.587, 0.114 in 1/65536)."""
-    _check_image("RgbToGray", "image", image, 3)
-    return cv2.cvtColor(image, cv2.COLOR_RGB2GRAY,
-                        dst=_output(out, image.shape[:2], "RgbToGray", "gray"))
+    _check_image("RgbToGray", "src", src, 3)
+    return cv2.cvtColor(src, cv2.COLOR_RGB2GRAY,
+                        dst=_output(out, src.shape[:2], "RgbToGray", "dst"))
 
 
-def rgb_to_hsv(image: np.ndarray, *, out: np.ndarray | None = None) -> np.ndarray:
+def rgb_to_hsv(src: np.ndarray, *, out: np.ndarray | None = None) -> np.ndarray:
     """RgbToHsv: cv2.cvtColor(image, cv2.COLOR_RGB2HSV) (8-bit: hue 0..179)."""
-    _check_image("RgbToHsv", "image", image, 3)
-    return cv2.cvtColor(image, cv2.COLOR_RGB2HSV,
-                        dst=_output(out, image.shape, "RgbToHsv", "hsv"))
+    _check_image("RgbToHsv", "src", src, 3)
+    return cv2.cvtColor(src, cv2.COLOR_RGB2HSV,
+                        dst=_output(out, src.shape, "RgbToHsv", "dst"))
 
 
-def in_range(image: np.ndarray, *, out: np.ndarray | None = None, **bounds: int) -> np.ndarray:
+def in_range(src: np.ndarray, *, out: np.ndarray | None = None, **bounds: int) -> np.ndarray:
     """InRange / InRangeGray: cv2.inRange: 255 where every channel c has lowerb_c <= value
     <= upperb_c, else 0; the mask is height x width.
 
     Bounds as keywords: lowerb_0, lowerb_1, lowerb_2, upperb_0, upperb_1, upperb_2 for
     three channels, lowerb and upperb for one.
     """
-    n = _channels("InRange", "image", image)
+    n = _channels("InRange", "src", src)
     names = ["lowerb", "upperb"] if n == 1 else [f"{w}_{c}" for w in ("lowerb", "upperb")
                                                  for c in range(3)]
     if sorted(bounds) != sorted(names):
         raise TypeError(f"InRange: give the bounds {', '.join(names)}, not {sorted(bounds)}")
-    mask = _output(out, image.shape[:2], "InRange", "mask")
+    mask = _output(out, src.shape[:2], "InRange", "dst")
     if n == 1:
-        return cv2.inRange(image, int(bounds["lowerb"]), int(bounds["upperb"]), dst=mask)
+        return cv2.inRange(src, int(bounds["lowerb"]), int(bounds["upperb"]), dst=mask)
     lower = np.array([int(bounds[names[c]]) for c in range(3)], np.float64)
     upper = np.array([int(bounds[names[3 + c]]) for c in range(3)], np.float64)
-    return cv2.inRange(image, lower, upper, dst=mask)
+    return cv2.inRange(src, lower, upper, dst=mask)
 
 
-def threshold(image: np.ndarray, *, thresh: int, maxval: int, thresh_type: int,
+def threshold(src: np.ndarray, *, thresh: int, maxval: int, thresh_type: int,
               out: np.ndarray | None = None) -> np.ndarray:
     """Threshold / ThresholdGray: cv2.threshold(image, thresh, maxval, thresh_type)[1],
     every channel on its own; thresh_type is OpenCV's code: 0 BINARY (p > thresh ?
     maxval : 0), 1 BINARY_INV, 2 TRUNC (min(p, thresh)), 3 TOZERO (p > thresh ? p : 0),
     4 TOZERO_INV."""
-    _channels("Threshold", "image", image)
+    _channels("Threshold", "src", src)
     kind = int(thresh_type)
     if kind not in range(5):
         raise ValueError(f"Threshold: thresh_type must be 0..4, not {kind}")
-    return cv2.threshold(image, int(thresh), int(maxval), kind,
-                         dst=_output(out, image.shape, "Threshold", "thresholded"))[1]
+    return cv2.threshold(src, int(thresh), int(maxval), kind,
+                         dst=_output(out, src.shape, "Threshold", "dst"))[1]
 
 
-def convert_scale(image: np.ndarray, *, alpha: float, beta: float,
+def convert_scale(src: np.ndarray, *, alpha: float, beta: float,
                   out: np.ndarray | None = None) -> np.ndarray:
-    """ConvertScale / ConvertScaleGray: cv2.convertScaleAbs(image, alpha=, beta=):
-    |p * alpha + beta| in float32 (one fma in OpenCV's vector code, as in the kernel),
-    rounded half to even and saturated to 0..255."""
-    _channels("ConvertScale", "image", image)
-    return cv2.convertScaleAbs(image, dst=_output(out, image.shape, "ConvertScale", "scaled"),
+    """ConvertScale: cv2.convertScaleAbs(src, alpha=, beta=) of a uint8, int16 or float32
+    frame: |p * alpha + beta| in float32 (one fma in OpenCV's vector code, as in the
+    kernel), rounded half to even and saturated to 0..255 (uint8)."""
+    _channels("ConvertScale", "src", src, (np.uint8, np.int16, np.float32))
+    return cv2.convertScaleAbs(src, dst=_output(out, src.shape, "ConvertScale", "dst"),
                                alpha=float(np.float32(alpha)), beta=float(np.float32(beta)))
 
 
@@ -167,17 +167,17 @@ def add_weighted(src1: np.ndarray, src2: np.ndarray, *, alpha: float, beta: floa
     _same_shape("AddWeighted", src1, src2)
     alpha, beta, gamma = (float(np.float32(v)) for v in (alpha, beta, gamma))
     return cv2.addWeighted(src1, alpha, src2, beta, gamma,
-                           dst=_output(out, src1.shape, "AddWeighted", "blended"))
+                           dst=_output(out, src1.shape, "AddWeighted", "dst"))
 
 
 def absdiff(src1: np.ndarray, src2: np.ndarray, *,
             out: np.ndarray | None = None) -> np.ndarray:
     """AbsDiff / AbsDiffGray: cv2.absdiff(src1, src2): |src1 - src2|."""
     _same_shape("AbsDiff", src1, src2)
-    return cv2.absdiff(src1, src2, dst=_output(out, src1.shape, "AbsDiff", "diff"))
+    return cv2.absdiff(src1, src2, dst=_output(out, src1.shape, "AbsDiff", "dst"))
 
 
-def resize(image: np.ndarray, *, width: int, height: int, interpolation: int,
+def resize(src: np.ndarray, *, width: int, height: int, interpolation: int,
            out: np.ndarray | None = None) -> np.ndarray:
     """Resize / ResizeGray: cv2.resize(image, (width, height), interpolation=).
 
@@ -187,17 +187,17 @@ def resize(image: np.ndarray, *, width: int, height: int, interpolation: int,
     the weighted sum rounded half up (differs from OpenCV's by at most 1: see
     docs/library.md).
     """
-    n = _channels("Resize", "image", image)
+    n = _channels("Resize", "src", src)
     width, height, mode = int(width), int(height), int(interpolation)
     if width < 1 or height < 1:
         raise ValueError(f"Resize: width and height must be 1 or more, not {width}x{height}")
-    shape = (height, width) + image.shape[2:]
+    shape = (height, width) + src.shape[2:]
     if mode == INTER_NEAREST:
-        return cv2.resize(image, (width, height), dst=_output(out, shape, "Resize", "resized"),
+        return cv2.resize(src, (width, height), dst=_output(out, shape, "Resize", "dst"),
                           interpolation=cv2.INTER_NEAREST)
     if mode != INTER_LINEAR:
         raise ValueError(f"Resize: interpolation must be 0 (nearest) or 1 (linear), not {mode}")
-    planes = image.reshape(image.shape[:2] + (n,))
+    planes = src.reshape(src.shape[:2] + (n,))
     y0, y1, wy = _linear(height, planes.shape[0])
     x0, x1, wx = _linear(width, planes.shape[1])
     p = planes.astype(np.int64)
@@ -206,7 +206,7 @@ def resize(image: np.ndarray, *, width: int, height: int, interpolation: int,
     bottom = p[y1][:, x0] * wx0 + p[y1][:, x1] * wx1
     wy0, wy1 = (1 << RESIZE_BITS) - wy[:, None, None], wy[:, None, None]
     values = (top * wy0 + bottom * wy1 + (1 << (2 * RESIZE_BITS - 1))) >> (2 * RESIZE_BITS)
-    return _store(values.reshape(shape), out, "Resize", "resized")
+    return _store(values.reshape(shape), out, "Resize", "dst")
 
 
 def _linear(dst: int, src: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -222,93 +222,96 @@ def _linear(dst: int, src: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return np.clip(s, 0, src - 1), np.clip(s + 1, 0, src - 1), weight
 
 
-def crop(image: np.ndarray, *, x: int, y: int, width: int, height: int,
+def crop(src: np.ndarray, *, x: int, y: int, width: int, height: int,
          out: np.ndarray | None = None) -> np.ndarray:
     """Crop / CropGray: image[y:y + height, x:x + width], the rectangle inside the frame."""
-    _channels("Crop", "image", image)
+    _channels("Crop", "src", src)
     x, y, width, height = int(x), int(y), int(width), int(height)
-    if (min(x, y) < 0 or width < 1 or height < 1 or x + width > image.shape[1]
-            or y + height > image.shape[0]):
+    if (min(x, y) < 0 or width < 1 or height < 1 or x + width > src.shape[1]
+            or y + height > src.shape[0]):
         raise ValueError(f"Crop: the rectangle x={x} y={y} {width}x{height} must lie inside "
-                         f"the {image.shape[1]}x{image.shape[0]} frame")
-    return _store(image[y:y + height, x:x + width], out, "Crop", "cropped")
+                         f"the {src.shape[1]}x{src.shape[0]} frame")
+    return _store(src[y:y + height, x:x + width], out, "Crop", "dst")
 
 
-def flip_horizontal(image: np.ndarray, *, out: np.ndarray | None = None) -> np.ndarray:
+def flip_horizontal(src: np.ndarray, *, out: np.ndarray | None = None) -> np.ndarray:
     """FlipHorizontal / FlipHorizontalGray: cv2.flip(image, 1)."""
-    _channels("FlipHorizontal", "image", image)
-    return cv2.flip(image, 1, dst=_output(out, image.shape, "FlipHorizontal", "flipped"))
+    _channels("FlipHorizontal", "src", src)
+    return cv2.flip(src, 1, dst=_output(out, src.shape, "FlipHorizontal", "dst"))
 
 
-def rotate180(image: np.ndarray, *, out: np.ndarray | None = None) -> np.ndarray:
+def rotate180(src: np.ndarray, *, out: np.ndarray | None = None) -> np.ndarray:
     """Rotate180 / Rotate180Gray: cv2.rotate(image, cv2.ROTATE_180)."""
-    _channels("Rotate180", "image", image)
-    return cv2.rotate(image, cv2.ROTATE_180,
-                      dst=_output(out, image.shape, "Rotate180", "rotated"))
+    _channels("Rotate180", "src", src)
+    return cv2.rotate(src, cv2.ROTATE_180,
+                      dst=_output(out, src.shape, "Rotate180", "dst"))
 
 
-def gaussian_blur(image: np.ndarray, *, ksize: int,
+def gaussian_blur(src: np.ndarray, *, ksize: int,
                   out: np.ndarray | None = None) -> np.ndarray:
     """GaussianBlur / GaussianBlurGray: cv2.GaussianBlur(image, (ksize, ksize), 0).
 
     ksize 3 or 5: OpenCV's binomial weights (1 2 1)/4 or (1 4 6 4 1)/16 along both axes
     (its bit-exact fixed-point blur), borders BORDER_REFLECT_101 (OpenCV's default).
     """
-    _channels("GaussianBlur", "image", image)
+    _channels("GaussianBlur", "src", src)
     ksize = int(ksize)
     if ksize not in (3, 5):
         raise ValueError(f"GaussianBlur: ksize must be 3 or 5, not {ksize}")
-    return cv2.GaussianBlur(image, (ksize, ksize), 0,
-                            dst=_output(out, image.shape, "GaussianBlur", "blurred"))
+    return cv2.GaussianBlur(src, (ksize, ksize), 0,
+                            dst=_output(out, src.shape, "GaussianBlur", "dst"))
 
 
-def sobel(image: np.ndarray, *, dx: int, dy: int, out: np.ndarray | None = None) -> np.ndarray:
+def sobel(src: np.ndarray, *, dx: int, dy: int, out: np.ndarray | None = None) -> np.ndarray:
     """Sobel / SobelGray: cv2.Sobel(image, cv2.CV_16S, dx, dy, ksize=3).
 
     dx=1, dy=0: (-1 0 1) along rows times (1 2 1) down columns; dx=0, dy=1 the transpose;
     borders BORDER_REFLECT_101.  Returns int16 (values -1020..1020).
     """
-    _channels("Sobel", "image", image)
+    _channels("Sobel", "src", src)
     dx, dy = int(dx), int(dy)
     if (dx, dy) not in ((1, 0), (0, 1)):
         raise ValueError(f"Sobel: give dx=1, dy=0 or dx=0, dy=1, not dx={dx}, dy={dy}")
-    gradient = _output(out, image.shape, "Sobel", "gradient", np.int16)
-    return cv2.Sobel(image, cv2.CV_16S, dx, dy, dst=gradient, ksize=3)
+    gradient = _output(out, src.shape, "Sobel", "dst", np.int16)
+    return cv2.Sobel(src, cv2.CV_16S, dx, dy, dst=gradient, ksize=3)
 
 
-def erode(image: np.ndarray, *, out: np.ndarray | None = None) -> np.ndarray:
+def erode(src: np.ndarray, *, out: np.ndarray | None = None) -> np.ndarray:
     """Erode / ErodeGray: cv2.erode(image, np.ones((3, 3), np.uint8)): the minimum of the
     3x3 window, pixels outside the frame ignored (OpenCV's default border for
     morphology), which is the same as repeating the edge."""
-    _channels("Erode", "image", image)
-    return cv2.erode(image, MORPH_KERNEL, dst=_output(out, image.shape, "Erode", "eroded"))
+    _channels("Erode", "src", src)
+    return cv2.erode(src, MORPH_KERNEL, dst=_output(out, src.shape, "Erode", "dst"))
 
 
-def dilate(image: np.ndarray, *, out: np.ndarray | None = None) -> np.ndarray:
+def dilate(src: np.ndarray, *, out: np.ndarray | None = None) -> np.ndarray:
     """Dilate / DilateGray: cv2.dilate(image, np.ones((3, 3), np.uint8)): the maximum of
     the 3x3 window, pixels outside the frame ignored."""
-    _channels("Dilate", "image", image)
-    return cv2.dilate(image, MORPH_KERNEL, dst=_output(out, image.shape, "Dilate", "dilated"))
+    _channels("Dilate", "src", src)
+    return cv2.dilate(src, MORPH_KERNEL, dst=_output(out, src.shape, "Dilate", "dst"))
 
 
-def median_blur(image: np.ndarray, *, out: np.ndarray | None = None) -> np.ndarray:
+def median_blur(src: np.ndarray, *, out: np.ndarray | None = None) -> np.ndarray:
     """MedianBlur / MedianBlurGray: cv2.medianBlur(image, 3): the median of the 3x3
     window, edges repeated (BORDER_REPLICATE, as OpenCV's medianBlur)."""
-    _channels("MedianBlur", "image", image)
-    return cv2.medianBlur(image, 3, dst=_output(out, image.shape, "MedianBlur", "median"))
+    _channels("MedianBlur", "src", src)
+    return cv2.medianBlur(src, 3, dst=_output(out, src.shape, "MedianBlur", "dst"))
 
 
-def _channels(type_name: str, port: str, array: np.ndarray) -> int:
+def _channels(type_name: str, port: str, array: np.ndarray, dtypes=(np.uint8,)) -> int:
     """The channels of a one-channel (height x width or height x width x 1) or
-    three-channel image; anything else raises."""
-    if not isinstance(array, np.ndarray) or array.dtype != np.uint8:
+    three-channel image of one of dtypes; anything else raises."""
+    if not isinstance(array, np.ndarray) or array.dtype not in dtypes:
         dtype = getattr(array, "dtype", type(array).__name__)
-        raise TypeError(f"{type_name}: '{port}' must be a uint8 numpy array, not {dtype}")
+        names = " or ".join(np.dtype(d).name for d in dtypes)
+        raise TypeError(f"{type_name}: '{port}' must be a {names} numpy array, not {dtype}")
     if array.ndim == 2 and 0 not in array.shape:
         return 1
     if array.ndim == 3 and array.shape[2] == 1 and 0 not in array.shape:
         return 1
-    _check_image(type_name, port, array, 3)
+    if array.ndim != 3 or array.shape[2] != 3 or 0 in array.shape:
+        raise ValueError(f"{type_name}: '{port}' must be height x width x 3 (or one "
+                         f"channel) with height and width at least 1, not {array.shape}")
     return 3
 
 

@@ -1,6 +1,7 @@
 """Passes over the system IR, one per module; each has a ``name`` and ``apply(system, rep)``.
 
     check_connections   one writer per input, required inputs fed
+    resolve_types       generic ports' element types and channels, from what feeds them
     check_port_types    both ends of an edge carry the same element type and channels
     schedule            run order and stages; cycles
     propagate_sizes     every port's size, from the sources down

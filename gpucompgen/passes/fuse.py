@@ -520,6 +520,8 @@ def group_type(system: System, name: str, members: list[ComponentNode],
     ports = {p: PortDecl(p, "in", "gpu", port.dtype, port.channels)
              for p, port in inputs.items()}
     (out_name, out_decl), = rt.outputs.items()
+    out = root.outputs[out_name]  # resolved: a generic type's declaration is not
+    out_decl = out_decl.fixed(out.dtype, out.channels)
     return ComponentType(
         name=cls, kind="gpu-aware",
         description=description,

@@ -519,7 +519,7 @@ def _lower_component(lo: _Lowering, name: str, node: ComponentNode | GroupNode,
                              system.stages[name], params=params, init_inputs=in_vars,
                              init_outputs=outs, function=lo.functions[t.name],
                              ports=tuple(tuple((p, np_name(d.dtype)) for p, d in ports.items())
-                                         for ports in (t.inputs, t.outputs))))
+                                         for ports in (node.inputs, node.outputs))))
     else:
         what = t.name if not group else \
             node.root.type.name if len(node.members) == 1 else "fused group"

@@ -1,6 +1,6 @@
 """The pipeline: every pass in order, verified after each when asked, dumped when asked.
 
-    check-connections → check-port-types → schedule → propagate-sizes → place → insert-adapters
+    check-connections → resolve-types → check-port-types → schedule → propagate-sizes → place → insert-adapters
     → fuse → allocate-gpu → name-variables → assign-queues → stage-frames → lower
 """
 
@@ -25,10 +25,11 @@ from .lower import Lower
 from .name_variables import NameVariables
 from .place import Place
 from .propagate_sizes import PropagateSizes
+from .resolve_types import ResolveTypes
 from .schedule import Schedule
 from .stage_frames import StageFrames
 
-PIPELINE: tuple[Pass, ...] = (CheckConnections(), CheckPortTypes(), Schedule(),
+PIPELINE: tuple[Pass, ...] = (CheckConnections(), ResolveTypes(), CheckPortTypes(), Schedule(),
                              PropagateSizes(), Place(), InsertAdapters(), Fuse(), AllocateGpu(),
                              NameVariables(), AssignQueues(), StageFrames(), Lower())
 

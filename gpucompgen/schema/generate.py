@@ -165,13 +165,38 @@ def _local_file(suffix: str) -> dict[str, Any]:
                            "'..', no link out of the folder)"}
 
 
+def _port() -> dict[str, Any]:
+    """A port's keys: memory, a dtype and channels that may be generic, old names."""
+    follows = "^" + NAME["pattern"].strip("^$") + "\\.{}$"
+    dtype = {"oneOf": [
+        _enum(model.DTYPES), _enum(model.ANY, "any element type"),
+        {"type": "array", "items": _enum(model.DTYPES), "minItems": 1, "uniqueItems": True,
+         "description": "any of these element types"},
+        {"type": "string", "pattern": follows.format("dtype"),
+         "description": "the element type of input <port>"}],
+        "description": "element type: one, a list, 'any', or '<input>.dtype' (generic ports, "
+                       "resolved for each component from what feeds it)"}
+    channels = {"oneOf": [
+        POSITIVE, _enum(model.ANY, "any number of channels"),
+        {"type": "array", "items": POSITIVE, "minItems": 1, "uniqueItems": True,
+         "description": "any of these channel counts"},
+        {"type": "string", "pattern": follows.format("channels"),
+         "description": "the channels of input <port>"},
+        dict(NAME, description="an int parameter's value")],
+        "description": "channels: a number, a list, 'any', '<input>.channels' or an int "
+                       "parameter (generic ports, resolved for each component)"}
+    return {"memory": _enum(model.MEMORIES), "dtype": dtype,
+            "channels": channels, "description": TEXT,
+            "aliases": {"type": "array", "items": NAME, "uniqueItems": True,
+                        "description": "old names of the port, still accepted (deprecated)"}}
+
+
 def types_schema() -> dict[str, Any]:
     param_types = _enum(model.PARAM_TYPES)
     param = {"oneOf": [param_types, _object(model.PARAM_KEYS, {
         "type": param_types, "default": VALUE, "min": {"type": "number"},
         "max": {"type": "number"}, "description": TEXT}, ("type",))]}
-    port = {"memory": _enum(model.MEMORIES), "dtype": _enum(model.DTYPES),
-            "channels": POSITIVE, "description": TEXT}
+    port = _port()
     inputs = _named_map(_object(tuple(k for k in model.PORT_KEYS if k in port), port))
     outputs = _named_map(_object(model.PORT_KEYS, dict(port, height=SIZE_EXPR,
                                                          width=SIZE_EXPR)))
@@ -211,7 +236,9 @@ def types_schema() -> dict[str, Any]:
                     "alone as in a group, is generated from the form")
     kind_gpu, kind_standard = model.KINDS[1], model.KINDS[0]
     ctype = _object(model.TYPE_KEYS, {
-        "kind": _enum(model.KINDS), "description": TEXT, "params": _named_map(param),
+        "kind": _enum(model.KINDS), "description": TEXT,
+        "family": _enum(model.FAMILIES, "what 'gpucompgen types' groups the type under"),
+        "params": _named_map(param),
         "inputs": inputs, "outputs": outputs, "requires": requires, "kernel": kernel,
         "python": python, "gpu": gpu, "cpu": cpu, "fusable": fusable}, ("kind",), allOf=[
         {"if": {"properties": {"kind": {"const": kind_gpu}}},
@@ -222,8 +249,14 @@ def types_schema() -> dict[str, Any]:
         {"if": {"properties": {"kind": {"const": kind_standard}}},
          "then": {"required": ["python"],
                   "not": {"anyOf": [{"required": ["kernel"]}, {"required": ["gpu"]}]}}}])
+    alias = _object(model.ALIAS_KEYS, {
+        "alias": NAME, "channels": POSITIVE, "description": TEXT}, ("alias",),
+        description="a deprecated name of a type of this file: the type with its generic "
+                    "channels fixed to 'channels'")
     top = _object(("component_types",), {
-        "component_types": _named_map(ctype, minProperties=1)}, ("component_types",))
+        "component_types": _named_map({"if": {"required": ["alias"]}, "then": alias,
+                                       "else": ctype}, minProperties=1)},
+        ("component_types",))
     return {"$schema": DRAFT, "$id": f"https://gpucompgen.invalid/schema/{TYPES}",
             "title": "gpucompgen component types",
             "description": "Component types: ports, parameters and the kernel or Python "

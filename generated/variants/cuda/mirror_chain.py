@@ -16,12 +16,12 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 #   4     adapter2_gpu2cpu                  6      -      copy  -                     -
 #   5     sink (FrameSink)                  7      -      CPU   -                     -
 #
-#   buffer                               memory       size                  bytes
-#   source.image                         host         864x1152x3 uint8  2,985,984
-#   adapter1_cpu2gpu (source.image)      device       864x1152x3 uint8  2,985,984
-#   adapter1_cpu2gpu staging             pinned host  864x1152x3 uint8  2,985,984
-#   mirror1_to_mirror5.mirrored          device       864x1152x3 uint8  2,985,984
-#   adapter2_gpu2cpu (mirror5.mirrored)  pinned host  864x1152x3 uint8  2,985,984
+#   buffer                           memory       size                  bytes
+#   source.image                     host         864x1152x3 uint8  2,985,984
+#   adapter1_cpu2gpu (source.image)  device       864x1152x3 uint8  2,985,984
+#   adapter1_cpu2gpu staging         pinned host  864x1152x3 uint8  2,985,984
+#   mirror1_to_mirror5.dst           device       864x1152x3 uint8  2,985,984
+#   adapter2_gpu2cpu (mirror5.dst)   pinned host  864x1152x3 uint8  2,985,984
 #
 #   placement of flexible components:
 #     mirror1: GPU (by default)
@@ -80,16 +80,16 @@ class FusedMirror1ToMirror5(runtime.KernelComponent):
     kernel mirror1_to_mirror5() in group_mirror1_to_mirror5.cu.
 
     One work-group of block_x * block_y * block_z threads covers tile whole rows of
-    'mirrored'.
+    'dst'.
     """
     # Fuses mirror1 (VerticalMirror), mirror2 (VerticalMirror), mirror3 (VerticalMirror), mirror4
     # (VerticalMirror), mirror5 (VerticalMirror) into one kernel.
 
     function = 'mirror1_to_mirror5'
-    inputs = (('mirror1_image', np.uint8),)
-    outputs = (('mirrored', np.uint8),)
+    inputs = (('mirror1_src', np.uint8),)
+    outputs = (('dst', np.uint8),)
 
-    def output_sizes(self, mirror1_image):
+    def output_sizes(self, mirror1_src):
         """Input sizes in, output sizes out (the type's size expressions)."""
         return [
             Size(864, 1152, 3),
@@ -115,7 +115,7 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
     # every device buffer, with its bytes: checked against the device before allocating
     runtime.check_device_memory(context.devices[0], {
         'adapter1_cpu2gpu (source.image)': 2_985_984,
-        'mirror1_to_mirror5.mirrored': 2_985_984,
+        'mirror1_to_mirror5.dst': 2_985_984,
     })
     fused_mirror1_to_mirror5_program = runtime.build_program(
         context, LIB_DIR / 'group_mirror1_to_mirror5.cu',
@@ -134,12 +134,12 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
     try:
         source = parts['source'] = StillImage(
             width=1152, height=864, seed=params['source.seed'], frames=params['source.frames'])
-        # source.image -> mirror1_to_mirror5.mirror1_image
+        # source.image -> mirror1_to_mirror5.mirror1_src
         adapter1_cpu2gpu = parts['adapter1_cpu2gpu'] = runtime.CpuToGpuAdapter(
             context, queue, nbytes=2_985_984, blocking=False, staging='pinned')
         mirror1_to_mirror5 = parts['mirror1_to_mirror5'] = FusedMirror1ToMirror5(
             context, queue, fused_mirror1_to_mirror5_program)
-        # mirror5.mirrored -> sink.image
+        # mirror5.dst -> sink.image
         adapter2_gpu2cpu = parts['adapter2_gpu2cpu'] = runtime.GpuToCpuAdapter(
             context, queue, nbytes=2_985_984, staging='pinned')
         sink = parts['sink'] = FrameSink(output=params['sink.output'])
@@ -150,19 +150,18 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
         source_image_size = runtime.expect_size(
             'source.image', source_image_size, Size(864, 1152, 3))
         source_image_gpu_size = adapter1_cpu2gpu.initialize(source_image_size, np.uint8)
-        mirror1_to_mirror5_mirrored_size = mirror1_to_mirror5.initialize(source_image_gpu_size)
-        mirror1_to_mirror5_mirrored_size = runtime.expect_size(
-            'mirror1_to_mirror5.mirrored', mirror1_to_mirror5_mirrored_size, Size(864, 1152, 3))
-        mirror5_mirrored_cpu_size = adapter2_gpu2cpu.initialize(
-            mirror1_to_mirror5_mirrored_size, np.uint8)
-        sink.initialize(mirror5_mirrored_cpu_size)
+        mirror1_to_mirror5_dst_size = mirror1_to_mirror5.initialize(source_image_gpu_size)
+        mirror1_to_mirror5_dst_size = runtime.expect_size(
+            'mirror1_to_mirror5.dst', mirror1_to_mirror5_dst_size, Size(864, 1152, 3))
+        mirror5_dst_cpu_size = adapter2_gpu2cpu.initialize(mirror1_to_mirror5_dst_size, np.uint8)
+        sink.initialize(mirror5_dst_cpu_size)
 
         # mirror1_to_mirror5: settings preferred, 1,728 resident threads; kernel arguments in the
         # calling convention's order (a port's name stands for its buffer)
         mirror1_to_mirror5.config_gpu(
             tile=32, local_size=(8, 8, 1), global_size=(8, 216, 1),
             settings_source='preferred', arguments=[
-                'mirror1_image', 'mirrored',  # buffers: inputs, then outputs
+                'mirror1_src', 'dst',  # buffers: inputs, then outputs
                 np.int32(32),  # tile
             ])
 
@@ -174,9 +173,9 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
             source_image = runtime.check_frame(
                 'source.image', source_image, (864, 1152, 3), np.uint8)
             source_image_gpu = adapter1_cpu2gpu.transfer(source_image)
-            mirror1_to_mirror5_mirrored = mirror1_to_mirror5.execute(source_image_gpu)
-            mirror5_mirrored_cpu = adapter2_gpu2cpu.transfer(mirror1_to_mirror5_mirrored)
-            sink.execute(mirror5_mirrored_cpu)
+            mirror1_to_mirror5_dst = mirror1_to_mirror5.execute(source_image_gpu)
+            mirror5_dst_cpu = adapter2_gpu2cpu.transfer(mirror1_to_mirror5_dst)
+            sink.execute(mirror5_dst_cpu)
             frame += 1
             monitor.frame_done(frame)
         queue.finish()

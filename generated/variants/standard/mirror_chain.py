@@ -18,23 +18,23 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 #   6     mirror5 (VerticalMirror)  6      -      GPU   tile 32, block 8x8x1  1,728
 #   7     sink (FrameSink)          7      -      CPU   -                     -
 #
-#   buffer                   memory  size                  bytes
-#   source.image             host    864x1152x3 uint8  2,985,984
-#   mirror1.image            device  864x1152x3 uint8  2,985,984
-#   mirror1.mirrored         device  864x1152x3 uint8  2,985,984
-#   mirror1.mirrored (host)  host    864x1152x3 uint8  2,985,984
-#   mirror2.image            device  864x1152x3 uint8  2,985,984
-#   mirror2.mirrored         device  864x1152x3 uint8  2,985,984
-#   mirror2.mirrored (host)  host    864x1152x3 uint8  2,985,984
-#   mirror3.image            device  864x1152x3 uint8  2,985,984
-#   mirror3.mirrored         device  864x1152x3 uint8  2,985,984
-#   mirror3.mirrored (host)  host    864x1152x3 uint8  2,985,984
-#   mirror4.image            device  864x1152x3 uint8  2,985,984
-#   mirror4.mirrored         device  864x1152x3 uint8  2,985,984
-#   mirror4.mirrored (host)  host    864x1152x3 uint8  2,985,984
-#   mirror5.image            device  864x1152x3 uint8  2,985,984
-#   mirror5.mirrored         device  864x1152x3 uint8  2,985,984
-#   mirror5.mirrored (host)  host    864x1152x3 uint8  2,985,984
+#   buffer              memory  size                  bytes
+#   source.image        host    864x1152x3 uint8  2,985,984
+#   mirror1.src         device  864x1152x3 uint8  2,985,984
+#   mirror1.dst         device  864x1152x3 uint8  2,985,984
+#   mirror1.dst (host)  host    864x1152x3 uint8  2,985,984
+#   mirror2.src         device  864x1152x3 uint8  2,985,984
+#   mirror2.dst         device  864x1152x3 uint8  2,985,984
+#   mirror2.dst (host)  host    864x1152x3 uint8  2,985,984
+#   mirror3.src         device  864x1152x3 uint8  2,985,984
+#   mirror3.dst         device  864x1152x3 uint8  2,985,984
+#   mirror3.dst (host)  host    864x1152x3 uint8  2,985,984
+#   mirror4.src         device  864x1152x3 uint8  2,985,984
+#   mirror4.dst         device  864x1152x3 uint8  2,985,984
+#   mirror4.dst (host)  host    864x1152x3 uint8  2,985,984
+#   mirror5.src         device  864x1152x3 uint8  2,985,984
+#   mirror5.dst         device  864x1152x3 uint8  2,985,984
+#   mirror5.dst (host)  host    864x1152x3 uint8  2,985,984
 #
 #   placement of flexible components:
 #     mirror1: GPU (by default)
@@ -60,13 +60,13 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 #     (VerticalMirror, index_map: mirror3.cl), mirror4 (VerticalMirror, index_map:
 #     mirror4.cl), mirror5 (VerticalMirror, index_map: mirror5.cl)
 #   fusion: off, 0 groups
-#     not fused: mirror1.mirrored -> mirror2.image:
+#     not fused: mirror1.dst -> mirror2.src:
 #       fusion off (standard mode: one kernel per component)
-#     not fused: mirror2.mirrored -> mirror3.image:
+#     not fused: mirror2.dst -> mirror3.src:
 #       fusion off (standard mode: one kernel per component)
-#     not fused: mirror3.mirrored -> mirror4.image:
+#     not fused: mirror3.dst -> mirror4.src:
 #       fusion off (standard mode: one kernel per component)
-#     not fused: mirror4.mirrored -> mirror5.image:
+#     not fused: mirror4.dst -> mirror5.src:
 #       fusion off (standard mode: one kernel per component)
 
 from __future__ import annotations
@@ -99,15 +99,15 @@ class VerticalMirrorMirror1(runtime.KernelComponent):
     """GPU-aware component VerticalMirrorMirror1: kernel mirror1() in mirror1.cl.
 
     One work-group of block_x * block_y * block_z threads covers tile whole rows of
-    'mirrored'.
+    'dst'.
     """
     # Kernel of mirror1 (VerticalMirror), generated from its index_map form.
 
     function = 'mirror1'
-    inputs = (('image', np.uint8),)
-    outputs = (('mirrored', np.uint8),)
+    inputs = (('src', np.uint8),)
+    outputs = (('dst', np.uint8),)
 
-    def output_sizes(self, image):
+    def output_sizes(self, src):
         """Input sizes in, output sizes out (the type's size expressions)."""
         return [
             Size(864, 1152, 3),
@@ -118,15 +118,15 @@ class VerticalMirrorMirror2(runtime.KernelComponent):
     """GPU-aware component VerticalMirrorMirror2: kernel mirror2() in mirror2.cl.
 
     One work-group of block_x * block_y * block_z threads covers tile whole rows of
-    'mirrored'.
+    'dst'.
     """
     # Kernel of mirror2 (VerticalMirror), generated from its index_map form.
 
     function = 'mirror2'
-    inputs = (('image', np.uint8),)
-    outputs = (('mirrored', np.uint8),)
+    inputs = (('src', np.uint8),)
+    outputs = (('dst', np.uint8),)
 
-    def output_sizes(self, image):
+    def output_sizes(self, src):
         """Input sizes in, output sizes out (the type's size expressions)."""
         return [
             Size(864, 1152, 3),
@@ -137,15 +137,15 @@ class VerticalMirrorMirror3(runtime.KernelComponent):
     """GPU-aware component VerticalMirrorMirror3: kernel mirror3() in mirror3.cl.
 
     One work-group of block_x * block_y * block_z threads covers tile whole rows of
-    'mirrored'.
+    'dst'.
     """
     # Kernel of mirror3 (VerticalMirror), generated from its index_map form.
 
     function = 'mirror3'
-    inputs = (('image', np.uint8),)
-    outputs = (('mirrored', np.uint8),)
+    inputs = (('src', np.uint8),)
+    outputs = (('dst', np.uint8),)
 
-    def output_sizes(self, image):
+    def output_sizes(self, src):
         """Input sizes in, output sizes out (the type's size expressions)."""
         return [
             Size(864, 1152, 3),
@@ -156,15 +156,15 @@ class VerticalMirrorMirror4(runtime.KernelComponent):
     """GPU-aware component VerticalMirrorMirror4: kernel mirror4() in mirror4.cl.
 
     One work-group of block_x * block_y * block_z threads covers tile whole rows of
-    'mirrored'.
+    'dst'.
     """
     # Kernel of mirror4 (VerticalMirror), generated from its index_map form.
 
     function = 'mirror4'
-    inputs = (('image', np.uint8),)
-    outputs = (('mirrored', np.uint8),)
+    inputs = (('src', np.uint8),)
+    outputs = (('dst', np.uint8),)
 
-    def output_sizes(self, image):
+    def output_sizes(self, src):
         """Input sizes in, output sizes out (the type's size expressions)."""
         return [
             Size(864, 1152, 3),
@@ -175,15 +175,15 @@ class VerticalMirrorMirror5(runtime.KernelComponent):
     """GPU-aware component VerticalMirrorMirror5: kernel mirror5() in mirror5.cl.
 
     One work-group of block_x * block_y * block_z threads covers tile whole rows of
-    'mirrored'.
+    'dst'.
     """
     # Kernel of mirror5 (VerticalMirror), generated from its index_map form.
 
     function = 'mirror5'
-    inputs = (('image', np.uint8),)
-    outputs = (('mirrored', np.uint8),)
+    inputs = (('src', np.uint8),)
+    outputs = (('dst', np.uint8),)
 
-    def output_sizes(self, image):
+    def output_sizes(self, src):
         """Input sizes in, output sizes out (the type's size expressions)."""
         return [
             Size(864, 1152, 3),
@@ -206,16 +206,16 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
     queue = runtime.create_queue(context, profile)
     # every device buffer, with its bytes: checked against the device before allocating
     runtime.check_device_memory(context.devices[0], {
-        'mirror1.image': 2_985_984,
-        'mirror1.mirrored': 2_985_984,
-        'mirror2.image': 2_985_984,
-        'mirror2.mirrored': 2_985_984,
-        'mirror3.image': 2_985_984,
-        'mirror3.mirrored': 2_985_984,
-        'mirror4.image': 2_985_984,
-        'mirror4.mirrored': 2_985_984,
-        'mirror5.image': 2_985_984,
-        'mirror5.mirrored': 2_985_984,
+        'mirror1.src': 2_985_984,
+        'mirror1.dst': 2_985_984,
+        'mirror2.src': 2_985_984,
+        'mirror2.dst': 2_985_984,
+        'mirror3.src': 2_985_984,
+        'mirror3.dst': 2_985_984,
+        'mirror4.src': 2_985_984,
+        'mirror4.dst': 2_985_984,
+        'mirror5.src': 2_985_984,
+        'mirror5.dst': 2_985_984,
     })
     vertical_mirror_mirror1_program = runtime.build_program(
         context, LIB_DIR / 'mirror1.cl', 'mirror1 (VerticalMirrorMirror1)')
@@ -260,29 +260,24 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
         source_image_size = source.initialize()
         source_image_size = runtime.expect_size(
             'source.image', source_image_size, Size(864, 1152, 3))
-        mirror1_mirrored_size = mirror1.initialize(source_image_size)
-        mirror1_mirrored_size = runtime.expect_size(
-            'mirror1.mirrored', mirror1_mirrored_size, Size(864, 1152, 3))
-        mirror2_mirrored_size = mirror2.initialize(mirror1_mirrored_size)
-        mirror2_mirrored_size = runtime.expect_size(
-            'mirror2.mirrored', mirror2_mirrored_size, Size(864, 1152, 3))
-        mirror3_mirrored_size = mirror3.initialize(mirror2_mirrored_size)
-        mirror3_mirrored_size = runtime.expect_size(
-            'mirror3.mirrored', mirror3_mirrored_size, Size(864, 1152, 3))
-        mirror4_mirrored_size = mirror4.initialize(mirror3_mirrored_size)
-        mirror4_mirrored_size = runtime.expect_size(
-            'mirror4.mirrored', mirror4_mirrored_size, Size(864, 1152, 3))
-        mirror5_mirrored_size = mirror5.initialize(mirror4_mirrored_size)
-        mirror5_mirrored_size = runtime.expect_size(
-            'mirror5.mirrored', mirror5_mirrored_size, Size(864, 1152, 3))
-        sink.initialize(mirror5_mirrored_size)
+        mirror1_dst_size = mirror1.initialize(source_image_size)
+        mirror1_dst_size = runtime.expect_size('mirror1.dst', mirror1_dst_size, Size(864, 1152, 3))
+        mirror2_dst_size = mirror2.initialize(mirror1_dst_size)
+        mirror2_dst_size = runtime.expect_size('mirror2.dst', mirror2_dst_size, Size(864, 1152, 3))
+        mirror3_dst_size = mirror3.initialize(mirror2_dst_size)
+        mirror3_dst_size = runtime.expect_size('mirror3.dst', mirror3_dst_size, Size(864, 1152, 3))
+        mirror4_dst_size = mirror4.initialize(mirror3_dst_size)
+        mirror4_dst_size = runtime.expect_size('mirror4.dst', mirror4_dst_size, Size(864, 1152, 3))
+        mirror5_dst_size = mirror5.initialize(mirror4_dst_size)
+        mirror5_dst_size = runtime.expect_size('mirror5.dst', mirror5_dst_size, Size(864, 1152, 3))
+        sink.initialize(mirror5_dst_size)
 
         # mirror1: settings component's own, 1,728 resident threads; kernel arguments in the calling
         # convention's order (a port's name stands for its buffer)
         mirror1.config_gpu(
             tile=32, local_size=(8, 8, 1), global_size=(8, 216, 1),
             settings_source="component's own", arguments=[
-                'image', 'mirrored',  # buffers: inputs, then outputs
+                'src', 'dst',  # buffers: inputs, then outputs
                 np.int32(32),  # tile
             ])
 
@@ -291,7 +286,7 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
         mirror2.config_gpu(
             tile=32, local_size=(8, 8, 1), global_size=(8, 216, 1),
             settings_source="component's own", arguments=[
-                'image', 'mirrored',  # buffers: inputs, then outputs
+                'src', 'dst',  # buffers: inputs, then outputs
                 np.int32(32),  # tile
             ])
 
@@ -300,7 +295,7 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
         mirror3.config_gpu(
             tile=32, local_size=(8, 8, 1), global_size=(8, 216, 1),
             settings_source="component's own", arguments=[
-                'image', 'mirrored',  # buffers: inputs, then outputs
+                'src', 'dst',  # buffers: inputs, then outputs
                 np.int32(32),  # tile
             ])
 
@@ -309,7 +304,7 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
         mirror4.config_gpu(
             tile=32, local_size=(8, 8, 1), global_size=(8, 216, 1),
             settings_source="component's own", arguments=[
-                'image', 'mirrored',  # buffers: inputs, then outputs
+                'src', 'dst',  # buffers: inputs, then outputs
                 np.int32(32),  # tile
             ])
 
@@ -318,7 +313,7 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
         mirror5.config_gpu(
             tile=32, local_size=(8, 8, 1), global_size=(8, 216, 1),
             settings_source="component's own", arguments=[
-                'image', 'mirrored',  # buffers: inputs, then outputs
+                'src', 'dst',  # buffers: inputs, then outputs
                 np.int32(32),  # tile
             ])
 
@@ -329,12 +324,12 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
                 break  # end of stream
             source_image = runtime.check_frame(
                 'source.image', source_image, (864, 1152, 3), np.uint8)
-            mirror1_mirrored = mirror1.execute(source_image)
-            mirror2_mirrored = mirror2.execute(mirror1_mirrored)
-            mirror3_mirrored = mirror3.execute(mirror2_mirrored)
-            mirror4_mirrored = mirror4.execute(mirror3_mirrored)
-            mirror5_mirrored = mirror5.execute(mirror4_mirrored)
-            sink.execute(mirror5_mirrored)
+            mirror1_dst = mirror1.execute(source_image)
+            mirror2_dst = mirror2.execute(mirror1_dst)
+            mirror3_dst = mirror3.execute(mirror2_dst)
+            mirror4_dst = mirror4.execute(mirror3_dst)
+            mirror5_dst = mirror5.execute(mirror4_dst)
+            sink.execute(mirror5_dst)
             frame += 1
             monitor.frame_done(frame)
         queue.finish()

@@ -21,12 +21,12 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 #   buffer                memory  size                  bytes
 #   camera1.image         host    480x640x3 uint8     921,600
 #   camera2.image         host    480x640x3 uint8     921,600
-#   blur1.image           device  480x640x3 uint8     921,600
-#   blur1.smooth          device  480x640x3 uint8     921,600
-#   blur1.smooth (host)   host    480x640x3 uint8     921,600
-#   blur2.image           device  480x640x3 uint8     921,600
-#   blur2.smooth          device  480x640x3 uint8     921,600
-#   blur2.smooth (host)   host    480x640x3 uint8     921,600
+#   blur1.src             device  480x640x3 uint8     921,600
+#   blur1.dst             device  480x640x3 uint8     921,600
+#   blur1.dst (host)      host    480x640x3 uint8     921,600
+#   blur2.src             device  480x640x3 uint8     921,600
+#   blur2.dst             device  480x640x3 uint8     921,600
+#   blur2.dst (host)      host    480x640x3 uint8     921,600
 #   merger.left           device  480x640x3 uint8     921,600
 #   merger.right          device  480x640x3 uint8     921,600
 #   merger.merged         device  480x1280x3 uint8  1,843,200
@@ -55,9 +55,9 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 #     blur1.cl), blur2 (BoxBlur, stencil: blur2.cl), merger (ImageMerger, index_map:
 #     merger.cl), detector (ObjectDetector, pointwise: detector.cl)
 #   fusion: off, 0 groups
-#     not fused: blur1.smooth -> merger.left:
+#     not fused: blur1.dst -> merger.left:
 #       fusion off (standard mode: one kernel per component)
-#     not fused: blur2.smooth -> merger.right:
+#     not fused: blur2.dst -> merger.right:
 #       fusion off (standard mode: one kernel per component)
 #     not fused: merger.merged -> detector.frame:
 #       fusion off (standard mode: one kernel per component)
@@ -104,15 +104,15 @@ class BoxBlurBlur1(runtime.KernelComponent):
     """GPU-aware component BoxBlurBlur1: kernel blur1() in blur1.cl.
 
     One work-group of block_x * block_y * block_z threads covers tile whole rows of
-    'smooth'.
+    'dst'.
     """
     # Kernel of blur1 (BoxBlur), generated from its stencil form.
 
     function = 'blur1'
-    inputs = (('image', np.uint8),)
-    outputs = (('smooth', np.uint8),)
+    inputs = (('src', np.uint8),)
+    outputs = (('dst', np.uint8),)
 
-    def output_sizes(self, image):
+    def output_sizes(self, src):
         """Input sizes in, output sizes out (the type's size expressions)."""
         return [
             Size(480, 640, 3),
@@ -123,15 +123,15 @@ class BoxBlurBlur2(runtime.KernelComponent):
     """GPU-aware component BoxBlurBlur2: kernel blur2() in blur2.cl.
 
     One work-group of block_x * block_y * block_z threads covers tile whole rows of
-    'smooth'.
+    'dst'.
     """
     # Kernel of blur2 (BoxBlur), generated from its stencil form.
 
     function = 'blur2'
-    inputs = (('image', np.uint8),)
-    outputs = (('smooth', np.uint8),)
+    inputs = (('src', np.uint8),)
+    outputs = (('dst', np.uint8),)
 
-    def output_sizes(self, image):
+    def output_sizes(self, src):
         """Input sizes in, output sizes out (the type's size expressions)."""
         return [
             Size(480, 640, 3),
@@ -192,10 +192,10 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
     queue = runtime.create_queue(context, profile)
     # every device buffer, with its bytes: checked against the device before allocating
     runtime.check_device_memory(context.devices[0], {
-        'blur1.image': 921_600,
-        'blur1.smooth': 921_600,
-        'blur2.image': 921_600,
-        'blur2.smooth': 921_600,
+        'blur1.src': 921_600,
+        'blur1.dst': 921_600,
+        'blur2.src': 921_600,
+        'blur2.dst': 921_600,
         'merger.left': 921_600,
         'merger.right': 921_600,
         'merger.merged': 1_843_200,
@@ -257,13 +257,11 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
         camera2_image_size = camera2.initialize()
         camera2_image_size = runtime.expect_size(
             'camera2.image', camera2_image_size, Size(480, 640, 3))
-        blur1_smooth_size = blur1.initialize(camera1_image_size)
-        blur1_smooth_size = runtime.expect_size(
-            'blur1.smooth', blur1_smooth_size, Size(480, 640, 3))
-        blur2_smooth_size = blur2.initialize(camera2_image_size)
-        blur2_smooth_size = runtime.expect_size(
-            'blur2.smooth', blur2_smooth_size, Size(480, 640, 3))
-        merger_merged_size = merger.initialize(blur1_smooth_size, blur2_smooth_size)
+        blur1_dst_size = blur1.initialize(camera1_image_size)
+        blur1_dst_size = runtime.expect_size('blur1.dst', blur1_dst_size, Size(480, 640, 3))
+        blur2_dst_size = blur2.initialize(camera2_image_size)
+        blur2_dst_size = runtime.expect_size('blur2.dst', blur2_dst_size, Size(480, 640, 3))
+        merger_merged_size = merger.initialize(blur1_dst_size, blur2_dst_size)
         merger_merged_size = runtime.expect_size(
             'merger.merged', merger_merged_size, Size(480, 1280, 3))
         detector_mask_size = detector.initialize(merger_merged_size)
@@ -276,7 +274,7 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
         blur1.config_gpu(
             tile=32, local_size=(8, 8, 1), global_size=(8, 120, 1),
             settings_source="component's own", arguments=[
-                'image', 'smooth',  # buffers: inputs, then outputs
+                'src', 'dst',  # buffers: inputs, then outputs
                 np.int32(32),  # tile
             ])
 
@@ -285,7 +283,7 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
         blur2.config_gpu(
             tile=32, local_size=(8, 8, 1), global_size=(8, 120, 1),
             settings_source="component's own", arguments=[
-                'image', 'smooth',  # buffers: inputs, then outputs
+                'src', 'dst',  # buffers: inputs, then outputs
                 np.int32(32),  # tile
             ])
 
@@ -317,9 +315,9 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
                 'camera1.image', camera1_image, (480, 640, 3), np.uint8)
             camera2_image = runtime.check_frame(
                 'camera2.image', camera2_image, (480, 640, 3), np.uint8)
-            blur1_smooth = blur1.execute(camera1_image)
-            blur2_smooth = blur2.execute(camera2_image)
-            merger_merged = merger.execute(blur1_smooth, blur2_smooth)
+            blur1_dst = blur1.execute(camera1_image)
+            blur2_dst = blur2.execute(camera2_image)
+            merger_merged = merger.execute(blur1_dst, blur2_dst)
             detector_mask = detector.execute(merger_merged)
             manager.execute(detector_mask)
             frame += 1

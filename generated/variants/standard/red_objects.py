@@ -17,20 +17,20 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 #   5     dilate (DilateGray)  5      -      GPU   tile 32, block 8x8x1  448
 #   6     writer (MaskWriter)  6      -      CPU   -                     -
 #
-#   buffer                 memory  size               bytes
-#   camera.image           host    200x301x3 uint8  180,600
-#   hsv.image              device  200x301x3 uint8  180,600
-#   hsv.hsv                device  200x301x3 uint8  180,600
-#   hsv.hsv (host)         host    200x301x3 uint8  180,600
-#   red.image              device  200x301x3 uint8  180,600
-#   red.mask               device  200x301x1 uint8   60,200
-#   red.mask (host)        host    200x301x1 uint8   60,200
-#   erode.image            device  200x301x1 uint8   60,200
-#   erode.eroded           device  200x301x1 uint8   60,200
-#   erode.eroded (host)    host    200x301x1 uint8   60,200
-#   dilate.image           device  200x301x1 uint8   60,200
-#   dilate.dilated         device  200x301x1 uint8   60,200
-#   dilate.dilated (host)  host    200x301x1 uint8   60,200
+#   buffer             memory  size               bytes
+#   camera.image       host    200x301x3 uint8  180,600
+#   hsv.src            device  200x301x3 uint8  180,600
+#   hsv.dst            device  200x301x3 uint8  180,600
+#   hsv.dst (host)     host    200x301x3 uint8  180,600
+#   red.src            device  200x301x3 uint8  180,600
+#   red.dst            device  200x301x1 uint8   60,200
+#   red.dst (host)     host    200x301x1 uint8   60,200
+#   erode.src          device  200x301x1 uint8   60,200
+#   erode.dst          device  200x301x1 uint8   60,200
+#   erode.dst (host)   host    200x301x1 uint8   60,200
+#   dilate.src         device  200x301x1 uint8   60,200
+#   dilate.dst         device  200x301x1 uint8   60,200
+#   dilate.dst (host)  host    200x301x1 uint8   60,200
 #
 #   placement of flexible components:
 #     hsv: GPU (by default)
@@ -53,11 +53,11 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 #     hsv.cl), red (InRange, pointwise: red.cl), erode (ErodeGray, stencil: erode.cl),
 #     dilate (DilateGray, stencil: dilate.cl)
 #   fusion: off, 0 groups
-#     not fused: hsv.hsv -> red.image:
+#     not fused: hsv.dst -> red.src:
 #       fusion off (standard mode: one kernel per component)
-#     not fused: red.mask -> erode.image:
+#     not fused: red.dst -> erode.src:
 #       fusion off (standard mode: one kernel per component)
-#     not fused: erode.eroded -> dilate.image:
+#     not fused: erode.dst -> dilate.src:
 #       fusion off (standard mode: one kernel per component)
 
 from __future__ import annotations
@@ -100,18 +100,18 @@ PARAMS = {
 
 
 class RgbToHsv(runtime.KernelComponent):
-    """GPU-aware component RgbToHsv: kernel hsv_kernel() in hsv.cl.
+    """GPU-aware component RgbToHsv: kernel hsv() in hsv.cl.
 
     One work-group of block_x * block_y * block_z threads covers tile whole rows of
-    'hsv'.
+    'dst'.
     """
     # Kernel of hsv (RgbToHsv), generated from its pointwise form.
 
-    function = 'hsv_kernel'
-    inputs = (('image', np.uint8),)
-    outputs = (('hsv', np.uint8),)
+    function = 'hsv'
+    inputs = (('src', np.uint8),)
+    outputs = (('dst', np.uint8),)
 
-    def output_sizes(self, image):
+    def output_sizes(self, src):
         """Input sizes in, output sizes out (the type's size expressions)."""
         return [
             Size(200, 301, 3),
@@ -122,15 +122,15 @@ class InRange(runtime.KernelComponent):
     """GPU-aware component InRange: kernel red() in red.cl.
 
     One work-group of block_x * block_y * block_z threads covers tile whole rows of
-    'mask'.
+    'dst'.
     """
     # Kernel of red (InRange), generated from its pointwise form.
 
     function = 'red'
-    inputs = (('image', np.uint8),)
-    outputs = (('mask', np.uint8),)
+    inputs = (('src', np.uint8),)
+    outputs = (('dst', np.uint8),)
 
-    def output_sizes(self, image):
+    def output_sizes(self, src):
         """Input sizes in, output sizes out (the type's size expressions)."""
         return [
             Size(200, 301, 1),
@@ -141,15 +141,15 @@ class ErodeGray(runtime.KernelComponent):
     """GPU-aware component ErodeGray: kernel erode() in erode.cl.
 
     One work-group of block_x * block_y * block_z threads covers tile whole rows of
-    'eroded'.
+    'dst'.
     """
     # Kernel of erode (ErodeGray), generated from its stencil form.
 
     function = 'erode'
-    inputs = (('image', np.uint8),)
-    outputs = (('eroded', np.uint8),)
+    inputs = (('src', np.uint8),)
+    outputs = (('dst', np.uint8),)
 
-    def output_sizes(self, image):
+    def output_sizes(self, src):
         """Input sizes in, output sizes out (the type's size expressions)."""
         return [
             Size(200, 301, 1),
@@ -160,15 +160,15 @@ class DilateGray(runtime.KernelComponent):
     """GPU-aware component DilateGray: kernel dilate() in dilate.cl.
 
     One work-group of block_x * block_y * block_z threads covers tile whole rows of
-    'dilated'.
+    'dst'.
     """
     # Kernel of dilate (DilateGray), generated from its stencil form.
 
     function = 'dilate'
-    inputs = (('image', np.uint8),)
-    outputs = (('dilated', np.uint8),)
+    inputs = (('src', np.uint8),)
+    outputs = (('dst', np.uint8),)
 
-    def output_sizes(self, image):
+    def output_sizes(self, src):
         """Input sizes in, output sizes out (the type's size expressions)."""
         return [
             Size(200, 301, 1),
@@ -191,14 +191,14 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
     queue = runtime.create_queue(context, profile)
     # every device buffer, with its bytes: checked against the device before allocating
     runtime.check_device_memory(context.devices[0], {
-        'hsv.image': 180_600,
-        'hsv.hsv': 180_600,
-        'red.image': 180_600,
-        'red.mask': 60_200,
-        'erode.image': 60_200,
-        'erode.eroded': 60_200,
-        'dilate.image': 60_200,
-        'dilate.dilated': 60_200,
+        'hsv.src': 180_600,
+        'hsv.dst': 180_600,
+        'red.src': 180_600,
+        'red.dst': 60_200,
+        'erode.src': 60_200,
+        'erode.dst': 60_200,
+        'dilate.src': 60_200,
+        'dilate.dst': 60_200,
     })
     rgb_to_hsv_program = runtime.build_program(context, LIB_DIR / 'hsv.cl', 'hsv (RgbToHsv)')
     in_range_program = runtime.build_program(
@@ -245,24 +245,22 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
         camera_image_size = camera.initialize()
         camera_image_size = runtime.expect_size(
             'camera.image', camera_image_size, Size(200, 301, 3))
-        hsv_hsv_size = hsv.initialize(camera_image_size)
-        hsv_hsv_size = runtime.expect_size('hsv.hsv', hsv_hsv_size, Size(200, 301, 3))
-        red_mask_size = red.initialize(hsv_hsv_size)
-        red_mask_size = runtime.expect_size('red.mask', red_mask_size, Size(200, 301, 1))
-        erode_eroded_size = erode.initialize(red_mask_size)
-        erode_eroded_size = runtime.expect_size(
-            'erode.eroded', erode_eroded_size, Size(200, 301, 1))
-        dilate_dilated_size = dilate.initialize(erode_eroded_size)
-        dilate_dilated_size = runtime.expect_size(
-            'dilate.dilated', dilate_dilated_size, Size(200, 301, 1))
-        writer.initialize(camera_image_size, dilate_dilated_size)
+        hsv_dst_size = hsv.initialize(camera_image_size)
+        hsv_dst_size = runtime.expect_size('hsv.dst', hsv_dst_size, Size(200, 301, 3))
+        red_dst_size = red.initialize(hsv_dst_size)
+        red_dst_size = runtime.expect_size('red.dst', red_dst_size, Size(200, 301, 1))
+        erode_dst_size = erode.initialize(red_dst_size)
+        erode_dst_size = runtime.expect_size('erode.dst', erode_dst_size, Size(200, 301, 1))
+        dilate_dst_size = dilate.initialize(erode_dst_size)
+        dilate_dst_size = runtime.expect_size('dilate.dst', dilate_dst_size, Size(200, 301, 1))
+        writer.initialize(camera_image_size, dilate_dst_size)
 
         # hsv: settings component's own, 448 resident threads; kernel arguments in the calling
         # convention's order (a port's name stands for its buffer)
         hsv.config_gpu(
             tile=32, local_size=(8, 8, 1), global_size=(8, 56, 1),
             settings_source="component's own", arguments=[
-                'image', 'hsv',  # buffers: inputs, then outputs
+                'src', 'dst',  # buffers: inputs, then outputs
                 np.int32(32),  # tile
             ])
 
@@ -271,7 +269,7 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
         red.config_gpu(
             tile=32, local_size=(8, 8, 1), global_size=(8, 56, 1),
             settings_source="component's own", arguments=[
-                'image', 'mask',  # buffers: inputs, then outputs
+                'src', 'dst',  # buffers: inputs, then outputs
                 np.int32(32),  # tile
             ])
 
@@ -280,7 +278,7 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
         erode.config_gpu(
             tile=32, local_size=(8, 8, 1), global_size=(8, 56, 1),
             settings_source="component's own", arguments=[
-                'image', 'eroded',  # buffers: inputs, then outputs
+                'src', 'dst',  # buffers: inputs, then outputs
                 np.int32(32),  # tile
             ])
 
@@ -289,7 +287,7 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
         dilate.config_gpu(
             tile=32, local_size=(8, 8, 1), global_size=(8, 56, 1),
             settings_source="component's own", arguments=[
-                'image', 'dilated',  # buffers: inputs, then outputs
+                'src', 'dst',  # buffers: inputs, then outputs
                 np.int32(32),  # tile
             ])
 
@@ -300,11 +298,11 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
                 break  # end of stream
             camera_image = runtime.check_frame(
                 'camera.image', camera_image, (200, 301, 3), np.uint8)
-            hsv_hsv = hsv.execute(camera_image)
-            red_mask = red.execute(hsv_hsv)
-            erode_eroded = erode.execute(red_mask)
-            dilate_dilated = dilate.execute(erode_eroded)
-            writer.execute(camera_image, dilate_dilated)
+            hsv_dst = hsv.execute(camera_image)
+            red_dst = red.execute(hsv_dst)
+            erode_dst = erode.execute(red_dst)
+            dilate_dst = dilate.execute(erode_dst)
+            writer.execute(camera_image, dilate_dst)
             frame += 1
             monitor.frame_done(frame)
         queue.finish()

@@ -23,8 +23,8 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 #   buffer                            memory              size                bytes
 #   camera1.image                     host                480x640x3 uint8   921,600
 #   camera2.image                     host                480x640x3 uint8   921,600
-#   blur1.smooth                      device              480x640x3 uint8   921,600
-#   blur2.smooth                      device              480x640x3 uint8   921,600
+#   blur1.dst                         device              480x640x3 uint8   921,600
+#   blur2.dst                         device              480x640x3 uint8   921,600
 #   merger_detector.mask              device              480x1280x1 uint8  614,400
 #   adapter1_cpu2gpu (camera1.image)  host view           480x640x3 uint8         0
 #   adapter2_cpu2gpu (camera2.image)  host view           480x640x3 uint8         0
@@ -51,16 +51,16 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 #     merger_detector: one kernel (group_merger_detector.cl) for
 #       merger (ImageMerger, index_map)
 #       -> detector (ObjectDetector, pointwise)
-#       estimate: 0.085 ms a frame as one kernel, 0.197 ms apart (2.3x; constants for a cpu
-#       device)
-#     not fused: blur1.smooth -> merger.left:
-#       cost model: with blur1 the group's kernel takes an estimated 0.717 ms a frame,
-#       against 0.467 ms with blur1 apart (it would run 3 times per output element of the
-#       group; constants for a cpu device)
-#     not fused: blur2.smooth -> merger.right:
-#       cost model: with blur2 the group's kernel takes an estimated 0.717 ms a frame,
-#       against 0.467 ms with blur2 apart (it would run 3 times per output element of the
-#       group; constants for a cpu device)
+#       estimate: 6,164,000 element operations a frame as one kernel, 13,556,800 element
+#       operations apart (2.2x)
+#     not fused: blur1.dst -> merger.left:
+#       cost model: with blur1 the group's kernel costs an estimated 96,480,800 element
+#       operations a frame, against 55,028,800 element operations with blur1 apart (it would
+#       run 3 times per output element of the group)
+#     not fused: blur2.dst -> merger.right:
+#       cost model: with blur2 the group's kernel costs an estimated 96,480,800 element
+#       operations a frame, against 55,028,800 element operations with blur2 apart (it would
+#       run 3 times per output element of the group)
 
 from __future__ import annotations
 
@@ -104,15 +104,15 @@ class BoxBlurBlur1(runtime.KernelComponent):
     """GPU-aware component BoxBlurBlur1: kernel blur1() in blur1.cl.
 
     One work-group of block_x * block_y * block_z threads covers tile whole rows of
-    'smooth'.
+    'dst'.
     """
     # Kernel of blur1 (BoxBlur), generated from its stencil form.
 
     function = 'blur1'
-    inputs = (('image', np.uint8),)
-    outputs = (('smooth', np.uint8),)
+    inputs = (('src', np.uint8),)
+    outputs = (('dst', np.uint8),)
 
-    def output_sizes(self, image):
+    def output_sizes(self, src):
         """Input sizes in, output sizes out (the type's size expressions)."""
         return [
             Size(480, 640, 3),
@@ -123,15 +123,15 @@ class BoxBlurBlur2(runtime.KernelComponent):
     """GPU-aware component BoxBlurBlur2: kernel blur2() in blur2.cl.
 
     One work-group of block_x * block_y * block_z threads covers tile whole rows of
-    'smooth'.
+    'dst'.
     """
     # Kernel of blur2 (BoxBlur), generated from its stencil form.
 
     function = 'blur2'
-    inputs = (('image', np.uint8),)
-    outputs = (('smooth', np.uint8),)
+    inputs = (('src', np.uint8),)
+    outputs = (('dst', np.uint8),)
 
-    def output_sizes(self, image):
+    def output_sizes(self, src):
         """Input sizes in, output sizes out (the type's size expressions)."""
         return [
             Size(480, 640, 3),
@@ -177,8 +177,8 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
     queue1 = runtime.create_queue(context, profile)
     # every device buffer, with its bytes: checked against the device before allocating
     runtime.check_device_memory(context.devices[0], {
-        'blur1.smooth': 921_600,
-        'blur2.smooth': 921_600,
+        'blur1.dst': 921_600,
+        'blur2.dst': 921_600,
         'merger_detector.mask': 614_400,
     })
     box_blur_blur1_program = runtime.build_program(
@@ -215,12 +215,12 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
             width=640, height=480, seed=params['camera2.seed'], buoys=params['camera2.buoys'],
             frames=params['camera2.frames'], folder=params['camera2.folder'],
             video=params['camera2.video'], source=params['camera2.source'])
-        # camera1.image -> blur1.image
+        # camera1.image -> blur1.src
         adapter1_cpu2gpu = parts['adapter1_cpu2gpu'] = runtime.ZeroCopyCpuToGpuAdapter(
             context, queue0, nbytes=921_600)
         blur1 = parts['blur1'] = BoxBlurBlur1(
             context, queue0, box_blur_blur1_program, host_visible=True)
-        # camera2.image -> blur2.image
+        # camera2.image -> blur2.src
         adapter2_cpu2gpu = parts['adapter2_cpu2gpu'] = runtime.ZeroCopyCpuToGpuAdapter(
             context, queue1, nbytes=921_600)
         blur2 = parts['blur2'] = BoxBlurBlur2(
@@ -244,14 +244,12 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
         camera2_image_size = runtime.expect_size(
             'camera2.image', camera2_image_size, Size(480, 640, 3))
         camera1_image_gpu_size = adapter1_cpu2gpu.initialize(camera1_image_size, np.uint8)
-        blur1_smooth_size = blur1.initialize(camera1_image_gpu_size)
-        blur1_smooth_size = runtime.expect_size(
-            'blur1.smooth', blur1_smooth_size, Size(480, 640, 3))
+        blur1_dst_size = blur1.initialize(camera1_image_gpu_size)
+        blur1_dst_size = runtime.expect_size('blur1.dst', blur1_dst_size, Size(480, 640, 3))
         camera2_image_gpu_size = adapter2_cpu2gpu.initialize(camera2_image_size, np.uint8)
-        blur2_smooth_size = blur2.initialize(camera2_image_gpu_size)
-        blur2_smooth_size = runtime.expect_size(
-            'blur2.smooth', blur2_smooth_size, Size(480, 640, 3))
-        merger_detector_mask_size = merger_detector.initialize(blur1_smooth_size, blur2_smooth_size)
+        blur2_dst_size = blur2.initialize(camera2_image_gpu_size)
+        blur2_dst_size = runtime.expect_size('blur2.dst', blur2_dst_size, Size(480, 640, 3))
+        merger_detector_mask_size = merger_detector.initialize(blur1_dst_size, blur2_dst_size)
         merger_detector_mask_size = runtime.expect_size(
             'merger_detector.mask', merger_detector_mask_size, Size(480, 1280, 1))
         detector_mask_cpu_size = adapter3_gpu2cpu.initialize(merger_detector_mask_size, np.uint8)
@@ -262,7 +260,7 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
         blur1.config_gpu(
             tile=32, local_size=(8, 8, 1), global_size=(8, 120, 1),
             settings_source='preferred', arguments=[
-                'image', 'smooth',  # buffers: inputs, then outputs
+                'src', 'dst',  # buffers: inputs, then outputs
                 np.int32(32),  # tile
             ])
 
@@ -271,7 +269,7 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
         blur2.config_gpu(
             tile=32, local_size=(8, 8, 1), global_size=(8, 120, 1),
             settings_source='preferred', arguments=[
-                'image', 'smooth',  # buffers: inputs, then outputs
+                'src', 'dst',  # buffers: inputs, then outputs
                 np.int32(32),  # tile
             ])
 
@@ -295,11 +293,11 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
             camera2_image = runtime.check_frame(
                 'camera2.image', camera2_image, (480, 640, 3), np.uint8)
             camera1_image_gpu = adapter1_cpu2gpu.transfer(camera1_image)
-            blur1_smooth = blur1.execute(camera1_image_gpu)
+            blur1_dst = blur1.execute(camera1_image_gpu)
             camera2_image_gpu = adapter2_cpu2gpu.transfer(camera2_image)
-            blur2_smooth = blur2.execute(camera2_image_gpu)
+            blur2_dst = blur2.execute(camera2_image_gpu)
             merger_detector_mask = merger_detector.execute(
-                blur1_smooth, blur2_smooth, wait_for=[blur2.event])
+                blur1_dst, blur2_dst, wait_for=[blur2.event])
             detector_mask_cpu = adapter3_gpu2cpu.transfer(merger_detector_mask)
             manager.execute(detector_mask_cpu)
             adapter3_gpu2cpu.unmap()  # the device may write detector.mask again

@@ -18,13 +18,13 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 #   6     adapter2_gpu2cpu       5      -      map       -                     -
 #   7     writer (MaskWriter)    6      -      CPU       -                     -
 #
-#   buffer                             memory              size               bytes
-#   camera.image                       host                200x301x3 uint8  180,600
-#   hsv_red.mask                       device              200x301x1 uint8   60,200
-#   erode.eroded                       device              200x301x1 uint8   60,200
-#   dilate.dilated                     device              200x301x1 uint8   60,200
-#   adapter1_cpu2gpu (camera.image)    host view           200x301x3 uint8        0
-#   adapter2_gpu2cpu (dilate.dilated)  mapped device view  200x301x1 uint8        0
+#   buffer                           memory              size               bytes
+#   camera.image                     host                200x301x3 uint8  180,600
+#   hsv_red.dst                      device              200x301x1 uint8   60,200
+#   erode.dst                        device              200x301x1 uint8   60,200
+#   dilate.dst                       device              200x301x1 uint8   60,200
+#   adapter1_cpu2gpu (camera.image)  host view           200x301x3 uint8        0
+#   adapter2_gpu2cpu (dilate.dst)    mapped device view  200x301x1 uint8        0
 #
 #   placement of flexible components:
 #     hsv: GPU (by default)
@@ -48,16 +48,16 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 #     hsv_red: one kernel (group_hsv_red.cl) for
 #       hsv (RgbToHsv, pointwise)
 #       -> red (InRange, pointwise)
-#       estimate: 0.031 ms a frame as one kernel, 0.060 ms apart (1.9x; constants for a cpu
-#       device)
-#     not fused: red.mask -> erode.image:
-#       cost model: with red the group's kernel takes an estimated 0.103 ms a frame, against
-#       0.055 ms with red apart (it would run 9 times per output element of the group;
-#       constants for a cpu device)
-#     not fused: erode.eroded -> dilate.image:
-#       cost model: with erode the group's kernel takes an estimated 0.149 ms a frame,
-#       against 0.060 ms with erode apart (it would run 9 times per output element of the
-#       group; constants for a cpu device)
+#       estimate: 1,344,400 element operations a frame as one kernel, 2,086,800 element
+#       operations apart (1.6x)
+#     not fused: red.dst -> erode.src:
+#       cost model: with red the group's kernel costs an estimated 3,872,800 element
+#       operations a frame, against 1,725,600 element operations with red apart (it would
+#       run 9 times per output element of the group)
+#     not fused: erode.dst -> dilate.src:
+#       cost model: with erode the group's kernel costs an estimated 10,374,400 element
+#       operations a frame, against 2,448,000 element operations with erode apart (it would
+#       run 9 times per output element of the group)
 
 from __future__ import annotations
 
@@ -102,15 +102,15 @@ class FusedHsvRed(runtime.KernelComponent):
     """GPU-aware component FusedHsvRed: kernel hsv_red() in group_hsv_red.cl.
 
     One work-group of block_x * block_y * block_z threads covers tile whole rows of
-    'mask'.
+    'dst'.
     """
     # Fuses hsv (RgbToHsv), red (InRange) into one kernel.
 
     function = 'hsv_red'
-    inputs = (('hsv_image', np.uint8),)
-    outputs = (('mask', np.uint8),)
+    inputs = (('hsv_src', np.uint8),)
+    outputs = (('dst', np.uint8),)
 
-    def output_sizes(self, hsv_image):
+    def output_sizes(self, hsv_src):
         """Input sizes in, output sizes out (the type's size expressions)."""
         return [
             Size(200, 301, 1),
@@ -121,15 +121,15 @@ class ErodeGray(runtime.KernelComponent):
     """GPU-aware component ErodeGray: kernel erode() in erode.cl.
 
     One work-group of block_x * block_y * block_z threads covers tile whole rows of
-    'eroded'.
+    'dst'.
     """
     # Kernel of erode (ErodeGray), generated from its stencil form.
 
     function = 'erode'
-    inputs = (('image', np.uint8),)
-    outputs = (('eroded', np.uint8),)
+    inputs = (('src', np.uint8),)
+    outputs = (('dst', np.uint8),)
 
-    def output_sizes(self, image):
+    def output_sizes(self, src):
         """Input sizes in, output sizes out (the type's size expressions)."""
         return [
             Size(200, 301, 1),
@@ -140,15 +140,15 @@ class DilateGray(runtime.KernelComponent):
     """GPU-aware component DilateGray: kernel dilate() in dilate.cl.
 
     One work-group of block_x * block_y * block_z threads covers tile whole rows of
-    'dilated'.
+    'dst'.
     """
     # Kernel of dilate (DilateGray), generated from its stencil form.
 
     function = 'dilate'
-    inputs = (('image', np.uint8),)
-    outputs = (('dilated', np.uint8),)
+    inputs = (('src', np.uint8),)
+    outputs = (('dst', np.uint8),)
 
-    def output_sizes(self, image):
+    def output_sizes(self, src):
         """Input sizes in, output sizes out (the type's size expressions)."""
         return [
             Size(200, 301, 1),
@@ -173,9 +173,9 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
     queue = runtime.create_queue(context, profile)
     # every device buffer, with its bytes: checked against the device before allocating
     runtime.check_device_memory(context.devices[0], {
-        'hsv_red.mask': 60_200,
-        'erode.eroded': 60_200,
-        'dilate.dilated': 60_200,
+        'hsv_red.dst': 60_200,
+        'erode.dst': 60_200,
+        'dilate.dst': 60_200,
     })
     fused_hsv_red_program = runtime.build_program(
         context, LIB_DIR / 'group_hsv_red.cl', 'hsv_red (FusedHsvRed)',
@@ -208,7 +208,7 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
             width=301, height=200, seed=params['camera.seed'], buoys=params['camera.buoys'],
             frames=params['camera.frames'], folder=params['camera.folder'],
             video=params['camera.video'], source=params['camera.source'])
-        # camera.image -> hsv_red.hsv_image
+        # camera.image -> hsv_red.hsv_src
         adapter1_cpu2gpu = parts['adapter1_cpu2gpu'] = runtime.ZeroCopyCpuToGpuAdapter(
             context, queue, nbytes=180_600)
         hsv_red = parts['hsv_red'] = FusedHsvRed(
@@ -216,7 +216,7 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
         erode = parts['erode'] = ErodeGray(context, queue, erode_gray_program, host_visible=True)
         dilate = parts['dilate'] = DilateGray(
             context, queue, dilate_gray_program, host_visible=True)
-        # dilate.dilated -> writer.mask
+        # dilate.dst -> writer.mask
         adapter2_gpu2cpu = parts['adapter2_gpu2cpu'] = runtime.ZeroCopyGpuToCpuAdapter(
             context, queue, nbytes=60_200)
         writer = parts['writer'] = MaskWriter(
@@ -229,24 +229,21 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
         camera_image_size = runtime.expect_size(
             'camera.image', camera_image_size, Size(200, 301, 3))
         camera_image_gpu_size = adapter1_cpu2gpu.initialize(camera_image_size, np.uint8)
-        hsv_red_mask_size = hsv_red.initialize(camera_image_gpu_size)
-        hsv_red_mask_size = runtime.expect_size(
-            'hsv_red.mask', hsv_red_mask_size, Size(200, 301, 1))
-        erode_eroded_size = erode.initialize(hsv_red_mask_size)
-        erode_eroded_size = runtime.expect_size(
-            'erode.eroded', erode_eroded_size, Size(200, 301, 1))
-        dilate_dilated_size = dilate.initialize(erode_eroded_size)
-        dilate_dilated_size = runtime.expect_size(
-            'dilate.dilated', dilate_dilated_size, Size(200, 301, 1))
-        dilate_dilated_cpu_size = adapter2_gpu2cpu.initialize(dilate_dilated_size, np.uint8)
-        writer.initialize(camera_image_size, dilate_dilated_cpu_size)
+        hsv_red_dst_size = hsv_red.initialize(camera_image_gpu_size)
+        hsv_red_dst_size = runtime.expect_size('hsv_red.dst', hsv_red_dst_size, Size(200, 301, 1))
+        erode_dst_size = erode.initialize(hsv_red_dst_size)
+        erode_dst_size = runtime.expect_size('erode.dst', erode_dst_size, Size(200, 301, 1))
+        dilate_dst_size = dilate.initialize(erode_dst_size)
+        dilate_dst_size = runtime.expect_size('dilate.dst', dilate_dst_size, Size(200, 301, 1))
+        dilate_dst_cpu_size = adapter2_gpu2cpu.initialize(dilate_dst_size, np.uint8)
+        writer.initialize(camera_image_size, dilate_dst_cpu_size)
 
         # hsv_red: settings preferred, 448 resident threads; kernel arguments in the calling
         # convention's order (a port's name stands for its buffer)
         hsv_red.config_gpu(
             tile=32, local_size=(8, 8, 1), global_size=(8, 56, 1),
             settings_source='preferred', arguments=[
-                'hsv_image', 'mask',  # buffers: inputs, then outputs
+                'hsv_src', 'dst',  # buffers: inputs, then outputs
                 np.int32(32),  # tile
             ])
 
@@ -255,7 +252,7 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
         erode.config_gpu(
             tile=32, local_size=(8, 8, 1), global_size=(8, 56, 1),
             settings_source='preferred', arguments=[
-                'image', 'eroded',  # buffers: inputs, then outputs
+                'src', 'dst',  # buffers: inputs, then outputs
                 np.int32(32),  # tile
             ])
 
@@ -264,7 +261,7 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
         dilate.config_gpu(
             tile=32, local_size=(8, 8, 1), global_size=(8, 56, 1),
             settings_source='preferred', arguments=[
-                'image', 'dilated',  # buffers: inputs, then outputs
+                'src', 'dst',  # buffers: inputs, then outputs
                 np.int32(32),  # tile
             ])
 
@@ -276,12 +273,12 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
             camera_image = runtime.check_frame(
                 'camera.image', camera_image, (200, 301, 3), np.uint8)
             camera_image_gpu = adapter1_cpu2gpu.transfer(camera_image)
-            hsv_red_mask = hsv_red.execute(camera_image_gpu)
-            erode_eroded = erode.execute(hsv_red_mask)
-            dilate_dilated = dilate.execute(erode_eroded)
-            dilate_dilated_cpu = adapter2_gpu2cpu.transfer(dilate_dilated)
-            writer.execute(camera_image, dilate_dilated_cpu)
-            adapter2_gpu2cpu.unmap()  # the device may write dilate.dilated again
+            hsv_red_dst = hsv_red.execute(camera_image_gpu)
+            erode_dst = erode.execute(hsv_red_dst)
+            dilate_dst = dilate.execute(erode_dst)
+            dilate_dst_cpu = adapter2_gpu2cpu.transfer(dilate_dst)
+            writer.execute(camera_image, dilate_dst_cpu)
+            adapter2_gpu2cpu.unmap()  # the device may write dilate.dst again
             frame += 1
             monitor.frame_done(frame)
         queue.finish()

@@ -214,14 +214,16 @@ class Settable:
 
 
 def size_names(t) -> set[str]:
-    """The parameters a type's output sizes or requirements name, and a stencil's radius
-    parameter (its generated kernel's window and interior are constants): fixed at build
-    time."""
+    """The parameters a type's output sizes or requirements name, those that give a port
+    its channels ('channels: n'), and a stencil's radius parameter (its generated kernel's
+    window and interior are constants): fixed at build time."""
     import ast
 
     exprs = [e for d in t.outputs.values() for e in (d.height, d.width) if e is not None]
     exprs += [check for check, _ in t.requires]
     names = {n.id for e in exprs for n in ast.walk(e) if isinstance(n, ast.Name)}
+    names |= {d.channels_param for d in (*t.inputs.values(), *t.outputs.values())
+              if d.channels_param}
     decl = getattr(t, "fusable", None)
     if decl is not None and decl.form == "stencil" and isinstance(decl.radius, str):
         names.add(decl.radius)

@@ -22,21 +22,21 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 #   7     sink (FrameSink)           5      -      CPU   -                     -
 #   8     unread (Brighten)          2      -      GPU   tile 16, block 8x8x1  384
 #
-#   buffer                        memory  size           bytes
-#   camera.image                  host    32x48x3 uint8  4,608
-#   brighten.image                device  32x48x3 uint8  4,608
-#   brighten.brighter             device  32x48x3 uint8  4,608
-#   brighten.brighter (host)      host    32x48x3 uint8  4,608
-#   flip_cpu.flipped              host    32x48x3 uint8  4,608
-#   to_hsv.image                  device  32x48x3 uint8  4,608
-#   to_hsv.hsv                    device  32x48x3 uint8  4,608
-#   to_hsv.hsv (host)             host    32x48x3 uint8  4,608
-#   threshold.image               device  32x48x3 uint8  4,608
-#   threshold.thresholded         device  32x48x3 uint8  4,608
-#   threshold.thresholded (host)  host    32x48x3 uint8  4,608
-#   unread.image                  device  32x48x3 uint8  4,608
-#   unread.brighter               device  32x48x3 uint8  4,608
-#   unread.brighter (host)        host    32x48x3 uint8  4,608
+#   buffer                    memory  size           bytes
+#   camera.image              host    32x48x3 uint8  4,608
+#   brighten.image            device  32x48x3 uint8  4,608
+#   brighten.brighter         device  32x48x3 uint8  4,608
+#   brighten.brighter (host)  host    32x48x3 uint8  4,608
+#   flip_cpu.dst              host    32x48x3 uint8  4,608
+#   to_hsv.src                device  32x48x3 uint8  4,608
+#   to_hsv.dst                device  32x48x3 uint8  4,608
+#   to_hsv.dst (host)         host    32x48x3 uint8  4,608
+#   threshold.src             device  32x48x3 uint8  4,608
+#   threshold.dst             device  32x48x3 uint8  4,608
+#   threshold.dst (host)      host    32x48x3 uint8  4,608
+#   unread.image              device  32x48x3 uint8  4,608
+#   unread.brighter           device  32x48x3 uint8  4,608
+#   unread.brighter (host)    host    32x48x3 uint8  4,608
 #
 #   placement of flexible components:
 #     flip_cpu: CPU (by model)
@@ -55,9 +55,9 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 #   kernels generated from fusable forms, one component each: to_hsv (RgbToHsv, pointwise:
 #     to_hsv.cl), threshold (Threshold, pointwise: threshold.cl)
 #   fusion: off, 0 groups
-#     not fused: flip_cpu.flipped -> to_hsv.image:
+#     not fused: flip_cpu.dst -> to_hsv.src:
 #       placed on the CPU: flip_cpu runs its CPU function (model)
-#     not fused: to_hsv.hsv -> threshold.image:
+#     not fused: to_hsv.dst -> threshold.src:
 #       fusion off (standard mode: one kernel per component)
 
 from __future__ import annotations
@@ -121,15 +121,15 @@ class RgbToHsv(runtime.KernelComponent):
     """GPU-aware component RgbToHsv: kernel to_hsv() in to_hsv.cl.
 
     One work-group of block_x * block_y * block_z threads covers tile whole rows of
-    'hsv'.
+    'dst'.
     """
     # Kernel of to_hsv (RgbToHsv), generated from its pointwise form.
 
     function = 'to_hsv'
-    inputs = (('image', np.uint8),)
-    outputs = (('hsv', np.uint8),)
+    inputs = (('src', np.uint8),)
+    outputs = (('dst', np.uint8),)
 
-    def output_sizes(self, image):
+    def output_sizes(self, src):
         """Input sizes in, output sizes out (the type's size expressions)."""
         return [
             Size(32, 48, 3),
@@ -140,15 +140,15 @@ class Threshold(runtime.KernelComponent):
     """GPU-aware component Threshold: kernel threshold() in threshold.cl.
 
     One work-group of block_x * block_y * block_z threads covers tile whole rows of
-    'thresholded'.
+    'dst'.
     """
     # Kernel of threshold (Threshold), generated from its pointwise form.
 
     function = 'threshold'
-    inputs = (('image', np.uint8),)
-    outputs = (('thresholded', np.uint8),)
+    inputs = (('src', np.uint8),)
+    outputs = (('dst', np.uint8),)
 
-    def output_sizes(self, image):
+    def output_sizes(self, src):
         """Input sizes in, output sizes out (the type's size expressions)."""
         return [
             Size(32, 48, 3),
@@ -173,10 +173,10 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
     runtime.check_device_memory(context.devices[0], {
         'brighten.image': 4_608,
         'brighten.brighter': 4_608,
-        'to_hsv.image': 4_608,
-        'to_hsv.hsv': 4_608,
-        'threshold.image': 4_608,
-        'threshold.thresholded': 4_608,
+        'to_hsv.src': 4_608,
+        'to_hsv.dst': 4_608,
+        'threshold.src': 4_608,
+        'threshold.dst': 4_608,
         'unread.image': 4_608,
         'unread.brighter': 4_608,
     })
@@ -213,8 +213,8 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
             context, queue, brighten_program, gain=params['brighten.gain'], copies_own_data=True)
         probe = parts['probe'] = MeanProbe()
         flip_cpu = parts['flip_cpu'] = runtime.CpuFunctionComponent(
-            flip_horizontal_on_cpu, 'flip_cpu', inputs=(('image', np.uint8),),
-            outputs=(('flipped', np.uint8),))
+            flip_horizontal_on_cpu, 'flip_cpu', inputs=(('src', np.uint8),),
+            outputs=(('dst', np.uint8),))
         to_hsv = parts['to_hsv'] = RgbToHsv(
             context, queue, rgb_to_hsv_program, copies_own_data=True)
         threshold = parts['threshold'] = Threshold(
@@ -231,15 +231,14 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
         brighten_brighter_size = runtime.expect_size(
             'brighten.brighter', brighten_brighter_size, Size(32, 48, 3))
         probe.initialize(brighten_brighter_size)
-        flip_cpu_flipped_size = flip_cpu.initialize(camera_image_size)
-        flip_cpu_flipped_size = runtime.expect_size(
-            'flip_cpu.flipped', flip_cpu_flipped_size, Size(32, 48, 3))
-        to_hsv_hsv_size = to_hsv.initialize(flip_cpu_flipped_size)
-        to_hsv_hsv_size = runtime.expect_size('to_hsv.hsv', to_hsv_hsv_size, Size(32, 48, 3))
-        threshold_thresholded_size = threshold.initialize(to_hsv_hsv_size)
-        threshold_thresholded_size = runtime.expect_size(
-            'threshold.thresholded', threshold_thresholded_size, Size(32, 48, 3))
-        sink.initialize(threshold_thresholded_size)
+        flip_cpu_dst_size = flip_cpu.initialize(camera_image_size)
+        flip_cpu_dst_size = runtime.expect_size('flip_cpu.dst', flip_cpu_dst_size, Size(32, 48, 3))
+        to_hsv_dst_size = to_hsv.initialize(flip_cpu_dst_size)
+        to_hsv_dst_size = runtime.expect_size('to_hsv.dst', to_hsv_dst_size, Size(32, 48, 3))
+        threshold_dst_size = threshold.initialize(to_hsv_dst_size)
+        threshold_dst_size = runtime.expect_size(
+            'threshold.dst', threshold_dst_size, Size(32, 48, 3))
+        sink.initialize(threshold_dst_size)
         unread_brighter_size = unread.initialize(camera_image_size)
         unread_brighter_size = runtime.expect_size(
             'unread.brighter', unread_brighter_size, Size(32, 48, 3))
@@ -261,7 +260,7 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
         to_hsv.config_gpu(
             tile=32, local_size=(8, 8, 1), global_size=(8, 8, 1),
             settings_source="component's own", arguments=[
-                'image', 'hsv',  # buffers: inputs, then outputs
+                'src', 'dst',  # buffers: inputs, then outputs
                 np.int32(32),  # tile
             ])
 
@@ -270,7 +269,7 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
         threshold.config_gpu(
             tile=32, local_size=(8, 8, 1), global_size=(8, 8, 1),
             settings_source="component's own", arguments=[
-                'image', 'thresholded',  # buffers: inputs, then outputs
+                'src', 'dst',  # buffers: inputs, then outputs
                 np.int32(32),  # tile
             ])
 
@@ -294,12 +293,11 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
             camera_image = runtime.check_frame('camera.image', camera_image, (32, 48, 3), np.uint8)
             brighten_brighter = brighten.execute(camera_image)
             probe.execute(brighten_brighter)
-            flip_cpu_flipped = flip_cpu.execute(camera_image)
-            flip_cpu_flipped = runtime.check_frame(
-                'flip_cpu.flipped', flip_cpu_flipped, (32, 48, 3), np.uint8)
-            to_hsv_hsv = to_hsv.execute(flip_cpu_flipped)
-            threshold_thresholded = threshold.execute(to_hsv_hsv)
-            sink.execute(threshold_thresholded)
+            flip_cpu_dst = flip_cpu.execute(camera_image)
+            flip_cpu_dst = runtime.check_frame('flip_cpu.dst', flip_cpu_dst, (32, 48, 3), np.uint8)
+            to_hsv_dst = to_hsv.execute(flip_cpu_dst)
+            threshold_dst = threshold.execute(to_hsv_dst)
+            sink.execute(threshold_dst)
             unread.execute(camera_image)
             frame += 1
             monitor.frame_done(frame)

@@ -25,16 +25,16 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 #   10    sink (FrameSink)                5      -      CPU       -                     -
 #   11    unread (Brighten)               2      -      GPU       tile 16, block 8x8x1  384
 #
-#   buffer                                    memory              size           bytes
-#   camera.image                              host                32x48x3 uint8  4,608
-#   brighten.brighter                         device              32x48x3 uint8  4,608
-#   flip_cpu.flipped                          host                32x48x3 uint8  4,608
-#   to_hsv_threshold.thresholded              device              32x48x3 uint8  4,608
-#   unread.brighter                           device              32x48x3 uint8  4,608
-#   adapter1_cpu2gpu (camera.image)           host view           32x48x3 uint8      0
-#   adapter2_gpu2cpu (brighten.brighter)      mapped device view  32x48x3 uint8      0
-#   adapter3_cpu2gpu (flip_cpu.flipped)       host view           32x48x3 uint8      0
-#   adapter4_gpu2cpu (threshold.thresholded)  mapped device view  32x48x3 uint8      0
+#   buffer                                memory              size           bytes
+#   camera.image                          host                32x48x3 uint8  4,608
+#   brighten.brighter                     device              32x48x3 uint8  4,608
+#   flip_cpu.dst                          host                32x48x3 uint8  4,608
+#   to_hsv_threshold.dst                  device              32x48x3 uint8  4,608
+#   unread.brighter                       device              32x48x3 uint8  4,608
+#   adapter1_cpu2gpu (camera.image)       host view           32x48x3 uint8      0
+#   adapter2_gpu2cpu (brighten.brighter)  mapped device view  32x48x3 uint8      0
+#   adapter3_cpu2gpu (flip_cpu.dst)       host view           32x48x3 uint8      0
+#   adapter4_gpu2cpu (threshold.dst)      mapped device view  32x48x3 uint8      0
 #
 #   placement of flexible components:
 #     flip_cpu: CPU (by model)
@@ -53,9 +53,9 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 #     to_hsv_threshold: one kernel (group_to_hsv_threshold.cl) for
 #       to_hsv (RgbToHsv, pointwise)
 #       -> threshold (Threshold, pointwise)
-#       estimate: 0.020 ms a frame as one kernel, 0.041 ms apart (2.0x; constants for a cpu
-#       device)
-#     not fused: flip_cpu.flipped -> to_hsv.image:
+#       estimate: 56,864 element operations a frame as one kernel, 95,296 element operations
+#       apart (1.7x)
+#     not fused: flip_cpu.dst -> to_hsv.src:
 #       placed on the CPU: flip_cpu runs its CPU function (model)
 
 from __future__ import annotations
@@ -121,15 +121,15 @@ class FusedToHsvThreshold(runtime.KernelComponent):
     kernel to_hsv_threshold() in group_to_hsv_threshold.cl.
 
     One work-group of block_x * block_y * block_z threads covers tile whole rows of
-    'thresholded'.
+    'dst'.
     """
     # Fuses to_hsv (RgbToHsv), threshold (Threshold) into one kernel.
 
     function = 'to_hsv_threshold'
-    inputs = (('to_hsv_image', np.uint8),)
-    outputs = (('thresholded', np.uint8),)
+    inputs = (('to_hsv_src', np.uint8),)
+    outputs = (('dst', np.uint8),)
 
-    def output_sizes(self, to_hsv_image):
+    def output_sizes(self, to_hsv_src):
         """Input sizes in, output sizes out (the type's size expressions)."""
         return [
             Size(32, 48, 3),
@@ -155,7 +155,7 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
     # every device buffer, with its bytes: checked against the device before allocating
     runtime.check_device_memory(context.devices[0], {
         'brighten.brighter': 4_608,
-        'to_hsv_threshold.thresholded': 4_608,
+        'to_hsv_threshold.dst': 4_608,
         'unread.brighter': 4_608,
     })
     brighten_program = runtime.build_program(
@@ -199,14 +199,14 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
             context, queue, nbytes=4608)
         probe = parts['probe'] = MeanProbe()
         flip_cpu = parts['flip_cpu'] = runtime.CpuFunctionComponent(
-            flip_horizontal_on_cpu, 'flip_cpu', inputs=(('image', np.uint8),),
-            outputs=(('flipped', np.uint8),))
-        # flip_cpu.flipped -> to_hsv_threshold.to_hsv_image
+            flip_horizontal_on_cpu, 'flip_cpu', inputs=(('src', np.uint8),),
+            outputs=(('dst', np.uint8),))
+        # flip_cpu.dst -> to_hsv_threshold.to_hsv_src
         adapter3_cpu2gpu = parts['adapter3_cpu2gpu'] = runtime.ZeroCopyCpuToGpuAdapter(
             context, queue, nbytes=4608)
         to_hsv_threshold = parts['to_hsv_threshold'] = FusedToHsvThreshold(
             context, queue, fused_to_hsv_threshold_program, host_visible=True)
-        # threshold.thresholded -> sink.image
+        # threshold.dst -> sink.image
         adapter4_gpu2cpu = parts['adapter4_gpu2cpu'] = runtime.ZeroCopyGpuToCpuAdapter(
             context, queue, nbytes=4608)
         sink = parts['sink'] = FrameSink(output=params['sink.output'])
@@ -223,16 +223,14 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
             'brighten.brighter', brighten_brighter_size, Size(32, 48, 3))
         brighten_brighter_cpu_size = adapter2_gpu2cpu.initialize(brighten_brighter_size, np.uint8)
         probe.initialize(brighten_brighter_cpu_size)
-        flip_cpu_flipped_size = flip_cpu.initialize(camera_image_size)
-        flip_cpu_flipped_size = runtime.expect_size(
-            'flip_cpu.flipped', flip_cpu_flipped_size, Size(32, 48, 3))
-        flip_cpu_flipped_gpu_size = adapter3_cpu2gpu.initialize(flip_cpu_flipped_size, np.uint8)
-        to_hsv_threshold_thresholded_size = to_hsv_threshold.initialize(flip_cpu_flipped_gpu_size)
-        to_hsv_threshold_thresholded_size = runtime.expect_size(
-            'to_hsv_threshold.thresholded', to_hsv_threshold_thresholded_size, Size(32, 48, 3))
-        threshold_thresholded_cpu_size = adapter4_gpu2cpu.initialize(
-            to_hsv_threshold_thresholded_size, np.uint8)
-        sink.initialize(threshold_thresholded_cpu_size)
+        flip_cpu_dst_size = flip_cpu.initialize(camera_image_size)
+        flip_cpu_dst_size = runtime.expect_size('flip_cpu.dst', flip_cpu_dst_size, Size(32, 48, 3))
+        flip_cpu_dst_gpu_size = adapter3_cpu2gpu.initialize(flip_cpu_dst_size, np.uint8)
+        to_hsv_threshold_dst_size = to_hsv_threshold.initialize(flip_cpu_dst_gpu_size)
+        to_hsv_threshold_dst_size = runtime.expect_size(
+            'to_hsv_threshold.dst', to_hsv_threshold_dst_size, Size(32, 48, 3))
+        threshold_dst_cpu_size = adapter4_gpu2cpu.initialize(to_hsv_threshold_dst_size, np.uint8)
+        sink.initialize(threshold_dst_cpu_size)
         unread_brighter_size = unread.initialize(camera_image_gpu_size)
         unread_brighter_size = runtime.expect_size(
             'unread.brighter', unread_brighter_size, Size(32, 48, 3))
@@ -254,7 +252,7 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
         to_hsv_threshold.config_gpu(
             tile=32, local_size=(8, 8, 1), global_size=(8, 8, 1),
             settings_source='preferred', arguments=[
-                'to_hsv_image', 'thresholded',  # buffers: inputs, then outputs
+                'to_hsv_src', 'dst',  # buffers: inputs, then outputs
                 np.int32(32),  # tile
             ])
 
@@ -281,14 +279,13 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
             brighten_brighter_cpu = adapter2_gpu2cpu.transfer(brighten_brighter)
             probe.execute(brighten_brighter_cpu)
             adapter2_gpu2cpu.unmap()  # the device may write brighten.brighter again
-            flip_cpu_flipped = flip_cpu.execute(camera_image)
-            flip_cpu_flipped = runtime.check_frame(
-                'flip_cpu.flipped', flip_cpu_flipped, (32, 48, 3), np.uint8)
-            flip_cpu_flipped_gpu = adapter3_cpu2gpu.transfer(flip_cpu_flipped)
-            to_hsv_threshold_thresholded = to_hsv_threshold.execute(flip_cpu_flipped_gpu)
-            threshold_thresholded_cpu = adapter4_gpu2cpu.transfer(to_hsv_threshold_thresholded)
-            sink.execute(threshold_thresholded_cpu)
-            adapter4_gpu2cpu.unmap()  # the device may write threshold.thresholded again
+            flip_cpu_dst = flip_cpu.execute(camera_image)
+            flip_cpu_dst = runtime.check_frame('flip_cpu.dst', flip_cpu_dst, (32, 48, 3), np.uint8)
+            flip_cpu_dst_gpu = adapter3_cpu2gpu.transfer(flip_cpu_dst)
+            to_hsv_threshold_dst = to_hsv_threshold.execute(flip_cpu_dst_gpu)
+            threshold_dst_cpu = adapter4_gpu2cpu.transfer(to_hsv_threshold_dst)
+            sink.execute(threshold_dst_cpu)
+            adapter4_gpu2cpu.unmap()  # the device may write threshold.dst again
             unread.execute(camera_image_gpu)
             cl.wait_for_events([unread.event])  # frame complete
             frame += 1
