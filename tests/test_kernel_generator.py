@@ -277,3 +277,39 @@ def test_build_options_override_a_generated_kernels_model_values(cl_context, cl_
         cl.enqueue_copy(cl_queue, got, dst)
         cl_queue.finish()
         np.testing.assert_array_equal(got, cv2.threshold(frame, 100, 200, rule)[1])
+
+
+def test_stencils_on_frames_narrower_or_lower_than_their_window(cl_context, cl_queue):
+    """Every stencil of the library on frames of 1 to 2 radius + 1 pixels a side, at its
+    largest window: the generated kernel (its border and interior loops split a row at
+    the window's margin) equals the CPU form.  A row narrower than two margins once made
+    the left border loop run past the row into the next rows (BoxBlur radius 3 on a
+    33x1 frame)."""
+    from conftest import run_generated
+
+    from gpucompgen.library import cpu_kernels
+    from gpucompgen.model import library_types
+
+    rng = np.random.default_rng(7)
+    checked = 0
+    for name, ctype in sorted(library_types().items()):
+        if ctype.fusable is None or ctype.fusable.form != "stencil" or ctype.alias_of:
+            continue
+        radius = ctype.fusable.radius
+        params = {p: d.default for p, d in ctype.params.items()}
+        if isinstance(radius, str) and radius in ctype.params and \
+                ctype.params[radius].maximum is not None:
+            params[radius] = min(int(ctype.params[radius].maximum), 3)
+        port = next(iter(ctype.inputs.values()))
+        channels = (port.channel_counts or (port.channels,))[-1]
+        dtype = (port.dtypes or (port.dtype,))[0]
+        for h, w in ((1, 1), (33, 1), (1, 33), (2, 3), (7, 5), (5, 7)):
+            shape = (h, w) + ((channels,) if channels > 1 else ())
+            frame = rng.integers(0, 256, shape).astype(dtype)
+            cpu = cpu_kernels.CPU_IMPLEMENTATIONS[name](frame, **params)
+            for setting in ((16, 1, 4, 1), (1, 1, 1, 1), (4, 8, 2, 1)):
+                gpu = run_generated(cl_context, cl_queue, ctype, params, [frame], cpu.shape,
+                                    setting)
+                np.testing.assert_array_equal(gpu, cpu, f"{name} {params} {h}x{w} {setting}")
+            checked += 1
+    assert checked >= 6 * 6

@@ -488,11 +488,14 @@ def _kernel(group: GroupNode, out_name: str, out_port, names, flat: bool,
             lines += block(loop.format(a=0, b=per_row), border, 2)
         else:
             k = channels if flat else 1  # elements a pixel
-            lo, hi = edge * k, max(edge, w - edge) * k
+            # the left border, the interior and the right border of the row: on a row
+            # narrower than two borders, the left border is the whole row
+            left = min(edge, w)
+            right = max(left, w - edge)
             lines += [f"        if (_y >= {edge} && _y < {h - edge}) {{",
-                      *block(loop.format(a=0, b=lo), border, 3, True),
-                      *block(loop.format(a=lo, b=(w - edge) * k), inner, 3),
-                      *block(loop.format(a=hi, b=per_row), border, 3, True),
+                      *block(loop.format(a=0, b=left * k), border, 3, True),
+                      *block(loop.format(a=left * k, b=right * k), inner, 3),
+                      *block(loop.format(a=right * k, b=per_row), border, 3, True),
                       "        } else {",
                       *block(loop.format(a=0, b=per_row), border, 3, True),
                       "        }"]
