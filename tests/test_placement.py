@@ -641,3 +641,28 @@ def test_a_users_flexible_type_runs_on_either_side(tmp_path):
         module = load_generated(out / "bright.py", f"bright_{side}")
         ran = module.run(frames=3, monitor=runtime.Monitor(progress=False))
         np.testing.assert_array_equal(ran.components["sink"].last, expected, err_msg=side)
+
+
+def test_a_profile_measured_on_another_device_is_left_out_with_a_warning(tmp_path):
+    """tune's figures time one device: a build for another device that was queried
+    (--device auto, `gpucompgen run`) warns and places by the estimate of its class; the
+    same profile on the device it names decides."""
+    from dataclasses import replace
+
+    from gpucompgen.device import PROFILES
+
+    profile = "        device: \"Board X\"\n" + _profile((5000, 100), (5000, 100), 10, 10_000)
+    path = _auto_model(tmp_path, profile)
+    here = replace(PROFILES["pocl-cpu"], name="Board Y")
+    system, warnings = run_passes(load_system(path), here, zero_copy="off")
+    assert _sides(system) == {"merger": "cpu", "detector": "cpu"}  # the cpu class's estimate
+    assert system.placement.costs["merger"].source == "estimate for a cpu device"
+    (warning,) = [w for w in warnings if "measured on" in w.message]
+    assert warning.message.startswith("this profile was measured on 'Board X', not on the "
+                                      "device this build is for ('Board Y')")
+    assert (warning.line, warning.col) == (1, 9)
+    assert "gpucompgen tune" in warning.hint
+    system, warnings = run_passes(load_system(path), replace(here, name="Board X"),
+                                  zero_copy="off")
+    assert _sides(system) == {"merger": "gpu", "detector": "gpu"}  # the profile's figures
+    assert not [w for w in warnings if "measured on" in w.message]

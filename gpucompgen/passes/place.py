@@ -336,6 +336,27 @@ def load_profile(system: System, rep: Reporter, required: bool) -> dict | None:
     return result
 
 
+def _measured_elsewhere(system: System, rep: Reporter, doc, data: dict) -> bool:
+    """A profile times one device: built for another device that was queried (--device
+    auto, `gpucompgen run`), its figures would place for the wrong machine, so the build
+    warns and decides by the estimate of the device's class instead.  Built for a named
+    device profile (the checked-in default), the model's profile is taken as the user's
+    statement of the target."""
+    from ..device import PROFILES
+
+    device = system.device
+    measured_on = data.get("device")
+    if device is None or not isinstance(measured_on, str) or \
+            device.name in {p.name for p in PROFILES.values()} or \
+            measured_on.strip() == device.name.strip():
+        return False
+    rep.warning(doc.pos("device"), f"this profile was measured on {measured_on!r}, not on "
+                f"the device this build is for ({device.name.strip()!r}): its figures are "
+                f"left out and the {estimate_source(device.kind)} decides instead",
+                f"rerun 'gpucompgen tune {system.model.display}' on this device")
+    return True
+
+
 def _read_profile(system: System, rep: Reporter, required: bool) -> dict | None:
     model = system.model
     path: Path | None = profile_path(model)
@@ -359,6 +380,8 @@ def _read_profile(system: System, rep: Reporter, required: bool) -> dict | None:
     if not isinstance(data, dict):
         rep.error(doc.pos(), "a profile is a mapping written by 'gpucompgen tune'",
                   f"rewrite it with 'gpucompgen tune {model.display}'")
+        return None
+    if _measured_elsewhere(system, rep, doc, data):
         return None
     result: dict = {"components": {}, "groups": {}, "file": (path, text)}
 
