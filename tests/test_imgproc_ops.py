@@ -1,0 +1,454 @@
+"""The operations of issue 26 (bitwise.yaml, convert.yaml, filters2.yaml, ...) against OpenCV.
+
+Each type runs as OpenCV's function, as its CPU form (cpu_ops.py, which calls OpenCV),
+as an independent numpy reference written here from the operation's definition (so the
+CPU form is not checked only against itself), and as the OpenCL kernel the generator writes
+from its fusable form (conftest.run_generated: what a lone component runs), on PoCL. On
+the photographs (scikit-image's chelsea, coffee and astronaut, their gray versions for the
+one-channel types, their Sobel gradients for the int16 inputs, a threshold of them for
+masks) with every parameter set of OPS, which reaches every parameter's limits: all four
+equal, bit for bit. Hypothesis then draws small frames (odd sizes, one pixel high or wide,
+where windows reach past two borders), parameters in their declared ranges and GPU
+settings. Last, one generated program chains every new type (test_generated_program_*):
+built on the GPU, on the CPU and alternating, each component's output equals the OpenCV
+chain's; fused = unfused is the property test of tests/test_fusion.py, which draws from
+every fusable library type, these included.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+import pytest
+from conftest import (
+    ROOT,
+    keep_type_for,
+    load_generated,
+    require_opencl,
+    run_generated,
+    write_keep_types,
+)
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from gpucompgen.library import cpu_kernels, cpu_ops
+
+cv2 = pytest.importorskip("cv2")
+skdata = pytest.importorskip("skimage.data")
+
+NEW_FILES = ("bitwise.yaml", "convert.yaml", "filters2.yaml")
+PROPERTY = settings(max_examples=10, deadline=None,
+                    suppress_health_check=[HealthCheck.function_scoped_fixture,
+                                           HealthCheck.too_slow])
+
+
+# -- independent numpy references ------------------------------------------------------------
+def _pad(image: np.ndarray, r: int, border: int) -> np.ndarray:
+    """image with r pixels added on every side by OpenCV's border rule of that code,
+    following borderInterpolate's definition index by index (not cv2.copyMakeBorder)."""
+    def index(p: int, n: int) -> int:
+        if 0 <= p < n:
+            return p
+        if border == cpu_ops.BORDER_REPLICATE or n == 1:
+            return min(max(p, 0), n - 1)
+        delta = 1 if border == cpu_ops.BORDER_REFLECT_101 else 0
+        while not 0 <= p < n:
+            p = -p - 1 + delta if p < 0 else 2 * n - 1 - p - delta
+        return p
+
+    h, w = image.shape[:2]
+    if border == cpu_ops.BORDER_CONSTANT:
+        out = np.zeros((h + 2 * r, w + 2 * r) + image.shape[2:], image.dtype)
+        out[r:r + h, r:r + w] = image
+        return out
+    rows = [index(p, h) for p in range(-r, h + r)]
+    cols = [index(p, w) for p in range(-r, w + r)]
+    return image[rows][:, cols]
+
+
+def _correlate(image: np.ndarray, kernel: np.ndarray, border: int) -> np.ndarray:
+    """sum over the window of kernel * pixel, in int64 (kernel odd x odd)."""
+    r = kernel.shape[0] // 2
+    padded = _pad(image, r, border).astype(np.int64)
+    h, w = image.shape[:2]
+    return sum(int(kernel[dy, dx]) * padded[dy:dy + h, dx:dx + w]
+               for dy in range(kernel.shape[0]) for dx in range(kernel.shape[1])
+               if kernel[dy, dx])
+
+
+def _blur(src, ksize, border_type):
+    n = ksize * ksize
+    total = _correlate(src, np.ones((ksize, ksize), np.int64), border_type)
+    return ((total + n // 2) // n).astype(np.uint8)
+
+
+LAPLACE = {1: np.array([[0, 1, 0], [1, -4, 1], [0, 1, 0]]),
+           3: np.array([[2, 0, 2], [0, -8, 0], [2, 0, 2]])}
+SCHARR_X = np.array([[-3, 0, 3], [-10, 0, 10], [-3, 0, 3]])
+
+
+def _convert_scale_abs(src, alpha, beta):
+    # float32 fma: the product and sum exact in float64, rounded once to float32
+    value = np.abs((src.astype(np.float64) * np.float32(alpha) + np.float32(beta))
+                   .astype(np.float32))
+    return np.clip(np.rint(value), 0, 255).astype(np.uint8)
+
+
+@dataclass
+class Op:
+    """How one new type compares with OpenCV and with numpy."""
+
+    opencv: Callable  # (inputs..., **params) -> OpenCV's output
+    numpy: Callable  # the same from the definition
+    cases: list[dict] = field(default_factory=lambda: [{}])  # parameter sets on photos
+    inputs: str = "u"  # one letter an input: u uint8 frame, s int16 gradient, m mask
+
+
+def _masked_and(a, b, m):
+    out = np.zeros_like(a)
+    return cv2.bitwise_and(a, b, dst=out, mask=m)
+
+
+OPS: dict[str, Op] = {
+    "BitwiseAnd": Op(cv2.bitwise_and, np.bitwise_and, inputs="uu"),
+    "BitwiseOr": Op(cv2.bitwise_or, np.bitwise_or, inputs="uu"),
+    "BitwiseXor": Op(cv2.bitwise_xor, np.bitwise_xor, inputs="uu"),
+    "BitwiseNot": Op(cv2.bitwise_not, lambda a: 255 - a),
+    "BitwiseAndMask": Op(_masked_and,
+                         lambda a, b, m: np.where((m != 0).reshape(m.shape[:2] + (1,) * (
+                             a.ndim - 2)), a & b, 0).astype(np.uint8), inputs="uum"),
+    "ConvertScaleAbs": Op(
+        lambda s, alpha, beta: cv2.convertScaleAbs(s, alpha=alpha, beta=beta),
+        _convert_scale_abs,
+        [{"alpha": a, "beta": b} for a, b in ((1.7, -30.2), (0.25, 0.0), (-0.8, 10.5),
+                                              (0.37, 0.25), (1.0, 0.0), (3.3, -400.1))],
+        inputs="s"),
+    "FlipVertical": Op(lambda a: cv2.flip(a, 0), lambda a: a[::-1]),
+    "Blur": Op(
+        lambda a, ksize, border_type: cv2.blur(a, (ksize, ksize), borderType=border_type),
+        _blur,
+        # every border rule at 3 and 5, then the window's limits 1 and 31
+        [{"ksize": k, "border_type": b} for k in (3, 5) for b in (4, 0, 1, 2)]
+        + [{"ksize": 1, "border_type": 4}, {"ksize": 31, "border_type": 2}]),
+    "Laplacian": Op(lambda a, ksize: cv2.Laplacian(a, cv2.CV_16S, ksize=ksize),
+                    lambda a, ksize: _correlate(a, LAPLACE[ksize], 4).astype(np.int16),
+                    [{"ksize": 1}, {"ksize": 3}]),
+    "Scharr": Op(lambda a, dx, dy: cv2.Scharr(a, cv2.CV_16S, dx, dy),
+                 lambda a, dx, dy: _correlate(a, SCHARR_X if dx else SCHARR_X.T, 4)
+                 .astype(np.int16),
+                 [{"dx": 1, "dy": 0}, {"dx": 0, "dy": 1}]),
+}
+for _name in list(OPS):
+    OPS[_name + "Gray"] = OPS[_name]
+OPS.update({
+    "GrayToRgb": Op(lambda a: cv2.cvtColor(a, cv2.COLOR_GRAY2RGB),
+                    lambda a: np.repeat(a.reshape(a.shape[:2] + (1,)), 3, axis=2)),
+    "RgbToBgr": Op(lambda a: cv2.cvtColor(a, cv2.COLOR_RGB2BGR), lambda a: a[..., ::-1]),
+    "BgrToRgb": Op(lambda a: cv2.cvtColor(a, cv2.COLOR_BGR2RGB), lambda a: a[..., ::-1]),
+})
+TYPES = sorted(OPS)
+
+
+def new_types():
+    from gpucompgen.model import library_types
+
+    return {n: t for n, t in library_types().items() if t.decl_file.name in NEW_FILES}
+
+
+def channels_of(type_name: str) -> int:
+    return next(iter(new_types()[type_name].inputs.values())).channels
+
+
+def test_every_new_type_is_compared_flexible_and_fusable():
+    types = new_types()
+    assert set(types) == set(OPS)
+    assert set(OPS) <= set(cpu_kernels.CPU_IMPLEMENTATIONS)
+    for name, t in types.items():
+        assert t.flexible and t.fusable is not None, name
+        # OpenCV's port names: src / dst, src1 and src2 for two frames, mask
+        assert set(t.inputs) in ({"src"}, {"src1", "src2"}, {"src1", "src2", "mask"}), name
+        assert set(t.outputs) == {"dst"}, name
+
+
+def make_inputs(type_name: str, image: np.ndarray) -> list[np.ndarray]:
+    """The inputs of a type from one frame of its channel count: a second frame unlike
+    the first, a mask (a threshold of the frame's first channel), or the frame's int16
+    Sobel gradient."""
+    found = []
+    for kind in OPS[type_name].inputs:
+        if kind == "u":
+            found.append(image if not found else
+                         np.ascontiguousarray(image[::-1, ::-1] // 2 + image // 3))
+        elif kind == "m":
+            first = image if image.ndim == 2 else image[..., 0]
+            found.append(np.ascontiguousarray(np.where(first > 100, 255, 0).astype(np.uint8)))
+        else:
+            found.append(cv2.Sobel(image, cv2.CV_16S, 1, 0, ksize=3))
+    return found
+
+
+@pytest.fixture(scope="module")
+def photos():
+    out = []
+    for load in (skdata.chelsea, skdata.coffee, skdata.astronaut):
+        rgb = np.ascontiguousarray(load())
+        out.append({3: rgb, 1: cv2.cvtColor(rgb, cv2.COLOR_RGB2GRAY)})
+    return out
+
+
+@pytest.fixture(scope="module")
+def gpu(cl_context, cl_queue):
+    require_opencl()
+
+    def run(type_name, arrays, params, shape, setting=(16, 16, 16, 1)):
+        return run_generated(cl_context, cl_queue, new_types()[type_name], params, arrays,
+                             shape, setting)
+    return run
+
+
+def check_all(type_name: str, arrays: list[np.ndarray], params: dict, gpu, setting=None,
+              what: str = "") -> None:
+    op = OPS[type_name]
+    reference = op.opencv(*arrays, **params)
+    cpu = cpu_kernels.CPU_IMPLEMENTATIONS[type_name](*arrays, **params)
+    assert cpu.dtype == reference.dtype and cpu.shape == reference.shape, what
+    np.testing.assert_array_equal(cpu, reference, err_msg=f"CPU form {what} {params}")
+    np.testing.assert_array_equal(op.numpy(*arrays, **params), reference,
+                                  err_msg=f"numpy reference {what} {params}")
+    found = gpu(type_name, arrays, params, reference.shape,
+                *(() if setting is None else (setting,)))
+    np.testing.assert_array_equal(found, reference, err_msg=f"GPU {what} {params}")
+
+
+@pytest.mark.parametrize("type_name", TYPES)
+def test_photographs_cpu_gpu_numpy_equal_opencv(type_name, photos, gpu):
+    channels = channels_of(type_name)
+    for i, versions in enumerate(photos):
+        arrays = make_inputs(type_name, versions[channels])
+        for params in OPS[type_name].cases:
+            if params.get("ksize") == 31 and i:  # the largest window on one photograph
+                continue
+            check_all(type_name, arrays, params, gpu, what=f"photo {i}")
+
+
+# -- random frames, parameters and GPU settings -------------------------------------------
+sizes = st.integers(1, 20) | st.sampled_from([31, 33])
+SETTINGS = [(8, 1, 1, 1), (16, 16, 16, 1), (32, 8, 3, 1)]
+
+
+@st.composite
+def cases(draw, type_name: str):
+    height, width = draw(sizes), draw(sizes)
+    channels = channels_of(type_name)
+    shape = (height, width) if channels == 1 else (height, width, channels)
+    rng = np.random.default_rng(draw(st.integers(0, 2 ** 32 - 1)))
+    image = rng.integers(0, 256, shape, dtype=np.uint8)
+    arrays = make_inputs(type_name, image)
+    if "s" in OPS[type_name].inputs:  # any int16 value, not only a gradient's
+        arrays = [rng.integers(-32768, 32768, shape, dtype=np.int16)]
+    params = {}
+    t = new_types()[type_name]
+    for name, decl in t.params.items():
+        if decl.type == "float":
+            params[name] = draw(st.floats(-4.0, 4.0, allow_nan=False, width=32)
+                                | st.sampled_from([0.0, 0.5, 1.0, -1.0, 1e-30, 300.0]))
+        else:
+            params[name] = draw(st.integers(int(decl.minimum), int(decl.maximum)))
+    if "dx" in params:
+        params["dy"] = 1 - params["dx"]
+    if "ksize" in params and type_name.startswith("Blur"):
+        params["ksize"] = draw(st.sampled_from([1, 3, 5, 7, 9]))
+        params["border_type"] = draw(st.sampled_from(sorted(cpu_ops.BORDERS)))
+    if "ksize" in params and type_name.startswith("Laplacian"):
+        params["ksize"] = draw(st.sampled_from([1, 3]))
+    return arrays, params, draw(st.sampled_from(SETTINGS))
+
+
+@pytest.mark.parametrize("type_name", TYPES)
+def test_random_frames_cpu_gpu_numpy_equal_opencv(type_name, gpu):
+    @PROPERTY
+    @given(case=cases(type_name))
+    def check(case):
+        arrays, params, setting = case
+        check_all(type_name, arrays, params, gpu, setting, what=str(arrays[0].shape))
+
+    check()
+
+
+# -- the CPU forms' own checks ----------------------------------------------------------------
+def test_cpu_forms_reject_bad_inputs():
+    image = np.zeros((4, 5, 3), np.uint8)
+    with pytest.raises(TypeError, match="int16"):
+        cpu_ops.convert_scale_abs(image, alpha=1.0, beta=0.0)
+    with pytest.raises(ValueError, match="same size"):
+        cpu_ops.bitwise_and(image, image[:3])
+    with pytest.raises(ValueError, match="mask"):
+        cpu_ops.bitwise_and_mask(image, image, np.zeros((4, 4), np.uint8))
+    with pytest.raises(ValueError, match="odd"):
+        cpu_ops.blur(image, ksize=4, border_type=4)
+    with pytest.raises(ValueError, match="border_type"):
+        cpu_ops.blur(image, ksize=3, border_type=3)
+    with pytest.raises(ValueError, match="ksize"):
+        cpu_ops.laplacian(image, ksize=5)
+    with pytest.raises(ValueError, match="dx=1"):
+        cpu_ops.scharr(image, dx=1, dy=1)
+    with pytest.raises(ValueError, match="one channel"):
+        cpu_ops.gray_to_rgb(image)
+    with pytest.raises(ValueError, match="out="):
+        cpu_ops.flip_vertical(image, out=np.empty((4, 5), np.uint8))
+    out = np.full((4, 5, 3), 7, np.uint8)
+    assert cpu_ops.bitwise_and_mask(image, image, np.zeros((4, 5), np.uint8), out=out) is out
+    assert not out.any()  # cleared where the mask is 0, as a new dst would be
+
+
+def test_hand_computed_values():
+    """A few pixels worked out on paper: the channel order, the rounding, the borders."""
+    gray = np.array([[0b1100, 0b1010, 255, 0]], np.uint8)
+    other = np.array([[0b1010, 0b0110, 15, 0]], np.uint8)
+    assert cpu_ops.bitwise_and(gray, other).tolist() == [[0b1000, 0b0010, 15, 0]]
+    assert cpu_ops.bitwise_or(gray, other).tolist() == [[0b1110, 0b1110, 255, 0]]
+    assert cpu_ops.bitwise_xor(gray, other).tolist() == [[0b0110, 0b1100, 240, 0]]
+    assert cpu_ops.bitwise_not(gray).tolist() == [[243, 245, 0, 255]]
+    mask = np.array([[255, 0, 1, 0]], np.uint8)
+    assert cpu_ops.bitwise_and_mask(gray, gray, mask).tolist() == [[12, 0, 255, 0]]
+    # |-3 * 0.5| = 1.5 -> 2, |5 * 0.5| = 2.5 -> 2 (half to even), -300 -> 255, 7 + 0.5 -> 8
+    s = np.array([[-3, 5, -300, 7]], np.int16)
+    assert cpu_ops.convert_scale_abs(s, alpha=0.5, beta=0.0).tolist() == [[2, 2, 150, 4]]
+    assert cpu_ops.convert_scale_abs(s, alpha=1.0, beta=0.5).tolist() == [[2, 6, 255, 8]]
+    rgb = np.array([[[1, 2, 3]]], np.uint8)
+    assert cpu_ops.swap_red_blue(rgb).tolist() == [[[3, 2, 1]]]
+    assert cpu_ops.gray_to_rgb(np.array([[9]], np.uint8)).tolist() == [[[9, 9, 9]]]
+    assert cpu_ops.flip_vertical(np.array([[1], [2]], np.uint8)).tolist() == [[2], [1]]
+    # a 1x3 row (10 20 30), 3x3 window: zeros outside (0 10 20 / 9 -> 3.3 -> 3, 60 / 9 ->
+    # 6.7 -> 7, 50 / 9 -> 5.6 -> 6); replicated: rows three times (10 10 20 ...) / 9
+    row = np.array([[10, 20, 30]], np.uint8)
+    assert cpu_ops.blur(row, ksize=3, border_type=0).tolist() == [[3, 7, 6]]
+    assert cpu_ops.blur(row, ksize=3, border_type=1).tolist() == [[13, 20, 27]]
+    # reflect_101 (20 | 10 20 30 | 20): (20 + 10 + 20) / 3 = 16.7 -> 17, 20, 23.3 -> 23
+    assert cpu_ops.blur(row, ksize=3, border_type=4).tolist() == [[17, 20, 23]]
+    spot = np.zeros((5, 5), np.uint8)
+    spot[2, 2] = 10
+    assert cpu_ops.laplacian(spot, ksize=1)[1:4, 1:4].tolist() == [[0, 10, 0], [10, -40, 10],
+                                                                    [0, 10, 0]]
+    # ksize 3: the diagonal neighbours weigh 2, the centre -8
+    assert cpu_ops.laplacian(spot, ksize=3)[1:4, 1:4].tolist() == [[20, 0, 20], [0, -80, 0],
+                                                                    [20, 0, 20]]
+    # at the border the frame is reflected (BORDER_REFLECT_101): row -1 is row 1
+    edge = cpu_ops.laplacian(spot[1:4, 1:4].copy(), ksize=1)
+    assert edge.tolist() == [[0, 20, 0], [20, -40, 20], [0, 20, 0]]
+    # Scharr dx at (2, 1): the spot is to the right, weight 10: +100; at (1, 1): 3 * 10
+    gradient = cpu_ops.scharr(spot, dx=1, dy=0)
+    assert gradient.dtype == np.int16 and (gradient[2, 1], gradient[1, 1]) == (100, 30)
+    assert (gradient[2, 3], cpu_ops.scharr(spot, dx=0, dy=1)[3, 2]) == (-100, -100)
+
+
+# -- one generated program with every new type --------------------------------------------------
+PHOTOS = ROOT / "models" / "photos"
+FRAMES = 3
+# name: (type, params, inputs in port order; "camera" is the source, 301x200 RGB)
+CHAIN: dict[str, tuple[str, dict, tuple[str, ...]]] = {
+    "bgr": ("RgbToBgr", {}, ("camera",)),
+    "rgb": ("BgrToRgb", {}, ("bgr",)),
+    "flip": ("FlipVertical", {}, ("rgb",)),
+    "blur": ("Blur", {"ksize": 5, "border_type": 0}, ("flip",)),
+    "lap": ("Laplacian", {"ksize": 3}, ("blur",)),
+    "lapabs": ("ConvertScaleAbs", {"alpha": 0.5, "beta": 3.0}, ("lap",)),
+    "scharr": ("Scharr", {"dx": 1, "dy": 0}, ("camera",)),
+    "scharrabs": ("ConvertScaleAbs", {"alpha": 0.25, "beta": 0.0}, ("scharr",)),
+    "band": ("BitwiseAnd", {}, ("lapabs", "scharrabs")),
+    "bor": ("BitwiseOr", {}, ("band", "flip")),
+    "bxor": ("BitwiseXor", {}, ("bor", "camera")),
+    "bnot": ("BitwiseNot", {}, ("bxor",)),
+    "gray": ("RgbToGray", {}, ("camera",)),
+    "gblur": ("BlurGray", {"ksize": 3, "border_type": 2}, ("gray",)),
+    "gscharr": ("ScharrGray", {"dx": 0, "dy": 1}, ("gblur",)),
+    "gabs": ("ConvertScaleAbsGray", {"alpha": 1.0, "beta": 0.0}, ("gscharr",)),
+    "glap": ("LaplacianGray", {"ksize": 1}, ("gray",)),
+    "glapabs": ("ConvertScaleAbsGray", {"alpha": 2.0, "beta": 0.0}, ("glap",)),
+    "mask": ("ThresholdGray", {"thresh": 40, "maxval": 255, "thresh_type": 0}, ("gabs",)),
+    "gflip": ("FlipVerticalGray", {}, ("mask",)),
+    "gnot": ("BitwiseNotGray", {}, ("gflip",)),
+    "gand": ("BitwiseAndGray", {}, ("gnot", "glapabs")),
+    "gor": ("BitwiseOrGray", {}, ("gand", "gray")),
+    "gxor": ("BitwiseXorGray", {}, ("gor", "gblur")),
+    "gcut": ("BitwiseAndMaskGray", {}, ("gxor", "gxor", "mask")),
+    "cut": ("BitwiseAndMask", {}, ("bnot", "camera", "mask")),
+    "colour": ("GrayToRgb", {}, ("gcut",)),
+}
+
+
+def _type(type_name: str):
+    from gpucompgen.model import library_types
+
+    return library_types()[type_name]
+
+
+def _opencv(type_name: str) -> Callable:
+    if type_name in OPS:
+        return OPS[type_name].opencv
+    from test_imgproc import SPECS
+
+    return SPECS[type_name].opencv
+
+
+def model_text(placement: str) -> str:
+    lines = ["system: ops_all", "types: [keep.yaml]",
+             f"platform: {{device: portable, placement: {placement}}}", "components:",
+             f'  camera: {{type: Camera, params: {{folder: "{PHOTOS.as_posix()}", '
+             'width: 301, height: 200}}']
+    connections = []
+    for name, (type_name, params, inputs) in CHAIN.items():
+        t = _type(type_name)
+        written = ", ".join(f"{k}: {v}" for k, v in params.items())
+        lines.append(f"  {name}: {{type: {type_name}, params: {{{written}}}}}")
+        (out_port, out_decl), = t.outputs.items()
+        lines.append(f"  keep_{name}: {{type: {keep_type_for(out_decl)}}}")
+        for port, source in zip(t.inputs, inputs, strict=True):
+            out = "image" if source == "camera" else next(iter(_type(CHAIN[source][0]).outputs))
+            connections.append(f"  - {source}.{out} -> {name}.{port}")
+        connections.append(f"  - {name}.{out_port} -> keep_{name}.image")
+    return "\n".join(lines + ["connections:"] + connections) + "\n"
+
+
+MIXED = {name: ("cpu" if i % 2 else "gpu") for i, name in enumerate(CHAIN)}
+
+
+@pytest.fixture(scope="module")
+def program_outputs(tmp_path_factory, cl_context):
+    require_opencl()
+    from gpucompgen.build import compile_model, write
+
+    folder = tmp_path_factory.mktemp("ops_all")
+    write_keep_types(folder)
+    found = {}
+    for placement, places in (("gpu", None), ("cpu", None), ("mixed", MIXED)):
+        model = folder / f"ops_{placement}.yaml"
+        model.write_text(model_text("gpu" if places else placement))
+        out = folder / f"out_{placement}"
+        built = compile_model(model, out, "gpu-aware", None, places=places)
+        write(built, out)
+        placed = {n: built.system.component(n).placement for n in CHAIN}
+        assert placed == (places or dict.fromkeys(CHAIN, placement))
+        program = load_generated(out / "ops_all.py", f"ops_all_{placement}")
+        result = program.run(frames=FRAMES, context=cl_context)
+        assert result.frames == FRAMES
+        found[placement] = {n: result.components[f"keep_{n}"].frames for n in CHAIN}
+    return found
+
+
+def test_the_chain_has_every_new_type():
+    assert set(new_types()) <= {t for t, _, _ in CHAIN.values()}
+
+
+def test_generated_program_equals_opencv_on_every_placement(program_outputs):
+    Image = pytest.importorskip("PIL.Image")
+    for i, path in enumerate(sorted(PHOTOS.glob("*.jpg"))):
+        with Image.open(path) as im:
+            values = {"camera": np.asarray(im.convert("RGB"))}
+        for name, (type_name, params, inputs) in CHAIN.items():
+            values[name] = _opencv(type_name)(*(values[s] for s in inputs), **params)
+            for placement, components in program_outputs.items():
+                np.testing.assert_array_equal(components[name][i], values[name],
+                                              err_msg=f"{placement}: {name}, frame {i}")
