@@ -106,6 +106,10 @@ class Op:
     inputs: str = "u"  # one letter an input: u uint8 frame, s int16 gradient, m mask
 
 
+# a gamma curve of 0.5, rounded: the table a contrast pipeline would give Lut
+GAMMA = tuple(int(round(255 * (i / 255) ** 0.5)) for i in range(256))
+
+
 def _masked_and(a, b, m):
     out = np.zeros_like(a)
     return cv2.bitwise_and(a, b, dst=out, mask=m)
@@ -139,6 +143,10 @@ OPS: dict[str, Op] = {
                  lambda a, dx, dy: _correlate(a, SCHARR_X if dx else SCHARR_X.T, 4)
                  .astype(np.int16),
                  [{"dx": 1, "dy": 0}, {"dx": 0, "dy": 1}]),
+    "Lut": Op(lambda a, lut: cv2.LUT(a, np.array(lut, np.uint8)),
+              lambda a, lut: np.array(lut, np.uint8)[a],
+              [{"lut": tuple(range(256))}, {"lut": tuple(255 - i for i in range(256))},
+               {"lut": GAMMA}, {"lut": (0,) * 255 + (255,)}]),
 }
 for _name in list(OPS):
     OPS[_name + "Gray"] = OPS[_name]
@@ -254,8 +262,12 @@ def cases(draw, type_name: str):
         if decl.type == "float":
             params[name] = draw(st.floats(-4.0, 4.0, allow_nan=False, width=32)
                                 | st.sampled_from([0.0, 0.5, 1.0, -1.0, 1e-30, 300.0]))
-        else:
+        elif not decl.shape:
             params[name] = draw(st.integers(int(decl.minimum), int(decl.maximum)))
+        else:
+            params[name] = decl.default
+    if "lut" in params:
+        params["lut"] = tuple(draw(st.lists(st.integers(0, 255), min_size=256, max_size=256)))
     if "dx" in params:
         params["dy"] = 1 - params["dx"]
     if "ksize" in params and type_name.startswith("Blur"):
@@ -376,6 +388,8 @@ CHAIN: dict[str, tuple[str, dict, tuple[str, ...]]] = {
     "gcut": ("BitwiseAndMaskGray", {}, ("gxor", "gxor", "mask")),
     "cut": ("BitwiseAndMask", {}, ("bnot", "camera", "mask")),
     "colour": ("GrayToRgb", {}, ("gcut",)),
+    "curve": ("Lut", {"lut": GAMMA}, ("colour",)),
+    "gcurve": ("LutGray", {"lut": tuple(255 - i for i in range(256))}, ("gcut",)),
 }
 
 
@@ -401,7 +415,8 @@ def model_text(placement: str) -> str:
     connections = []
     for name, (type_name, params, inputs) in CHAIN.items():
         t = _type(type_name)
-        written = ", ".join(f"{k}: {v}" for k, v in params.items())
+        written = ", ".join(f"{k}: {list(v) if isinstance(v, tuple) else v}"
+                            for k, v in params.items())
         lines.append(f"  {name}: {{type: {type_name}, params: {{{written}}}}}")
         (out_port, out_decl), = t.outputs.items()
         lines.append(f"  keep_{name}: {{type: {keep_type_for(out_decl)}}}")

@@ -60,6 +60,16 @@ def flip_vertical(src: np.ndarray, *, out: np.ndarray | None = None) -> np.ndarr
     return cv2.flip(src, 0, dst=_output(out, src.shape, "FlipVertical", "dst"))
 
 
+def lut(src: np.ndarray, *, lut, out: np.ndarray | None = None) -> np.ndarray:
+    """Lut / LutGray: cv2.LUT(src, lut): each element replaced by lut[element], the 256
+    values (0..255) of the array parameter, the same table for every channel."""
+    _image("Lut", "src", src)
+    table = np.asarray(lut, np.int64)
+    if table.shape != (256,) or table.min() < 0 or table.max() > 255:
+        raise ValueError(f"Lut: lut must be 256 values 0..255, not shape {table.shape}")
+    return cv2.LUT(src, table.astype(np.uint8), dst=_output(out, src.shape, "Lut", "dst"))
+
+
 # -- bitwise ------------------------------------------------------------------------------
 def bitwise_and(src1: np.ndarray, src2: np.ndarray, *,
                 out: np.ndarray | None = None) -> np.ndarray:
@@ -188,5 +198,5 @@ CPU_OPS = {
         ("ConvertScaleAbs", convert_scale_abs), ("FlipVertical", flip_vertical),
         ("BitwiseAnd", bitwise_and), ("BitwiseOr", bitwise_or), ("BitwiseXor", bitwise_xor),
         ("BitwiseNot", bitwise_not), ("BitwiseAndMask", bitwise_and_mask),
-        ("Blur", blur), ("Laplacian", laplacian), ("Scharr", scharr))},
+        ("Blur", blur), ("Laplacian", laplacian), ("Scharr", scharr), ("Lut", lut))},
 }

@@ -65,6 +65,8 @@ def kernel_parameters(ctype) -> list[KernelParam]:
                 params.append(KernelParam(f"{name}_{dim}", "scalar", "int", "size",
                                           port=name, dim=dim))
     for name, decl in ctype.params.items():
+        if decl.shape:  # an array parameter: a constant table of the generated kernel
+            continue
         params.append(KernelParam(name, "scalar", PARAM_C_TYPES[decl.type][0], "param",
                                   param=name))
     params.append(KernelParam("tile", "scalar", "int", "tile"))
@@ -82,7 +84,8 @@ def group_parameters(group) -> list[KernelParam]:
 
     1. one ``__global`` pointer per group input (named <member>_<port>, the member input
        it feeds), then the group's output (named <root>_<port>);
-    2. every member's parameters in declaration order, named <member>_<parameter>;
+    2. every member's parameters in declaration order, named <member>_<parameter>, but
+       array parameters, which the kernel's source holds as ``__constant`` tables;
     3. ``int tile``.
 
     No sizes: the system fixed every port's size when it was built, and the generated
@@ -97,6 +100,8 @@ def group_parameters(group) -> list[KernelParam]:
                                   "output", port=name))
     for m in group.members:
         for pname, decl in m.type.params.items():
+            if decl.shape:  # an array: a __constant table in the kernel's source
+                continue
             params.append(KernelParam(f"{m.name}_{pname}", "scalar",
                                       PARAM_C_TYPES[decl.type][0], "param",
                                       param=f"{m.name}.{pname}"))

@@ -135,7 +135,9 @@ def py_literal(value) -> str:
     if isinstance(value, (bool, int, float, str)) or value is None:
         return repr(value)
     if isinstance(value, tuple) and all(type(v) is int for v in value):
-        return repr(value)  # a shape
+        return repr(value)  # a shape, or an int array parameter
+    if isinstance(value, tuple):  # an array parameter: nested tuples of numbers
+        return "(" + ", ".join(py_literal(v) for v in value) + ("," if len(value) == 1 else "") + ")"
     raise TypeError(f"no literal for {type(value).__name__}")
 
 
@@ -259,8 +261,8 @@ def with_settable_params(system: System, plan: ProgramPlan) -> tuple[ProgramPlan
 
     def declare(key: str, t, pname: str, value) -> bool:
         decl = t.params.get(pname)
-        if decl is None or pname in size_names(t):
-            return False
+        if decl is None or pname in size_names(t) or decl.shape:
+            return False  # arrays are tables compiled into a generated kernel
         settable[key] = Settable(key, decl.type, value, decl.minimum, decl.maximum)
         return True
 
