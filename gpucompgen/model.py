@@ -926,11 +926,17 @@ def _load_fusable(doc, rep, base, ctype: ComponentType, fspec) -> None:
     if form == "stencil":
         radius = fspec.get("radius")
         int_params = _int_params(ctype)
+        expression = None
+        if isinstance(radius, str) and not _named(radius, int_params):
+            try:  # an expression of int parameters, e.g. 'ksize // 2'
+                expression = sizeexpr.parse(radius, set(), set(int_params))
+            except sizeexpr.SizeExprError:
+                expression = None
         if not (isinstance(radius, int) and not isinstance(radius, bool) and radius >= 0) \
-                and not _named(radius, int_params):
+                and not _named(radius, int_params) and expression is None:
             rep.error(doc.pos(*path, "radius") if "radius" in fspec else doc.key_pos(*path),
                       f"stencil '{ctype.name}' needs 'radius': a number of pixels (0 or "
-                      f"more) or an int parameter, not {radius!r}",
+                      f"more), an int parameter or an expression of them, not {radius!r}",
                       did_you_mean(str(radius), int_params) if int_params else
                       "e.g. radius: 1")
             return

@@ -115,10 +115,10 @@ def run_generated(context, queue, ctype, params: dict, arrays, out_shape: tuple,
     shapes = {p: a.shape[:2] for p, a in zip(ctype.inputs, arrays, strict=True)}
     shapes[oname] = tuple(out_shape[:2])
     # sizes and a stencil's radius are constants of the kernel; other parameters arguments
-    radius = ctype.fusable.radius
+    constants = tuple((n, params[n]) for n in sorted(ctype.fusable.radius_names()))
     # array parameters are tables in the kernel's source: their values are part of it too
     tables = tuple((n, params[n]) for n, d in ctype.params.items() if d.shape)
-    key = (ctype.name, tuple(sorted(shapes.items())), params.get(radius, radius), tables)
+    key = (ctype.name, tuple(sorted(shapes.items())), constants, tables)
     if key not in _GENERATED:
         group = group_of_one(ctype, params, shapes)
         _GENERATED[key] = cl.Program(context, group_kernel(group, "test")).build(), group

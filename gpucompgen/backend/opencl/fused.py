@@ -238,11 +238,7 @@ def margin(group: GroupNode) -> int | None:
 
 
 def _radius(m) -> int:
-    decl = m.type.fusable
-    if decl.form != "stencil":
-        return 0
-    r = decl.radius
-    return int(m.params.get(r, 0)) if isinstance(r, str) else int(r)
+    return m.type.fusable.radius_of(m.params)
 
 
 def group_kernel(group: GroupNode, header: str, device=None) -> str:
@@ -381,10 +377,10 @@ def _member(m, feeds: dict[Endpoint, str], producer: dict[Endpoint, Endpoint], i
                          f"_m{index[m.name]}_{pname};" if inner else
                          f"    __constant const {c} *{pname} = _m{index[m.name]}_{pname};")
             continue
-        if decl.form == "stencil" and pname == decl.radius:
+        if pname in decl.radius_names():
             # the window is fixed at build time (the interior's margin is): a constant, so
             # that the compiler unrolls a loop over it
-            lines.append(f"    const int {pname} = {_radius(m)};")
+            lines.append(f"    const int {pname} = {int(m.params[pname])};")
             continue
         lines.append(f"    const {c} {pname} = _m{index[m.name]}_{pname};")
     # printed from the parsed snippet; built-in calls swapped for their inline versions

@@ -249,8 +249,8 @@ def size_names(t) -> set[str]:
     exprs += [check for check, _ in t.requires]
     names = {n.id for e in exprs for n in ast.walk(e) if isinstance(n, ast.Name)}
     decl = getattr(t, "fusable", None)
-    if decl is not None and decl.form == "stencil" and isinstance(decl.radius, str):
-        names.add(decl.radius)
+    if decl is not None:
+        names |= decl.radius_names()
     return names
 
 
