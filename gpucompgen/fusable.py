@@ -65,7 +65,8 @@ class FusableDecl:
         if self.form != "stencil" or isinstance(self.radius, int):
             return set()
         tree = ast.parse(self.radius.strip(), mode="eval")
-        return {n.id for n in ast.walk(tree) if isinstance(n, ast.Name)}
+        calls = {id(n.func) for n in ast.walk(tree) if isinstance(n, ast.Call)}  # min, max
+        return {n.id for n in ast.walk(tree) if isinstance(n, ast.Name) and id(n) not in calls}
 
     def lines(self, rename: Mapping[str, str] | None = None) -> list[str]:
         """The snippet as C statements ending by returning the element, one a line

@@ -38,7 +38,7 @@ from gpucompgen.library import cpu_kernels, cpu_ops
 cv2 = pytest.importorskip("cv2")
 skdata = pytest.importorskip("skimage.data")
 
-NEW_FILES = ("bitwise.yaml", "convert.yaml", "filters2.yaml")
+NEW_FILES = ("bitwise.yaml", "convert.yaml", "filters2.yaml", "morphology.yaml")
 PROPERTY = settings(max_examples=10, deadline=None,
                     suppress_health_check=[HealthCheck.function_scoped_fixture,
                                            HealthCheck.too_slow])
@@ -96,6 +96,53 @@ def _convert_scale_abs(src, alpha, beta):
     return np.clip(np.rint(value), 0, 255).astype(np.uint8)
 
 
+def _element(shape: int, ksize: int) -> np.ndarray:
+    """The structuring element from its definition: a rectangle; a cross (the middle row
+    and column); an ellipse whose row dy spans round(sqrt(r^2 - dy^2)) each side."""
+    r = ksize // 2
+    element = np.zeros((ksize, ksize), bool)
+    for dy in range(-r, r + 1):
+        w = r if shape == 0 else (r if dy == 0 else 0) if shape == 1 else \
+            int(round((r * r - dy * dy) ** 0.5))
+        element[dy + r, r - w:r + w + 1] = True
+    return element
+
+
+def _extreme(src, element, smallest: bool, iterations: int):
+    """Erode (smallest) or dilate iterations times, pixels outside the frame ignored."""
+    r = element.shape[0] // 2
+    out = src.astype(np.int16)
+    h, w = src.shape[:2]
+    for _ in range(iterations):
+        padded = _pad(out, r, cpu_ops.BORDER_CONSTANT) if r else out
+        if r:  # outside the frame: a value that never wins
+            border = np.ones(padded.shape[:2], bool)
+            border[r:r + h, r:r + w] = False
+            padded[border] = 256 if smallest else -1
+        taps = [padded[dy:dy + h, dx:dx + w] for dy, dx in zip(*np.nonzero(element))]
+        out = np.minimum.reduce(taps) if smallest else np.maximum.reduce(taps)
+    return out
+
+
+def _morphology(src, op, shape, ksize, iterations):
+    e = _element(shape, ksize)
+    erode = lambda a: _extreme(a, e, True, iterations)  # noqa: E731
+    dilate = lambda a: _extreme(a, e, False, iterations)  # noqa: E731
+    result = {0: lambda: erode(src), 1: lambda: dilate(src),
+              2: lambda: dilate(erode(src)), 3: lambda: erode(dilate(src)),
+              4: lambda: dilate(src) - erode(src),
+              5: lambda: src.astype(np.int16) - dilate(erode(src)),
+              6: lambda: erode(dilate(src)) - src.astype(np.int16)}[op]()
+    return result.astype(np.uint8)
+
+
+# op (OpenCV's code) with each shape, size and iteration count, then the size limits
+MORPHOLOGY = [{"op": op, "shape": shape, "ksize": k, "iterations": it}
+              for op, shape, k, it in ((0, 0, 3, 1), (1, 1, 5, 1), (2, 2, 5, 1), (3, 0, 3, 2),
+                                       (4, 2, 7, 1), (5, 1, 3, 1), (6, 0, 5, 1), (0, 0, 1, 1),
+                                       (2, 2, 15, 1), (1, 0, 3, 4))]
+
+
 @dataclass
 class Op:
     """How one new type compares with OpenCV and with numpy."""
@@ -104,6 +151,8 @@ class Op:
     numpy: Callable  # the same from the definition
     cases: list[dict] = field(default_factory=lambda: [{}])  # parameter sets on photos
     inputs: str = "u"  # one letter an input: u uint8 frame, s int16 gradient, m mask
+    photos: int = 3  # how many photographs (each compiles the kernel anew)
+    examples: int = 10  # Hypothesis examples
 
 
 # a gamma curve of 0.5, rounded: the table a contrast pipeline would give Lut
@@ -147,6 +196,11 @@ OPS: dict[str, Op] = {
               lambda a, lut: np.array(lut, np.uint8)[a],
               [{"lut": tuple(range(256))}, {"lut": tuple(255 - i for i in range(256))},
                {"lut": GAMMA}, {"lut": (0,) * 255 + (255,)}]),
+    # the kernel's op, shape, size and iterations are constants: each case compiles
+    "MorphologyEx": Op(
+        lambda a, op, shape, ksize, iterations: cv2.morphologyEx(
+            a, op, cv2.getStructuringElement(shape, (ksize, ksize)), iterations=iterations),
+        _morphology, MORPHOLOGY, photos=1, examples=4),
 }
 for _name in list(OPS):
     OPS[_name + "Gray"] = OPS[_name]
@@ -233,12 +287,16 @@ def check_all(type_name: str, arrays: list[np.ndarray], params: dict, gpu, setti
 @pytest.mark.parametrize("type_name", TYPES)
 def test_photographs_cpu_gpu_numpy_equal_opencv(type_name, photos, gpu):
     channels = channels_of(type_name)
-    for i, versions in enumerate(photos):
+    for i, versions in enumerate(photos[:OPS[type_name].photos]):
         arrays = make_inputs(type_name, versions[channels])
         for params in OPS[type_name].cases:
             if params.get("ksize") == 31 and i:  # the largest window on one photograph
                 continue
-            check_all(type_name, arrays, params, gpu, what=f"photo {i}")
+            some = arrays
+            if params.get("ksize", 1) * params.get("iterations", 1) > 7:
+                some = [np.ascontiguousarray(a[100:164, 200:280]) for a in arrays]  # a window
+                # of windows of 15 x 15 costs 50,000 reads an element: a part of the photo
+            check_all(type_name, some, params, gpu, what=f"photo {i}")
 
 
 # -- random frames, parameters and GPU settings -------------------------------------------
@@ -275,12 +333,16 @@ def cases(draw, type_name: str):
         params["border_type"] = draw(st.sampled_from(sorted(cpu_ops.BORDERS)))
     if "ksize" in params and type_name.startswith("Laplacian"):
         params["ksize"] = draw(st.sampled_from([1, 3]))
+    if type_name.startswith("MorphologyEx"):
+        params["ksize"] = draw(st.sampled_from([1, 3, 5]))
+        if params["shape"]:
+            params["iterations"] = 1
     return arrays, params, draw(st.sampled_from(SETTINGS))
 
 
 @pytest.mark.parametrize("type_name", TYPES)
 def test_random_frames_cpu_gpu_numpy_equal_opencv(type_name, gpu):
-    @PROPERTY
+    @settings(PROPERTY, max_examples=OPS[type_name].examples)
     @given(case=cases(type_name))
     def check(case):
         arrays, params, setting = case
@@ -389,6 +451,9 @@ CHAIN: dict[str, tuple[str, dict, tuple[str, ...]]] = {
     "cut": ("BitwiseAndMask", {}, ("bnot", "camera", "mask")),
     "colour": ("GrayToRgb", {}, ("gcut",)),
     "curve": ("Lut", {"lut": GAMMA}, ("colour",)),
+    "close": ("MorphologyEx", {"op": 3, "shape": 2, "ksize": 5, "iterations": 1}, ("curve",)),
+    "gopen": ("MorphologyExGray", {"op": 2, "shape": 0, "ksize": 3, "iterations": 2},
+              ("mask",)),
     "gcurve": ("LutGray", {"lut": tuple(255 - i for i in range(256))}, ("gcut",)),
 }
 

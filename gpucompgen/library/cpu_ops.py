@@ -146,6 +146,33 @@ def scharr(src: np.ndarray, *, dx: int, dy: int, out: np.ndarray | None = None) 
                       dst=_output(out, src.shape, "Scharr", "dst", np.int16))
 
 
+# -- morphology ----------------------------------------------------------------------------
+MORPH_OPS = range(7)  # ERODE, DILATE, OPEN, CLOSE, GRADIENT, TOPHAT, BLACKHAT
+MORPH_SHAPES = range(3)  # RECT, CROSS, ELLIPSE
+MAX_MORPH_KSIZE, MAX_ITERATIONS = 15, 4
+
+
+def morphology_ex(src: np.ndarray, *, op: int, shape: int, ksize: int, iterations: int,
+                  out: np.ndarray | None = None) -> np.ndarray:
+    """MorphologyEx / MorphologyExGray: cv2.morphologyEx(src, op,
+    cv2.getStructuringElement(shape, (ksize, ksize)), iterations=iterations); op and shape
+    are OpenCV's codes (MORPH_ERODE 0 .. MORPH_BLACKHAT 6; MORPH_RECT 0, MORPH_CROSS 1,
+    MORPH_ELLIPSE 2), pixels outside the frame ignored (OpenCV's default)."""
+    _image("MorphologyEx", "src", src)
+    op, shape, iterations = int(op), int(shape), int(iterations)
+    ksize = int(ksize)
+    if ksize < 1 or ksize > MAX_MORPH_KSIZE or ksize % 2 == 0:
+        raise ValueError(f"MorphologyEx: ksize must be odd, 1..{MAX_MORPH_KSIZE}, not {ksize}")
+    if op not in MORPH_OPS or shape not in MORPH_SHAPES:
+        raise ValueError(f"MorphologyEx: op must be 0..6 and shape 0..2, not {op}, {shape}")
+    if not 1 <= iterations <= MAX_ITERATIONS or (iterations > 1 and shape != 0):
+        raise ValueError(f"MorphologyEx: iterations must be 1..{MAX_ITERATIONS}, above 1 "
+                         f"for shape 0 (MORPH_RECT) only, not {iterations} (shape {shape})")
+    element = cv2.getStructuringElement(shape, (ksize, ksize))
+    return cv2.morphologyEx(src, op, element, iterations=iterations,
+                            dst=_output(out, src.shape, "MorphologyEx", "dst"))
+
+
 # -- helpers -------------------------------------------------------------------------------
 def _image(type_name: str, port: str, array, dtype=np.uint8) -> int:
     """The channels (1 or 3) of a frame of element type dtype; anything else raises."""
@@ -198,5 +225,6 @@ CPU_OPS = {
         ("ConvertScaleAbs", convert_scale_abs), ("FlipVertical", flip_vertical),
         ("BitwiseAnd", bitwise_and), ("BitwiseOr", bitwise_or), ("BitwiseXor", bitwise_xor),
         ("BitwiseNot", bitwise_not), ("BitwiseAndMask", bitwise_and_mask),
-        ("Blur", blur), ("Laplacian", laplacian), ("Scharr", scharr), ("Lut", lut))},
+        ("Blur", blur), ("Laplacian", laplacian), ("Scharr", scharr), ("Lut", lut),
+        ("MorphologyEx", morphology_ex))},
 }
