@@ -532,3 +532,168 @@ def test_generated_program_equals_opencv_on_every_placement(program_outputs):
             for placement, components in program_outputs.items():
                 np.testing.assert_array_equal(components[name][i], values[name],
                                               err_msg=f"{placement}: {name}, frame {i}")
+
+
+# -- the CPU-side types (features.yaml, drawing.yaml) and the example models -----------------
+ROI = [[0, 199], [110, 100], [190, 100], [300, 199]]
+FEATURES = {  # name: (type, params, inputs); camera 301x200 RGB
+    "gray": ("RgbToGray", {}, ("camera",)),
+    "canny3": ("Canny", {"threshold1": 80.0, "threshold2": 160.0, "aperture_size": 3,
+                         "l2_gradient": False}, ("camera",)),
+    "canny": ("CannyGray", {"threshold1": 50.0, "threshold2": 150.0, "aperture_size": 5,
+                            "l2_gradient": True}, ("gray",)),
+    "canny7": ("CannyGray", {"threshold1": 500.0, "threshold2": 2000.0, "aperture_size": 7,
+                             "l2_gradient": False}, ("gray",)),
+    "roi": ("RoiMaskGray", {"points": ROI}, ("gray",)),
+    "roi3": ("RoiMask", {"points": [[0, 0], [300, 0], [150, 199]]}, ("camera",)),
+    "regions": ("ConnectedComponentsWithStats",
+                {"connectivity": 8, "min_area": 5, "max_components": 16}, ("canny",)),
+    "regions4": ("ConnectedComponentsWithStats",
+                 {"connectivity": 4, "min_area": 1, "max_components": 4096}, ("roi",)),
+    "lines": ("HoughLinesP", {"rho": 1.0, "theta_degrees": 1.0, "threshold": 30,
+                              "min_line_length": 20.0, "max_line_gap": 5.0, "max_lines": 8},
+              ("canny",)),
+    "boxes": ("DrawBoxes", {"red": 0, "green": 255, "blue": 0, "thickness": 1},
+              ("camera", "regions")),
+    "drawn": ("DrawLines", {"red": 255, "green": 0, "blue": 0, "thickness": 2},
+              ("camera", "lines")),
+}
+
+
+def _features_reference(type_name: str, params: dict, *inputs):
+    """OpenCV's calls for the CPU-side types, written out here."""
+    p = params
+    if type_name.startswith("Canny"):
+        return cv2.Canny(inputs[0], p["threshold1"], p["threshold2"],
+                         apertureSize=p["aperture_size"], L2gradient=p["l2_gradient"])
+    if type_name.startswith("RoiMask"):
+        return cv2.fillPoly(np.zeros(inputs[0].shape[:2], np.uint8),
+                            [np.array(p["points"], np.int32)], 255)
+    if type_name == "ConnectedComponentsWithStats":
+        _, _, stats, _ = cv2.connectedComponentsWithStats((inputs[0] > 0).astype(np.uint8),
+                                                          connectivity=p["connectivity"])
+        kept = [tuple(r) for r in stats[1:] if r[4] >= p["min_area"]]
+        kept.sort(key=lambda r: -r[4])  # stable: equal areas keep label order
+        table = np.full((p["max_components"], 1, 5), -1, np.int32)
+        for i, r in enumerate(kept[:p["max_components"]]):
+            table[i, 0] = r
+        return table
+    if type_name == "HoughLinesP":
+        found = cv2.HoughLinesP(inputs[0], p["rho"], p["theta_degrees"] * np.pi / 180,
+                                p["threshold"], minLineLength=p["min_line_length"],
+                                maxLineGap=p["max_line_gap"])
+        table = np.full((p["max_lines"], 1, 4), -1, np.int32)
+        if found is not None:
+            found = found.reshape(-1, 4)[:p["max_lines"]]
+            table[:len(found), 0] = found
+        return table
+    image, table = inputs
+    out = image.copy()
+    for row in table.reshape(table.shape[0], -1):
+        if row[0] == -1:
+            continue
+        colour = (p["red"], p["green"], p["blue"])
+        if type_name == "DrawLines":
+            cv2.line(out, (int(row[0]), int(row[1])), (int(row[2]), int(row[3])), colour,
+                     p["thickness"])
+        else:
+            cv2.rectangle(out, (int(row[0]), int(row[1])),
+                          (int(row[0] + row[2] - 1), int(row[1] + row[3] - 1)), colour,
+                          p["thickness"])
+    return out
+
+
+def _camera_frames() -> list[np.ndarray]:
+    Image = pytest.importorskip("PIL.Image")
+    frames = []
+    for path in sorted(PHOTOS.glob("*.jpg")):
+        with Image.open(path) as im:
+            frames.append(np.asarray(im.convert("RGB")))
+    return frames
+
+
+def _yaml_value(v) -> str:
+    return str(list(v)) if isinstance(v, (list, tuple)) else \
+        ("true" if v is True else "false" if v is False else str(v))
+
+
+def test_cpu_side_types_in_a_generated_program_equal_opencv(tmp_path, cl_context):
+    """Every type of features.yaml and drawing.yaml in one program over the photographs,
+    each component's output against OpenCV's calls on OpenCV's results before it."""
+    require_opencl()
+    from gpucompgen.build import compile_model, write
+    from gpucompgen.model import library_types
+
+    types = library_types()
+    assert {n for n, t in types.items() if t.decl_file.name in ("features.yaml", "drawing.yaml")
+            } == {t for t, _, _ in FEATURES.values()} - {"RgbToGray"}
+    write_keep_types(tmp_path)
+    lines = ["system: features_all", "types: [keep.yaml]", "components:",
+             f'  camera: {{type: Camera, params: {{folder: "{PHOTOS.as_posix()}", '
+             'width: 301, height: 200}}']
+    connections = []
+    for name, (type_name, params, inputs) in FEATURES.items():
+        t = types[type_name]
+        written = ", ".join(f"{k}: {_yaml_value(v)}" for k, v in params.items())
+        lines.append(f"  {name}: {{type: {type_name}, params: {{{written}}}}}")
+        (out_port, out_decl), = t.outputs.items()
+        lines.append(f"  keep_{name}: {{type: {keep_type_for(out_decl)}}}")
+        for port, source in zip(t.inputs, inputs, strict=True):
+            out = "image" if source == "camera" else next(iter(types[FEATURES[source][0]].outputs))
+            connections.append(f"  - {source}.{out} -> {name}.{port}")
+        connections.append(f"  - {name}.{out_port} -> keep_{name}.image")
+    model = tmp_path / "features_all.yaml"
+    model.write_text("\n".join(lines + ["connections:"] + connections) + "\n")
+    built = compile_model(model, tmp_path / "out", "gpu-aware", None)
+    write(built, tmp_path / "out")
+    program = load_generated(tmp_path / "out" / "features_all.py", "features_all")
+    result = program.run(frames=FRAMES, context=cl_context)
+    found_any = {"lines": 0, "regions": 0}
+    for i, camera in enumerate(_camera_frames()):
+        values = {"camera": camera}
+        for name, (type_name, params, inputs) in FEATURES.items():
+            args = [values[s] for s in inputs]
+            values[name] = (_opencv(type_name)(*args) if type_name == "RgbToGray"
+                            else _features_reference(type_name, params, *args))
+            ours = result.components[f"keep_{name}"].frames[i]
+            np.testing.assert_array_equal(ours.reshape(values[name].shape), values[name],
+                                          err_msg=f"{name}, frame {i}")
+            if name in found_any:
+                found_any[name] += int((values[name][:, 0, 0] != -1).sum())
+    assert all(found_any.values()), found_any  # the tables were not all empty
+
+
+@pytest.mark.parametrize("name", ["lanes", "edges"])
+def test_example_models_equal_opencv(tmp_path, cl_context, name):
+    """models/lanes.yaml and models/edges.yaml: the last photograph's picture equals the
+    same pipeline written with OpenCV's functions."""
+    require_opencl()
+    from gpucompgen.build import compile_model, write
+
+    built = compile_model(ROOT / "models" / f"{name}.yaml", tmp_path, "gpu-aware", None)
+    write(built, tmp_path)
+    program = load_generated(tmp_path / f"{name}.py", f"example_{name}")
+    result = program.run(frames=FRAMES, context=cl_context)
+    ours = result.components["sink"].last
+    camera = _camera_frames()[-1]
+    gray = cv2.cvtColor(camera, cv2.COLOR_RGB2GRAY)
+    if name == "lanes":
+        edges = cv2.threshold(cv2.convertScaleAbs(cv2.Sobel(cv2.GaussianBlur(
+            gray, (5, 5), 0), cv2.CV_16S, 1, 0, ksize=3)), 60, 255, cv2.THRESH_BINARY)[1]
+        roi = cv2.fillPoly(np.zeros(gray.shape, np.uint8), [np.array(ROI, np.int32)], 255)
+        cut = cv2.bitwise_and(edges, edges, mask=roi)
+        segments = cv2.HoughLinesP(cut, 1.0, np.pi / 180, 30, minLineLength=25.0,
+                                   maxLineGap=5.0)
+        expected = camera.copy()
+        for x1, y1, x2, y2 in ([] if segments is None else segments.reshape(-1, 4)[:32]):
+            cv2.line(expected, (int(x1), int(y1)), (int(x2), int(y2)), (255, 0, 0), 2)
+        assert segments is not None  # the example finds lines
+    else:
+        blur = cv2.GaussianBlur(gray, (3, 3), 0)
+        canny = cv2.Canny(blur, 50.0, 150.0)
+        sobel = cv2.addWeighted(cv2.convertScaleAbs(cv2.Sobel(blur, cv2.CV_16S, 1, 0)), 0.5,
+                                cv2.convertScaleAbs(cv2.Sobel(blur, cv2.CV_16S, 0, 1)), 0.5, 0)
+        laplace = cv2.convertScaleAbs(cv2.Laplacian(blur, cv2.CV_16S, ksize=3))
+        expected = cv2.hconcat([cv2.cvtColor(g, cv2.COLOR_GRAY2RGB)
+                                for g in (canny, sobel, laplace)])
+    np.testing.assert_array_equal(ours, expected)
