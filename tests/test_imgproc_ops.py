@@ -550,6 +550,9 @@ FEATURES = {  # name: (type, params, inputs); camera 301x200 RGB
                 {"connectivity": 8, "min_area": 5, "max_components": 16}, ("canny",)),
     "regions4": ("ConnectedComponentsWithStats",
                  {"connectivity": 4, "min_area": 1, "max_components": 4096}, ("roi",)),
+    "contours": ("FindContours", {"max_contours": 24}, ("canny",)),
+    "outlines": ("DrawBoxes", {"red": 255, "green": 0, "blue": 255, "thickness": 2},
+                 ("camera", "contours")),
     "lines": ("HoughLinesP", {"rho": 1.0, "theta_degrees": 1.0, "threshold": 30,
                               "min_line_length": 20.0, "max_line_gap": 5.0, "max_lines": 8},
               ("canny",)),
@@ -577,6 +580,13 @@ def _features_reference(type_name: str, params: dict, *inputs):
         table = np.full((p["max_components"], 1, 5), -1, np.int32)
         for i, r in enumerate(kept[:p["max_components"]]):
             table[i, 0] = r
+        return table
+    if type_name == "FindContours":
+        contours, _ = cv2.findContours((inputs[0] > 0).astype(np.uint8), cv2.RETR_EXTERNAL,
+                                       cv2.CHAIN_APPROX_SIMPLE)
+        table = np.full((p["max_contours"], 1, 5), -1, np.int32)
+        for i, contour in enumerate(contours[:p["max_contours"]]):
+            table[i, 0] = (*cv2.boundingRect(contour), len(contour))
         return table
     if type_name == "HoughLinesP":
         found = cv2.HoughLinesP(inputs[0], p["rho"], p["theta_degrees"] * np.pi / 180,
@@ -648,7 +658,7 @@ def test_cpu_side_types_in_a_generated_program_equal_opencv(tmp_path, cl_context
     write(built, tmp_path / "out")
     program = load_generated(tmp_path / "out" / "features_all.py", "features_all")
     result = program.run(frames=FRAMES, context=cl_context)
-    found_any = {"lines": 0, "regions": 0}
+    found_any = {"lines": 0, "regions": 0, "contours": 0}
     for i, camera in enumerate(_camera_frames()):
         values = {"camera": camera}
         for name, (type_name, params, inputs) in FEATURES.items():

@@ -10,7 +10,8 @@ What flows between components is always a frame (a numpy array of a port's fixed
 height x width x channels), so a variable number of things found is a **fixed-capacity
 table**: HoughLinesP's ``lines`` is ``max_lines`` x 1 x 4 int32 (x1, y1, x2, y2 per row),
 ConnectedComponentsWithStats' ``stats`` is ``max_components`` x 1 x 5 int32 (x, y, width,
-height, area per row, largest area first); rows past the last thing found are -1. The
+height, area per row, largest area first), FindContours' ``contours`` the same with each
+outer contour's box and number of points; rows past the last thing found are -1. The
 drawing components take such a table beside an image and return the image annotated.
 """
 
@@ -121,6 +122,31 @@ class ConnectedComponentsWithStats:
         table = np.full((self.max_components, 1, 5), UNUSED, np.int32)
         chosen = stats[order[:self.max_components]]
         table[:len(chosen), 0] = chosen
+        return table
+
+    def free_memory(self) -> None:
+        pass
+
+
+class FindContours:
+    """FindContours: cv2.findContours(src > 0, cv2.RETR_EXTERNAL,
+    cv2.CHAIN_APPROX_SIMPLE), the outer contours in OpenCV's order, each as its bounding
+    box and its number of points (x, y, width, height, points: cv2.boundingRect and
+    len(contour)), the first max_contours as a max_contours x 1 x 5 int32 table; unused
+    rows -1. DrawBoxes draws it."""
+
+    def __init__(self, *, max_contours: int = 64):
+        self.max_contours = int(max_contours)
+
+    def initialize(self, src: Size) -> Size:
+        return Size(self.max_contours, 1, 5)
+
+    def execute(self, src: np.ndarray) -> np.ndarray:
+        binary = (_gray(src) > 0).astype(np.uint8)
+        contours, _ = cv2.findContours(binary, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
+        table = np.full((self.max_contours, 1, 5), UNUSED, np.int32)
+        for i, contour in enumerate(contours[:self.max_contours]):
+            table[i, 0] = (*cv2.boundingRect(contour), len(contour))
         return table
 
     def free_memory(self) -> None:
