@@ -429,10 +429,10 @@ def _load_type(doc: Document, rep: Reporter, path: Path, origin: str, tname: str
                       "'default:' to make the parameter required")
         decl = ParamDecl(pname, ptype, minimum=bounds["min"], maximum=bounds["max"],
                          shape=shape)
-        problem = None if default is None else _param_value_problem(
+        problem, at = (None, ()) if default is None else _value_problem_at(
             default, decl, kind in ("gpu-aware", "flexible"))
         if problem:
-            rep.error(doc.pos(*ppath, "default", *_problem_index(problem)),
+            rep.error(doc.pos(*ppath, "default", *at),
                       f"default of '{pname}' {problem}",
                       f"give a {ptype} default within min and max, or none to make "
                       "the parameter required")
@@ -579,8 +579,10 @@ def array_shape(ptype: str) -> tuple[tuple[tuple[int, int], ...], str]:
         low, _, high = dim.partition("..")
         lo, hi = int(low), int(high or low)
         if lo < 1 or hi < lo:
-            return (), f"dimension [{dim}] must be a length of 1 or more, or a range A..B " \
-                       "with 1 <= A <= B"
+            return (), (f"dimension [{dim}] must be a length of 1 or more, or a range "
+                        "A..B with 1 <= A <= B")
+        if shape and hi != lo:  # rows of one length: a rectangular table
+            return (), f"only the first dimension may be a range of lengths, not [{dim}]"
         shape.append((lo, hi))
     if math.prod(hi for _, hi in shape) > MAX_ARRAY_ELEMENTS:
         return (), f"it may hold more than {MAX_ARRAY_ELEMENTS:,} values"
@@ -588,38 +590,37 @@ def array_shape(ptype: str) -> tuple[tuple[tuple[int, int], ...], str]:
 
 
 def _array_problem(value: Any, decl: ParamDecl, kernel: bool,
-                   index: tuple[int, ...] = ()) -> str | None:
-    """Why value is no array of decl's shape, element type and bounds; the problem names
-    the element it found it at as '[i][j]' (see _problem_index)."""
+                   index: tuple[int, ...] = ()) -> tuple[str, tuple[int, ...]] | None:
+    """Why value is no array of decl's shape, element type and bounds, and the index of
+    the element (or list) where that was found, so that the error points at it."""
     depth = len(index)
     where = "".join(f"[{i}]" for i in index)
+    what = f"element {where} " if where else ""
     if depth == len(decl.shape):
         element = ParamDecl(decl.name, decl.element, minimum=decl.minimum,
                             maximum=decl.maximum)
         problem = _param_value_problem(value, element, kernel)
-        return None if problem is None else f"element {where} {problem}"
+        return None if problem is None else (f"{what}{problem}", index)
     lo, hi = decl.shape[depth]
     if not isinstance(value, (list, tuple)):
-        return (f"{'element ' + where + ' ' if where else ''}must be a list of {lo}"
-                + (f" to {hi}" if hi != lo else "") + f" values, not {_kind(value)}")
+        return (f"{what}must be a list of {lo}" + (f" to {hi}" if hi != lo else "")
+                + f" values, not {_kind(value)}", index)
     if not lo <= len(value) <= hi:
         length = f"{lo}" if lo == hi else f"{lo} to {hi}"
-        return (f"{'element ' + where + ' ' if where else ''}has {len(value)} values where "
-                f"{decl.type} takes {length}")
+        return f"{what}has {len(value)} values where {decl.type} takes {length}", index
     for i, item in enumerate(value):
-        problem = _array_problem(item, decl, kernel, index + (i,))
-        if problem:
-            return problem
+        found = _array_problem(item, decl, kernel, index + (i,))
+        if found:
+            return found
     return None
 
 
-def _problem_index(problem: str) -> tuple[int, ...]:
-    """The element path a problem of _array_problem names ('element [2][1] ...'), so that
-    the error points at that element in the YAML file."""
-    m = re.match(r"element ((?:\[\d+\])+) ", problem)
-    if m is None:
-        return ()
-    return tuple(int(i) for i in re.findall(r"\d+", m.group(1)))
+def _value_problem_at(value: Any, decl: ParamDecl,
+                      kernel: bool) -> tuple[str | None, tuple[int, ...]]:
+    """_param_value_problem, and for an array the index of the element at fault."""
+    if decl.shape:
+        return _array_problem(value, decl, kernel) or (None, ())
+    return _param_value_problem(value, decl, kernel), ()
 
 
 def param_value(value: Any, decl: ParamDecl) -> Any:
@@ -639,7 +640,7 @@ def param_value(value: Any, decl: ParamDecl) -> Any:
 def _param_value_problem(value: Any, decl: ParamDecl, kernel: bool) -> str | None:
     """Why value cannot be given to parameter decl, or None when it can."""
     if decl.shape:
-        return _array_problem(value, decl, kernel)
+        return _value_problem_at(value, decl, kernel)[0]
     if not _value_fits(value, decl.type):
         return f"must be {decl.type}, not {_kind(value)} ({value!r})"
     if decl.type in ("int", "float"):
@@ -1524,7 +1525,7 @@ def _instance_params(doc, rep, cpath, ctype: ComponentType, given) -> dict[str, 
                       f"'{ctype.name}' has no parameter '{pname}'",
                       did_you_mean(pname, ctype.params) or f"'{ctype.name}' takes no parameters")
             continue
-        problem = _param_value_problem(value, decl, ctype.gpu_aware)
+        problem, at = _value_problem_at(value, decl, ctype.gpu_aware)
         if problem:
             hint = ""
             if decl.shape:
@@ -1546,7 +1547,7 @@ def _instance_params(doc, rep, cpath, ctype: ComponentType, given) -> dict[str, 
                           "path": "a path, relative to the model file or absolute",
                           "input": "an input URI or a path relative to the model file"}
                 hint = f"give {wanted[decl.type]}, e.g. '{pname}: {py_yaml(example)}'"
-            rep.error(doc.pos(*cpath, "params", pname, *_problem_index(problem)),
+            rep.error(doc.pos(*cpath, "params", pname, *at),
                       f"parameter '{pname}' of '{ctype.name}' {problem}", hint)
             continue
         params[pname] = param_value(value, decl)

@@ -103,7 +103,7 @@ def _element(shape: int, ksize: int) -> np.ndarray:
     element = np.zeros((ksize, ksize), bool)
     for dy in range(-r, r + 1):
         w = r if shape == 0 else (r if dy == 0 else 0) if shape == 1 else \
-            int(round((r * r - dy * dy) ** 0.5))
+            round((r * r - dy * dy) ** 0.5)
         element[dy + r, r - w:r + w + 1] = True
     return element
 
@@ -126,8 +126,12 @@ def _extreme(src, element, smallest: bool, iterations: int):
 
 def _morphology(src, op, shape, ksize, iterations):
     e = _element(shape, ksize)
-    erode = lambda a: _extreme(a, e, True, iterations)  # noqa: E731
-    dilate = lambda a: _extreme(a, e, False, iterations)  # noqa: E731
+    def erode(a):
+        return _extreme(a, e, True, iterations)
+
+    def dilate(a):
+        return _extreme(a, e, False, iterations)
+
     result = {0: lambda: erode(src), 1: lambda: dilate(src),
               2: lambda: dilate(erode(src)), 3: lambda: erode(dilate(src)),
               4: lambda: dilate(src) - erode(src),
@@ -156,7 +160,7 @@ class Op:
 
 
 # a gamma curve of 0.5, rounded: the table a contrast pipeline would give Lut
-GAMMA = tuple(int(round(255 * (i / 255) ** 0.5)) for i in range(256))
+GAMMA = tuple(round(255 * (i / 255) ** 0.5) for i in range(256))
 
 
 def _masked_and(a, b, m):
@@ -458,12 +462,6 @@ CHAIN: dict[str, tuple[str, dict, tuple[str, ...]]] = {
 }
 
 
-def _type(type_name: str):
-    from gpucompgen.model import library_types
-
-    return library_types()[type_name]
-
-
 def _opencv(type_name: str) -> Callable:
     if type_name in OPS:
         return OPS[type_name].opencv
@@ -472,24 +470,34 @@ def _opencv(type_name: str) -> Callable:
     return SPECS[type_name].opencv
 
 
-def model_text(placement: str) -> str:
-    lines = ["system: ops_all", "types: [keep.yaml]",
-             f"platform: {{device: portable, placement: {placement}}}", "components:",
-             f'  camera: {{type: Camera, params: {{folder: "{PHOTOS.as_posix()}", '
-             'width: 301, height: 200}}']
+def chain_model(system: str, chain: dict, placement: str | None = None) -> str:
+    """A model of a camera over models/photos/ and the components of chain (name: (type,
+    params, input components in port order)), each output kept by a Keep sink."""
+    from gpucompgen.model import library_types
+
+    types = library_types()
+    lines = [f"system: {system}", "types: [keep.yaml]"]
+    if placement:
+        lines.append(f"platform: {{device: portable, placement: {placement}}}")
+    lines += ["components:", f'  camera: {{type: Camera, params: {{folder: '
+              f'"{PHOTOS.as_posix()}", width: 301, height: 200}}}}']
     connections = []
-    for name, (type_name, params, inputs) in CHAIN.items():
-        t = _type(type_name)
-        written = ", ".join(f"{k}: {list(v) if isinstance(v, tuple) else v}"
-                            for k, v in params.items())
+    for name, (type_name, params, inputs) in chain.items():
+        t = types[type_name]
+        written = ", ".join(f"{k}: {_yaml_value(v)}" for k, v in params.items())
         lines.append(f"  {name}: {{type: {type_name}, params: {{{written}}}}}")
         (out_port, out_decl), = t.outputs.items()
         lines.append(f"  keep_{name}: {{type: {keep_type_for(out_decl)}}}")
         for port, source in zip(t.inputs, inputs, strict=True):
-            out = "image" if source == "camera" else next(iter(_type(CHAIN[source][0]).outputs))
+            out = "image" if source == "camera" else next(iter(types[chain[source][0]].outputs))
             connections.append(f"  - {source}.{out} -> {name}.{port}")
         connections.append(f"  - {name}.{out_port} -> keep_{name}.image")
     return "\n".join(lines + ["connections:"] + connections) + "\n"
+
+
+def _yaml_value(v) -> str:
+    return str(list(v)) if isinstance(v, (list, tuple)) else \
+        ("true" if v is True else "false" if v is False else str(v))
 
 
 MIXED = {name: ("cpu" if i % 2 else "gpu") for i, name in enumerate(CHAIN)}
@@ -505,7 +513,7 @@ def program_outputs(tmp_path_factory, cl_context):
     found = {}
     for placement, places in (("gpu", None), ("cpu", None), ("mixed", MIXED)):
         model = folder / f"ops_{placement}.yaml"
-        model.write_text(model_text("gpu" if places else placement))
+        model.write_text(chain_model("ops_all", CHAIN, "gpu" if places else placement))
         out = folder / f"out_{placement}"
         built = compile_model(model, out, "gpu-aware", None, places=places)
         write(built, out)
@@ -622,11 +630,6 @@ def _camera_frames() -> list[np.ndarray]:
     return frames
 
 
-def _yaml_value(v) -> str:
-    return str(list(v)) if isinstance(v, (list, tuple)) else \
-        ("true" if v is True else "false" if v is False else str(v))
-
-
 def test_cpu_side_types_in_a_generated_program_equal_opencv(tmp_path, cl_context):
     """Every type of features.yaml and drawing.yaml in one program over the photographs,
     each component's output against OpenCV's calls on OpenCV's results before it."""
@@ -638,22 +641,8 @@ def test_cpu_side_types_in_a_generated_program_equal_opencv(tmp_path, cl_context
     assert {n for n, t in types.items() if t.decl_file.name in ("features.yaml", "drawing.yaml")
             } == {t for t, _, _ in FEATURES.values()} - {"RgbToGray"}
     write_keep_types(tmp_path)
-    lines = ["system: features_all", "types: [keep.yaml]", "components:",
-             f'  camera: {{type: Camera, params: {{folder: "{PHOTOS.as_posix()}", '
-             'width: 301, height: 200}}']
-    connections = []
-    for name, (type_name, params, inputs) in FEATURES.items():
-        t = types[type_name]
-        written = ", ".join(f"{k}: {_yaml_value(v)}" for k, v in params.items())
-        lines.append(f"  {name}: {{type: {type_name}, params: {{{written}}}}}")
-        (out_port, out_decl), = t.outputs.items()
-        lines.append(f"  keep_{name}: {{type: {keep_type_for(out_decl)}}}")
-        for port, source in zip(t.inputs, inputs, strict=True):
-            out = "image" if source == "camera" else next(iter(types[FEATURES[source][0]].outputs))
-            connections.append(f"  - {source}.{out} -> {name}.{port}")
-        connections.append(f"  - {name}.{out_port} -> keep_{name}.image")
     model = tmp_path / "features_all.yaml"
-    model.write_text("\n".join(lines + ["connections:"] + connections) + "\n")
+    model.write_text(chain_model("features_all", FEATURES))
     built = compile_model(model, tmp_path / "out", "gpu-aware", None)
     write(built, tmp_path / "out")
     program = load_generated(tmp_path / "out" / "features_all.py", "features_all")

@@ -374,6 +374,6 @@ def _store(values: np.ndarray, out: np.ndarray | None, type_name: str,
 
 # the operations of issue 26 (bitwise.yaml, convert.yaml, filters2.yaml, ...): their CPU
 # forms live in cpu_ops.py; the registry has them all
-from .cpu_ops import CPU_OPS  # noqa: E402 (after the helpers cpu_ops does not import)
+from .cpu_ops import CPU_OPS
 
 CPU_IMPLEMENTATIONS.update(CPU_OPS)

@@ -10,7 +10,8 @@ construction; tests/test_imgproc_ops.py compares each with the type's generated 
 kernel on photographs and random frames, and with hand-computed values.  CPU_OPS maps each
 type's name to its function (cpu_kernels.CPU_IMPLEMENTATIONS includes them).
 
-This module imports nothing of cpu_kernels (which imports it) and of the generator.
+It shares cpu_kernels' helpers (imported at the end: cpu_kernels imports this module at
+its own end) and imports nothing of the generator.
 """
 
 from __future__ import annotations
@@ -187,34 +188,11 @@ def _image(type_name: str, port: str, array, dtype=np.uint8) -> int:
     return 3 if array.ndim == 3 and array.shape[2] == 3 else 1
 
 
-def _pair(type_name: str, src1: np.ndarray, src2: np.ndarray) -> None:
-    _image(type_name, "src1", src1)
-    _image(type_name, "src2", src2)
-    if src1.shape != src2.shape:
-        raise ValueError(f"{type_name}: src1 and src2 must have the same size, not "
-                         f"{src1.shape} and {src2.shape}")
-
-
 def _odd_ksize(type_name: str, ksize) -> int:
     ksize = int(ksize)
     if ksize < 1 or ksize > MAX_KSIZE or ksize % 2 == 0:
         raise ValueError(f"{type_name}: ksize must be odd, 1..{MAX_KSIZE}, not {ksize}")
     return ksize
-
-
-def _output(out: np.ndarray | None, shape: tuple[int, ...], type_name: str,
-            port: str, dtype=np.uint8) -> np.ndarray:
-    """out, checked (OpenCV would silently write a new array for a dst of another shape,
-    type or layout); without it a new array."""
-    if out is None:
-        return np.empty(shape, dtype)
-    if (not isinstance(out, np.ndarray) or out.shape != tuple(shape) or out.dtype != dtype
-            or not out.flags.c_contiguous):
-        raise ValueError(f"{type_name}: out= for '{port}' must be a C-contiguous "
-                         f"{np.dtype(dtype).name} array of shape {tuple(shape)}, not "
-                         f"{getattr(out, 'dtype', type(out).__name__)} "
-                         f"{getattr(out, 'shape', '')}")
-    return out
 
 
 CPU_OPS = {
@@ -228,3 +206,8 @@ CPU_OPS = {
         ("Blur", blur), ("Laplacian", laplacian), ("Scharr", scharr), ("Lut", lut),
         ("MorphologyEx", morphology_ex))},
 }
+
+# last, so that either module may be imported first: cpu_kernels imports CPU_OPS at its
+# end, and these helpers are defined before that import runs
+from .cpu_kernels import _output
+from .cpu_kernels import _same_shape as _pair
