@@ -10,9 +10,9 @@ masks) with every parameter set of OPS, which reaches every parameter's limits: 
 equal, bit for bit. Hypothesis then draws small frames (odd sizes, one pixel high or wide,
 where windows reach past two borders), parameters in their declared ranges and GPU
 settings. Last, one generated program chains every new type (test_generated_program_*):
-built on the GPU, on the CPU and alternating, each component's output equals the OpenCV
-chain's; fused = unfused is the property test of tests/test_fusion.py, which draws from
-every fusable library type, these included.
+built on the GPU fused, on the GPU with fusion off, on the CPU and alternating, each
+component's output equals the OpenCV chain's; tests/test_fusion.py's property test also
+draws fused = unfused systems from every fusable library type, these included.
 """
 
 from __future__ import annotations
@@ -511,18 +511,22 @@ def program_outputs(tmp_path_factory, cl_context):
     folder = tmp_path_factory.mktemp("ops_all")
     write_keep_types(folder)
     found = {}
-    for placement, places in (("gpu", None), ("cpu", None), ("mixed", MIXED)):
-        model = folder / f"ops_{placement}.yaml"
-        model.write_text(chain_model("ops_all", CHAIN, "gpu" if places else placement))
-        out = folder / f"out_{placement}"
-        built = compile_model(model, out, "gpu-aware", None, places=places)
+    for variant, places, fusion in (("gpu", None, "auto"), ("unfused", None, "off"),
+                                    ("cpu", None, "auto"), ("mixed", MIXED, "auto")):
+        placement = "cpu" if variant == "cpu" else "gpu"
+        model = folder / f"ops_{variant}.yaml"
+        model.write_text(chain_model("ops_all", CHAIN, placement))
+        out = folder / f"out_{variant}"
+        built = compile_model(model, out, "gpu-aware", None, places=places, fusion=fusion)
         write(built, out)
         placed = {n: built.system.component(n).placement for n in CHAIN}
         assert placed == (places or dict.fromkeys(CHAIN, placement))
-        program = load_generated(out / "ops_all.py", f"ops_all_{placement}")
+        if variant in ("gpu", "unfused"):  # fused groups, or every kernel alone
+            assert bool(built.system.groups) == (variant == "gpu"), variant
+        program = load_generated(out / "ops_all.py", f"ops_all_{variant}")
         result = program.run(frames=FRAMES, context=cl_context)
         assert result.frames == FRAMES
-        found[placement] = {n: result.components[f"keep_{n}"].frames for n in CHAIN}
+        found[variant] = {n: result.components[f"keep_{n}"].frames for n in CHAIN}
     return found
 
 
@@ -531,10 +535,8 @@ def test_the_chain_has_every_new_type():
 
 
 def test_generated_program_equals_opencv_on_every_placement(program_outputs):
-    Image = pytest.importorskip("PIL.Image")
-    for i, path in enumerate(sorted(PHOTOS.glob("*.jpg"))):
-        with Image.open(path) as im:
-            values = {"camera": np.asarray(im.convert("RGB"))}
+    for i, camera in enumerate(_camera_frames()):
+        values = {"camera": camera}
         for name, (type_name, params, inputs) in CHAIN.items():
             values[name] = _opencv(type_name)(*(values[s] for s in inputs), **params)
             for placement, components in program_outputs.items():
