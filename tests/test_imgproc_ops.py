@@ -10,14 +10,15 @@ masks) with every parameter set of OPS, which reaches every parameter's limits: 
 equal, bit for bit. Hypothesis then draws small frames (odd sizes, one pixel high or wide,
 where windows reach past two borders), parameters in their declared ranges and GPU
 settings. Last, one generated program chains every new type (test_generated_program_*):
-built on the GPU fused, on the GPU with fusion off, on the CPU and alternating, each
-component's output equals the OpenCV chain's; tests/test_fusion.py's property test also
-draws fused = unfused systems from every fusable library type, these included.
+built on the GPU, on the CPU and alternating, each component's output equals the OpenCV
+chain's; and with only the chain's ends kept it is built fused (every new type inside a
+group), unfused and on the CPU, all equal to OpenCV (test_fused_*); tests/test_fusion.py's
+property test also draws fused = unfused systems from every fusable library type.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Collection
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -459,6 +460,11 @@ CHAIN: dict[str, tuple[str, dict, tuple[str, ...]]] = {
     "gopen": ("MorphologyExGray", {"op": 2, "shape": 0, "ksize": 3, "iterations": 2},
               ("mask",)),
     "gcurve": ("LutGray", {"lut": tuple(255 - i for i in range(256))}, ("gcut",)),
+    # a chain of one reader each, so that the fused build puts these in one group too
+    "gsmooth": ("BlurGray", {"ksize": 5, "border_type": 1}, ("gray",)),
+    "glut": ("LutGray", {"lut": GAMMA}, ("gsmooth",)),
+    "gedge": ("MorphologyExGray", {"op": 4, "shape": 1, "ksize": 3, "iterations": 1},
+              ("glut",)),
 }
 
 
@@ -470,9 +476,11 @@ def _opencv(type_name: str) -> Callable:
     return SPECS[type_name].opencv
 
 
-def chain_model(system: str, chain: dict, placement: str | None = None) -> str:
+def chain_model(system: str, chain: dict, placement: str | None = None,
+                keep: Collection[str] | None = None) -> str:
     """A model of a camera over models/photos/ and the components of chain (name: (type,
-    params, input components in port order)), each output kept by a Keep sink."""
+    params, input components in port order)), each output (or those of keep) kept by a
+    Keep sink."""
     from gpucompgen.model import library_types
 
     types = library_types()
@@ -487,11 +495,12 @@ def chain_model(system: str, chain: dict, placement: str | None = None) -> str:
         written = ", ".join(f"{k}: {_yaml_value(v)}" for k, v in params.items())
         lines.append(f"  {name}: {{type: {type_name}, params: {{{written}}}}}")
         (out_port, out_decl), = t.outputs.items()
-        lines.append(f"  keep_{name}: {{type: {keep_type_for(out_decl)}}}")
         for port, source in zip(t.inputs, inputs, strict=True):
             out = "image" if source == "camera" else next(iter(types[chain[source][0]].outputs))
             connections.append(f"  - {source}.{out} -> {name}.{port}")
-        connections.append(f"  - {name}.{out_port} -> keep_{name}.image")
+        if keep is None or name in keep:
+            lines.append(f"  keep_{name}: {{type: {keep_type_for(out_decl)}}}")
+            connections.append(f"  - {name}.{out_port} -> keep_{name}.image")
     return "\n".join(lines + ["connections:"] + connections) + "\n"
 
 
@@ -511,8 +520,8 @@ def program_outputs(tmp_path_factory, cl_context):
     folder = tmp_path_factory.mktemp("ops_all")
     write_keep_types(folder)
     found = {}
-    for variant, places, fusion in (("gpu", None, "auto"), ("unfused", None, "off"),
-                                    ("cpu", None, "auto"), ("mixed", MIXED, "auto")):
+    for variant, places, fusion in (("gpu", None, "auto"), ("cpu", None, "auto"),
+                                    ("mixed", MIXED, "auto")):
         placement = "cpu" if variant == "cpu" else "gpu"
         model = folder / f"ops_{variant}.yaml"
         model.write_text(chain_model("ops_all", CHAIN, placement))
@@ -521,13 +530,57 @@ def program_outputs(tmp_path_factory, cl_context):
         write(built, out)
         placed = {n: built.system.component(n).placement for n in CHAIN}
         assert placed == (places or dict.fromkeys(CHAIN, placement))
-        if variant in ("gpu", "unfused"):  # fused groups, or every kernel alone
-            assert bool(built.system.groups) == (variant == "gpu"), variant
         program = load_generated(out / "ops_all.py", f"ops_all_{variant}")
         result = program.run(frames=FRAMES, context=cl_context)
         assert result.frames == FRAMES
         found[variant] = {n: result.components[f"keep_{n}"].frames for n in CHAIN}
     return found
+
+
+# the chain's ends: what nobody else reads; only these are kept in the fused programs, so
+# that every other output may live inside a group
+ENDS = sorted(set(CHAIN) - {s for _, _, inputs in CHAIN.values() for s in inputs})
+
+
+@pytest.fixture(scope="module")
+def fused_outputs(tmp_path_factory, cl_context):
+    """{variant: (build, {end: frames})}: the chain with only its ends kept, built fused
+    (launches made so dear that every legal group forms), unfused and on the CPU."""
+    require_opencl()
+    from gpucompgen.build import compile_model, write
+
+    folder = tmp_path_factory.mktemp("ops_fused")
+    write_keep_types(folder)
+    found = {}
+    for variant, placement, fusion in (("fused", "gpu", "auto"), ("unfused", "gpu", "off"),
+                                       ("cpu", "cpu", "auto")):
+        model = folder / f"ops_{variant}.yaml"
+        model.write_text(chain_model("ops_fused", CHAIN, placement, keep=ENDS))
+        out = folder / f"out_{variant}"
+        with pytest.MonkeyPatch.context() as patch:
+            patch.setattr("gpucompgen.passes.fuse.LAUNCH", 10**15)
+            built = compile_model(model, out, fusion=fusion)
+        write(built, out)
+        program = load_generated(out / "ops_fused.py", f"ops_fused_{variant}")
+        result = program.run(frames=FRAMES, context=cl_context)
+        found[variant] = (built, {n: result.components[f"keep_{n}"].frames for n in ENDS})
+    return found
+
+
+def test_fused_equals_unfused_equals_cpu_equals_opencv(fused_outputs):
+    built, _ = fused_outputs["fused"]
+    grouped = {m.type.name for g in built.system.groups for m in g.members}
+    fusable = {t for t, _, _ in CHAIN.values() if t in OPS}
+    assert fusable <= grouped, sorted(fusable - grouped)  # every new type inside a group
+    assert not fused_outputs["unfused"][0].system.groups
+    for i, camera in enumerate(_camera_frames()):
+        values = {"camera": camera}
+        for name, (type_name, params, inputs) in CHAIN.items():
+            values[name] = _opencv(type_name)(*(values[s] for s in inputs), **params)
+        for variant, (_, frames) in fused_outputs.items():
+            for name in ENDS:
+                np.testing.assert_array_equal(frames[name][i], values[name],
+                                              err_msg=f"{variant}: {name}, frame {i}")
 
 
 def test_the_chain_has_every_new_type():
