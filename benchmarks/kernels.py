@@ -1,7 +1,7 @@
 """Every library GPU operation alone on a frame, against the same OpenCV call (issue 24).
 
     python benchmarks/kernels.py [--sizes 640x360,1280x720] [--rounds 7] [--reps 5]
-                                 [--only NAME,NAME] [--no-hand]
+                                 [--only NAME,NAME] [--no-hand] [--settings TILE,BX,BY]
 
 For each library type with a kernel, on one frame of each size (a photograph scaled to
 the size, so that data-dependent work is realistic), side by side in one process, rounds
@@ -194,8 +194,9 @@ def hand_variant(ctx, queue, t, arrays, params, programs):
                    bufs[oname], result, bufs)
 
 
-def gen_variant(ctx, queue, t, arrays, params, device):
-    """The generator's kernel for the operation alone (a group of one member 'op')."""
+def gen_variant(ctx, queue, t, arrays, params, device, settings=None):
+    """The generator's kernel for the operation alone (a group of one member 'op'), with
+    the system's preferred settings or the given (tile, block_x, block_y)."""
     import pyopencl as cl
 
     from gpucompgen.backend.opencl import fused
@@ -214,7 +215,9 @@ def gen_variant(ctx, queue, t, arrays, params, device):
     result = np.empty(shape, dtype)
     out = cl.Buffer(ctx, mf.READ_WRITE, max(result.nbytes, 1))
     tile, bx, by, _ = fused.preferred_settings(group, device)
-    kernel.set_args(*fused.launch_arguments(group, bufs, out, params, tile))
+    if settings:
+        tile, bx, by = settings
+    kernel.set_args(*fused.launch_arguments(group, bufs, out, tile))
     gsize, lsize = fused.launch_geometry(group, tile, bx, by)
     return Variant(queue, kernel, gsize, lsize, out, result, bufs)
 
@@ -358,6 +361,8 @@ def main(argv=None) -> int:
     ap.add_argument("--reps", type=int, default=5)
     ap.add_argument("--only", default="", help="comma-separated case names")
     ap.add_argument("--no-hand", action="store_true", help="skip the hand-written kernels")
+    ap.add_argument("--settings", default="",
+                    help="TILE,BX,BY: also the generated kernels with these launch settings")
     ap.add_argument("--pipelines", action="store_true",
                     help="the issue's pipelines fused and unfused instead")
     ap.add_argument("--frames", type=int, default=10, help="frames a round (--pipelines)")
@@ -367,7 +372,7 @@ def main(argv=None) -> int:
     ctx = cl.create_some_context(interactive=False)
     queue = cl.CommandQueue(ctx, properties=cl.command_queue_properties.PROFILING_ENABLE)
     device = ctx.devices[0]
-    from gpucompgen.runtime.facts import query as facts_of_cl_device
+    from gpucompgen.runtime.opencl import facts as facts_of_cl_device
 
     facts = facts_of_cl_device(device)
     types = library_types()
@@ -392,6 +397,9 @@ def main(argv=None) -> int:
             if not a.no_hand:
                 variants["hand"] = hand_variant(ctx, queue, t, arrays, params, programs)
             variants["gen"] = gen_variant(ctx, queue, t, arrays, params, facts)
+            if a.settings:
+                variants["gen@"] = gen_variant(ctx, queue, t, arrays, params, facts,
+                                               tuple(map(int, a.settings.split(","))))
             variants = {k: v for k, v in variants.items() if v is not None}
             for k, v in variants.items():
                 got = v.output()
@@ -409,12 +417,14 @@ def main(argv=None) -> int:
                     ref(*arrays)
                     samples["cv2"].append(time.perf_counter() - t0)
         print(f"\n{size}: ms per call, median [IQR]; ratio = kernel / cv2")
-        print("| operation | cv2 | hand | ratio | generated | ratio |")
-        print("|---|---:|---:|---:|---:|---:|")
+        extra = [f"generated, settings {a.settings}", "ratio"] if a.settings else []
+        print("| " + " | ".join(["operation", "cv2", "hand", "ratio", "generated", "ratio",
+                                 *extra]) + " |")
+        print("|---|---:|---:|---:|---:|---:|" + "---:|" * len(extra))
         for name, (variants, _, _, samples) in runs.items():
             c = _stats(samples["cv2"])
             cells = [f"{c[0]:.3f} [{c[1]:.3f}-{c[2]:.3f}]"]
-            for k in ("hand", "gen"):
+            for k in ("hand", "gen", *(["gen@"] if a.settings else [])):
                 if samples.get(k):
                     s = _stats(samples[k])
                     cells += [f"{s[0]:.3f} [{s[1]:.3f}-{s[2]:.3f}]", f"{s[0] / c[0]:.1f}x"]

@@ -8,10 +8,11 @@ frame wrapped in a USE_HOST_PTR buffer, the last output mapped for the sink), so
 sees what zero-copy gains or loses on this device.  In the same run, the references a reader needs
 to judge the result:
 
-- hand-written: the same kernel in a plain pyopencl loop, no framework (one buffer per
-  stage, like the generated program), so generated / hand-written is the framework's cost;
+- hand-written: the same kernel in a plain loop of copies and launches, no framework (one
+  buffer per stage, like the generated program), so generated / hand-written is the
+  framework's cost;
 - bound: N times the time the device takes to read and write one frame, from its copy
-  bandwidth measured with buffer-to-buffer ``cl.enqueue_copy`` along a ring of buffers
+  bandwidth measured with buffer-to-buffer copies along a ring of buffers
   larger than the CPU's caches, sampled in the same rounds as the pipelines (the
   adapters' two copies are not counted: it is a bound on the components alone);
 - opencv-cpu and opencv-ocl: the same chain of ``cv2.flip(image, 0)`` on numpy arrays and
@@ -41,7 +42,7 @@ from pathlib import Path
 import numpy as np
 
 from .model import MAX_COMPONENTS
-from .runtime import load_module
+from .runtime import device_api, load_module
 
 DEFAULT_SIZES = ((1152, 864), (1152, 1782))  # width x height, as in the paper
 DEFAULT_LENGTHS = (5, 10, 15, 20, 25)
@@ -158,49 +159,46 @@ class Generated:
 
 
 class HandWritten:
-    """The same kernel in a plain pyopencl loop: what a programmer would write by hand."""
+    """The same kernel in a plain loop of copies and launches (the device interface's
+    calls, one each, as a programmer would write them by hand with the device's API)."""
 
     def __init__(self, n: int, image: np.ndarray, context):
-        import pyopencl as cl
-
         from .backend.opencl.fused import group_kernel, group_of_one, launch_geometry
         from .model import library_types
         from .passes.fuse import GROUP_GPU
-        from .runtime import quiet_compiler
 
-        self.cl, self.n, self.image = cl, n, image
+        api = self.api = device_api.get()
+        self.n, self.image = n, image
         self.context = context
-        self.queue = cl.CommandQueue(context)
+        self.queue = api.create_queue(context)
         h, w = image.shape[:2]
         # VerticalMirror's kernel: the one the generator writes from its form for a mirror
         # alone, with the settings the generated program gives it (work-groups of rows)
         group = group_of_one(library_types()["VerticalMirror"], {},
                              {"image": (h, w), "mirrored": (h, w)}, "m", "vertical_mirror")
-        with quiet_compiler():
-            program = cl.Program(context, group_kernel(group, "bench")).build()
-        self.kernel = cl.Kernel(program, "vertical_mirror")
+        program = api.build_source(context, group_kernel(group, "bench"))
+        self.kernel = api.kernel(program, "vertical_mirror")
         tile, bx, by, _ = GROUP_GPU.prefer
         self.global_size, self.local_size = launch_geometry(group, tile, bx, by)
         self.args = [np.int32(tile)]
-        mf = cl.mem_flags
-        self.buffers = [cl.Buffer(context, mf.READ_WRITE, image.nbytes) for _ in range(n + 1)]
+        self.buffers = [api.device_buffer(context, image.nbytes) for _ in range(n + 1)]
         self.host = np.empty_like(image)
 
     def run(self, frames: int) -> tuple[list[float], np.ndarray]:
-        cl, q, k = self.cl, self.queue, self.kernel
+        api, q, k = self.api, self.queue, self.kernel
         arrivals = []
         for _ in range(frames + 1):
-            cl.enqueue_copy(q, self.buffers[0], self.image)
+            api.copy(q, self.buffers[0], self.image)
             for i in range(self.n):
-                k(q, self.global_size, self.local_size, self.buffers[i], self.buffers[i + 1],
-                  *self.args)
-            cl.enqueue_copy(q, self.host, self.buffers[self.n])
+                api.set_args(k, self.buffers[i], self.buffers[i + 1], *self.args)
+                api.launch(q, k, self.global_size, self.local_size)
+            api.copy(q, self.host, self.buffers[self.n])
             arrivals.append(time.perf_counter())
         return list(np.diff(arrivals)), self.host
 
     def release(self) -> None:
         for b in self.buffers:
-            b.release()
+            self.api.release(b)
 
 
 class OpenCvCpu:
@@ -227,7 +225,7 @@ class OpenCvCpu:
 
 
 class CopyRing:
-    """The device's copy bandwidth, for the bound: buffer-to-buffer cl.enqueue_copy.
+    """The device's copy bandwidth, for the bound: buffer-to-buffer copies.
 
     The copies go along a ring of distinct buffers at least 64 MiB in all, as a chain of
     components goes through distinct buffers: two buffers copied back and forth would stay
@@ -236,15 +234,14 @@ class CopyRing:
     """
 
     def __init__(self, context, nbytes: int):
-        import pyopencl as cl
-
-        self.cl, self.nbytes = cl, nbytes
-        self.queue = cl.CommandQueue(context)
+        api = self.api = device_api.get()
+        self.nbytes = nbytes
+        self.queue = api.create_queue(context)
         count = max(8, -(-(64 << 20) // nbytes))
-        self.ring = [cl.Buffer(context, cl.mem_flags.READ_WRITE, nbytes) for _ in range(count)]
+        self.ring = [api.device_buffer(context, nbytes) for _ in range(count)]
         for b in self.ring:
-            cl.enqueue_fill_buffer(self.queue, b, np.uint8(7), 0, nbytes)
-        self.queue.finish()
+            api.fill(self.queue, b, 7, nbytes)
+        api.finish(self.queue)
 
     def seconds_per_frame_copy(self, samples: int) -> list[float]:
         """Time to read and write one frame once, from `samples` runs along the ring."""
@@ -252,14 +249,14 @@ class CopyRing:
         for _ in range(samples):
             t = time.perf_counter()
             for i in range(len(self.ring) - 1):
-                self.cl.enqueue_copy(self.queue, self.ring[i + 1], self.ring[i])
-            self.queue.finish()
+                self.api.copy(self.queue, self.ring[i + 1], self.ring[i])
+            self.api.finish(self.queue)
             result.append((time.perf_counter() - t) / (len(self.ring) - 1))
         return result
 
     def release(self) -> None:
         for b in self.ring:
-            b.release()
+            self.api.release(b)
         self.ring = []
 
 
@@ -276,25 +273,21 @@ class Bound:
 # ------------------------------------------------------------------ OpenCV (child process)
 
 def _opencv_env() -> dict[str, str]:
-    """OpenCV's OpenCL on the device pyopencl uses (PoCL ships inside pyopencl's wheel)."""
+    """OpenCV's OpenCL on the device the runtime uses (the OpenCL module names the loader
+    library its binding ships, with PoCL)."""
     env = dict(os.environ)
     env.setdefault("OPENCV_OPENCL_DEVICE", ":CPU:")
     if "OPENCV_OPENCL_RUNTIME" not in env:
-        try:
-            import pyopencl
-
-            libs = sorted((Path(pyopencl.__file__).parent / ".libs").glob("libOpenCL*.so*"))
-        except ImportError:
-            libs = []
-        if libs:
-            env["OPENCV_OPENCL_RUNTIME"] = str(libs[0])
+        library = device_api.get().loader_library()
+        if library:
+            env["OPENCV_OPENCL_RUNTIME"] = library
     return env
 
 
 def opencv_worker(spec: dict) -> dict:
     """Run in the child: times per frame of cv2.flip chains on UMat (OpenCL)."""
-    # pyopencl first: it tells the ICD loader where the PoCL shipped in its wheel is
-    import pyopencl  # noqa: F401, I001
+    # the OpenCL binding first: it tells the ICD loader where the PoCL it ships is
+    device_api.get().load()
     import cv2
 
     from .library.still_image import still_frame
@@ -358,10 +351,9 @@ def run_bench(sizes, lengths, frames: int, out_dir: Path, opencv: bool = True,
     from tqdm import tqdm
 
     from .library.still_image import still_frame
-    from .runtime import create_context
-
-    context = create_context()
-    device = context.devices[0]
+    api = device_api.get()
+    context = api.create_context()
+    device = api.context_device(context)
     try:
         out_dir.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
@@ -382,31 +374,8 @@ def run_bench(sizes, lengths, frames: int, out_dir: Path, opencv: bool = True,
             ring = CopyRing(context, image.nbytes)
             bar.update(1)
             for n in lengths:
-                runners = {"standard": Generated(Path(tmp), n, size, "standard", context),
-                           "gpu-aware": Generated(Path(tmp), n, size, "gpu-aware", context),
-                           "zero-copy": Generated(Path(tmp), n, size, "zero-copy", context),
-                           "fused": Generated(Path(tmp), n, size, "fused", context),
-                           "hand-written": HandWritten(n, image, context),
-                           "bound": Bound(n, ring)}
-                if opencv:
-                    runners["opencv-cpu"] = OpenCvCpu(n, image)
-                samples: dict[str, list[float]] = {v: [] for v in runners}
-                want = expected_output(image, n)
-                for r in range(rounds):
-                    k = frames // rounds + (1 if r < frames % rounds else 0)
-                    for variant, runner in runners.items():
-                        bar.set_postfix_str(f"{size[0]}x{size[1]} N={n} {variant}")
-                        times, last = runner.run(k)
-                        if last is not None and not np.array_equal(last, want):
-                            raise BenchError(f"{variant} chain of {n} at {size[0]}x{size[1]} "
-                                             "gave a wrong image")
-                        samples[variant] += times
-                        bar.update(1)
-                for variant in ("hand-written", "opencv-cpu"):
-                    if variant in runners:
-                        runners[variant].release()
-                for variant, s in samples.items():
-                    figures.append(Figure(size, n, variant, s))
+                figures += _time_chain(n, size, image, Path(tmp), context, ring, opencv,
+                                       frames, rounds, bar)
             ring.release()
             if opencv:
                 bar.set_postfix_str(f"{size[0]}x{size[1]} OpenCV")
@@ -418,7 +387,7 @@ def run_bench(sizes, lengths, frames: int, out_dir: Path, opencv: bool = True,
                         figures.append(Figure(size, int(n_text), variant, s))
                 bar.update(1)
     bar.close()
-    device_name = f"{device.name.strip()} ({device.platform.name.strip()})"
+    device_name = api.device_name(device)
     csv_path = out_dir / "bench.csv"
     png_path = out_dir / "bench.png"
     try:
@@ -430,6 +399,36 @@ def run_bench(sizes, lengths, frames: int, out_dir: Path, opencv: bool = True,
     print(text, file=stdout)
     print(f"wrote {csv_path}\nwrote {png_path}", file=stdout)
     return {"figures": figures, "csv": csv_path, "png": png_path, "text": text}
+
+
+def _time_chain(n: int, size, image, tmp: Path, context, ring: CopyRing, opencv: bool,
+                frames: int, rounds: int, bar) -> list[Figure]:
+    """Every variant of a chain of n mirrors at one size, timed in rounds taking turns
+    (each output checked against the expected image)."""
+    runners = {"standard": Generated(tmp, n, size, "standard", context),
+               "gpu-aware": Generated(tmp, n, size, "gpu-aware", context),
+               "zero-copy": Generated(tmp, n, size, "zero-copy", context),
+               "fused": Generated(tmp, n, size, "fused", context),
+               "hand-written": HandWritten(n, image, context),
+               "bound": Bound(n, ring)}
+    if opencv:
+        runners["opencv-cpu"] = OpenCvCpu(n, image)
+    samples: dict[str, list[float]] = {v: [] for v in runners}
+    want = expected_output(image, n)
+    for r in range(rounds):
+        k = frames // rounds + (1 if r < frames % rounds else 0)
+        for variant, runner in runners.items():
+            bar.set_postfix_str(f"{size[0]}x{size[1]} N={n} {variant}")
+            times, last = runner.run(k)
+            if last is not None and not np.array_equal(last, want):
+                raise BenchError(f"{variant} chain of {n} at {size[0]}x{size[1]} "
+                                 "gave a wrong image")
+            samples[variant] += times
+            bar.update(1)
+    for variant in ("hand-written", "opencv-cpu"):
+        if variant in runners:
+            runners[variant].release()
+    return [Figure(size, n, variant, s) for variant, s in samples.items()]
 
 
 def _key(f: Figure):

@@ -20,10 +20,10 @@ from pathlib import Path
 
 from . import device as device_mod
 from .backend import device_query, renderer
-from .backend.opencl.render import HEADER_PREFIX, OutputFile, source_path
 from .errors import Diagnostic, OutputError, Reporter
 from .ir import MODES, System
 from .model import SystemModel, load_system
+from .output import HEADER_PREFIX, OutputFile, source_path
 from .passes import run_passes
 from .passes.lower import lib_dir_name
 

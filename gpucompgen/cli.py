@@ -70,7 +70,7 @@ def _common(p: argparse.ArgumentParser,
                         "pageable arrays; auto is pinned when the device has no unified host "
                         "memory (default: the model's platform.staging, else auto)")
     p.add_argument("--backend", choices=BACKENDS,
-                   help="opencl: pyopencl and OpenCL C kernels; cuda: cuda-python and the "
+                   help="opencl: OpenCL C kernels driven from Python; cuda: cuda-python and the "
                         "same kernels as CUDA C++, for NVIDIA GPUs without OpenCL (Jetson); "
                         "see docs/cuda.md (default: the model's platform.backend, else "
                         "opencl)")
@@ -120,7 +120,7 @@ def parser() -> argparse.ArgumentParser:
     top = argparse.ArgumentParser(
         prog="gpucompgen",
         description="Generate GPU-aware pipe-and-filter systems (Campeanu et al.) as readable "
-                    "Python + pyopencl programs: check a YAML system model, propagate sizes, "
+                    "Python programs over OpenCL (or CUDA): check a YAML system model, propagate sizes, "
                     "insert CPU<->GPU adapters, choose GPU settings, render the program.",
         epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     top.add_argument("--version", action="version", version=f"gpucompgen {__version__}")
@@ -129,6 +129,20 @@ def parser() -> argparse.ArgumentParser:
     sub = top.add_subparsers(dest="command", metavar="COMMAND", required=True,
                              title="commands")
 
+    _add_model_commands(sub)
+    _add_tool_commands(sub)
+    _add_types_command(sub)
+    add_replay_parser(sub, _sub, _common)
+
+    sc = sub.add_parser("schema", help="print the JSON Schema of model files",
+                        description="Print the JSON Schema of system models (or, with "
+                                    "--types, of component-type files) for editors and tools.")
+    sc.add_argument("--types", action="store_true", help="the schema of component-type files")
+    return top
+
+
+def _add_model_commands(sub) -> None:
+    """build, run, check and plan: the commands that read a model and plan it."""
     b = _sub(sub, "build", "check a model and generate its program",
              "Check MODEL and write <system>.py and <system>_lib/ into the output folder,\n"
              "replacing what an earlier build wrote there. With --check or --diff nothing\n"
@@ -168,6 +182,9 @@ def parser() -> argparse.ArgumentParser:
               "between CPU and GPU per frame.")
     _common(pl)
 
+
+def _add_tool_commands(sub) -> None:
+    """tune, graph, bench and devices."""
     tu = _sub(sub, "tune", "time flexible components on the CPU and the device (profile)",
               "Run every flexible component of MODEL at the model's sizes, its CPU function\n"
               "and its kernel on the OpenCL device (PYOPENCL_CTX), for a few frames each, and\n"
@@ -194,7 +211,8 @@ def parser() -> argparse.ArgumentParser:
         "bench", help="standard vs GPU-aware chains of VerticalMirror (paper, Figures 9/10)",
         description="Generate chains of N VerticalMirror components in both modes, run them "
                     "on the OpenCL device (PYOPENCL_CTX), and compare with a hand-written "
-                    "pyopencl loop, the device's copy-bandwidth bound and OpenCV. Prints a "
+                    "loop of copies and launches, the device's copy-bandwidth bound and "
+                    "OpenCV. Prints a "
                     "table; writes bench.csv and bench.png into the output folder.")
     be.add_argument("--sizes", default="1152x864,1152x1782", metavar="WxH,...",
                     help="frame sizes, width x height (default: the paper's 1152x864,1152x1782)")
@@ -215,6 +233,9 @@ def parser() -> argparse.ArgumentParser:
     dv.add_argument("-q", "--quiet", action="store_true",
                     help="print nothing; only the exit code says whether a device is usable")
 
+
+def _add_types_command(sub) -> None:
+    """types: the component types a model can use (gst-inspect style)."""
     ty = sub.add_parser(
         "types", help="list the component types a model can use, or show one in full",
         description="List every component type available to a model: the library's, plus the "
@@ -224,14 +245,6 @@ def parser() -> argparse.ArgumentParser:
     ty.add_argument("name", nargs="?", metavar="NAME", help="the type to show in full")
     ty.add_argument("--model", type=Path, metavar="MODEL",
                     help="also the types this system model declares (its 'types:' files)")
-
-    add_replay_parser(sub, _sub, _common)
-
-    sc = sub.add_parser("schema", help="print the JSON Schema of model files",
-                        description="Print the JSON Schema of system models (or, with "
-                                    "--types, of component-type files) for editors and tools.")
-    sc.add_argument("--types", action="store_true", help="the schema of component-type files")
-    return top
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -648,8 +661,10 @@ def cmd_devices(args) -> int:
 
 def _cuda_devices() -> list:
     """The CUDA devices (for --backend cuda), [] without cuda-python or a driver."""
+    from .backend import runtime_module
+
     try:
-        from .runtime import cuda
+        cuda = runtime_module("cuda")
     except ImportError:
         return []
     return cuda.survey_devices()

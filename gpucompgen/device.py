@@ -136,7 +136,7 @@ def resolve(spec: Any, pos: Pos, rep: Reporter,
 
 def query_device(device: Any = None) -> DeviceFacts:
     """Facts of a real OpenCL device (the one the runtime selects when device is None)."""
-    from .runtime import select_device
-    from .runtime.facts import query
+    from .runtime import device_api
 
-    return query(device if device is not None else select_device())
+    api = device_api.get()
+    return api.facts(device if device is not None else api.select_device())

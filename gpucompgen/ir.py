@@ -18,39 +18,13 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
+from .dataflow import Data, Endpoint
 from .errors import Pos
-from .model import DTYPES, ComponentType, Endpoint, SystemModel
+from .model import ComponentType, SystemModel
 from .runtime.facts import DeviceFacts
-from .runtime.sizes import Size
+from .runtime.sizes import Size  # noqa: F401  (the passes take it from here)
 
 MODES = ("gpu-aware", "standard")
-
-
-@dataclass(frozen=True)
-class Data:
-    """What flows on a port each frame: its Size (the runtime's one Size) and element type."""
-
-    size: Size
-    dtype: str
-
-    @property
-    def height(self) -> int:
-        return self.size.height
-
-    @property
-    def width(self) -> int:
-        return self.size.width
-
-    @property
-    def channels(self) -> int:
-        return self.size.channels
-
-    @property
-    def nbytes(self) -> int:
-        return self.size.height * self.size.width * self.size.channels * DTYPES[self.dtype][2]
-
-    def __str__(self) -> str:
-        return f"{self.height}x{self.width}x{self.channels} {self.dtype}"
 
 
 @dataclass(frozen=True)
@@ -483,6 +457,8 @@ def dump(system: System) -> str:
         lines += ["  " + line for line in _node_lines(system, system.nodes[n])]
     for e in system.edges:
         lines.append(f"  edge {e}" + (f" : {e.data}" if e.data else ""))
+    if system.placement is not None:  # place: each flexible component's side, and why
+        lines += [f"  placed {line}" for line in system.placement.lines()]
     for edge, why in system.unfused.items():
         lines.append(f"  not fused {edge}: {why}")
     if system.concurrent:

@@ -17,9 +17,9 @@ from typing import Any
 
 from . import fusable as fusable_forms
 from . import sizeexpr
-from .backend import BACKENDS
+from .backend import BACKENDS, signature_checker
 from .backend import DEFAULT as DEFAULT_BACKEND
-from .backend.opencl import signature
+from .dataflow import Endpoint
 from .errors import Diagnostic, GpucompgenError, Pos, Reporter, did_you_mean
 from .loader import (
     MAX_FILE_BYTES,
@@ -192,15 +192,6 @@ class Instance:
     placement: str = ""  # "gpu" | "cpu" | "auto" as the model says; "" when it says nothing
     placement_pos: Pos | None = None
     fuse: bool = True  # 'fuse: false': never fused with its neighbours
-
-
-@dataclass(frozen=True)
-class Endpoint:
-    component: str
-    port: str
-
-    def __str__(self) -> str:
-        return f"{self.component}.{self.port}"
 
 
 @dataclass
@@ -793,9 +784,10 @@ def _check_signature(doc, rep, base, ctype: ComponentType, kspec: dict) -> None:
     pos = doc.pos(*base, "kernel", "function") if "function" in kspec else \
         doc.key_pos(*base, "kernel")
     shown = str(Path(doc.file).parent / kspec["file"])
+    check, signature_error = signature_checker()  # kernel files are OpenCL C
     try:
-        signature.check(ctype, ctype.kernel_text, ctype.kernel_function)
-    except signature.SignatureError as exc:
+        check(ctype, ctype.kernel_text, ctype.kernel_function)
+    except signature_error as exc:
         where = f"{shown}:{exc.line}" if exc.line else shown
         rep.error(pos, f"kernel file {where}: {exc.message}", exc.hint)
 

@@ -7,8 +7,11 @@ import keyword
 import re
 import sys
 
-# OpenCL C reserved words live with the OpenCL backend (re-exported here).
-from .backend.opencl.reserved import OPENCL_RESERVED
+# Kernel-language reserved words and the modules generated programs import live with
+# each backend (backend/<name>/reserved.py); a model must build for every backend.
+from .backend import module_names, reserved_words
+
+KERNEL_RESERVED = reserved_words()
 
 NAME_RE = re.compile(r"[A-Za-z][A-Za-z0-9_]*\Z")
 MAX_NAME = 48
@@ -42,8 +45,7 @@ CLASS_RESERVED = frozenset({
 # A system's name becomes <system>.py, whose folder comes first on sys.path when it runs:
 # it must not hide a module that the program or its runtime imports.
 MODULE_NAMES = frozenset(sys.stdlib_module_names) | {
-    "numpy", "pyopencl", "gpucompgen", "scipy", "PIL", "cv2", "yaml", "jinja2", "pytools",
-    "platformdirs", "siphash24", "typing_extensions"}
+    "numpy", "gpucompgen", "scipy", "PIL", "cv2", "yaml", "jinja2"} | module_names()
 
 
 def member_names(name: str, role: str) -> list[str]:
@@ -57,10 +59,10 @@ def member_names(name: str, role: str) -> list[str]:
         return [name]
     return [name, f"{name}_size", f"{name}_gpu", f"{name}_copied"]
 
-__all__ = ["OPENCL_RESERVED", "fold", "member_names", "name_problem", "snake"]
+__all__ = ["KERNEL_RESERVED", "fold", "member_names", "name_problem", "snake"]
 
 _RESERVED = (frozenset(keyword.kwlist) | frozenset(keyword.softkwlist) | frozenset(dir(builtins))
-             | OPENCL_RESERVED | {"self"})
+             | KERNEL_RESERVED | {"self"})
 
 
 def name_problem(name: object, what: str, top_level: bool = False) -> str | None:
@@ -81,7 +83,7 @@ def name_problem(name: object, what: str, top_level: bool = False) -> str | None
                 "starting with a letter")
     if len(name) > MAX_NAME:
         return f"{what} {name!r} is longer than {MAX_NAME} characters"
-    if name in _RESERVED or name.lower() in OPENCL_RESERVED or (
+    if name in _RESERVED or name.lower() in KERNEL_RESERVED or (
             top_level and (name in GENERATED_RESERVED or GENERATED_PATTERN.match(name))):
         return f"{what} {name!r} is a reserved word in Python, OpenCL or generated code"
     return None

@@ -28,6 +28,7 @@ from pathlib import Path
 
 from .ir import GroupNode
 from .passes.place import default_profile, sizes_text
+from .runtime import device_api
 
 TRANSFER_PROBE_BYTES = 64
 
@@ -96,10 +97,7 @@ def write_profile(out: Path, text: str) -> None:
 
 def tune(model_path: Path, frames: int = 20, display: str | None = None) -> tuple[str, list]:
     """Measure; return the profile's text and rows (name, type, cpu_us, gpu_us)."""
-    import pyopencl as cl
-
     from . import device as device_mod
-    from . import runtime
     from .errors import Reporter
     from .model import load_system
     from .passes import run_passes
@@ -112,8 +110,9 @@ def tune(model_path: Path, frames: int = 20, display: str | None = None) -> tupl
     system, _ = run_passes(model, facts, places=dict.fromkeys(flexible, "gpu"),
                            zero_copy="off", fusion="off")  # each component's own kernel
     plan = system.plan
-    context = runtime.create_context()
-    queue = cl.CommandQueue(context)
+    api = device_api.get()  # the device interface (runtime/device_api.py)
+    context = api.create_context()
+    queue = api.create_queue(context)
     rows = []
     for name in flexible:
         node = system.nodes[name]  # a fusable type's: a group of one, its generated kernel
@@ -127,7 +126,7 @@ def tune(model_path: Path, frames: int = 20, display: str | None = None) -> tupl
         rows.append((name, t.name, sizes_text(system, node), cpu_s * 1e6, gpu_s * 1e6))
     biggest = max((p.data.nbytes for n in flexible for p in system.nodes[n].ports), default=1)
     latency, bandwidth = _transfer(context, queue, biggest, frames)
-    device = context.devices[0].name.strip()
+    device = api.facts(api.device_of(queue)).name
     lines = [f"# Written by 'gpucompgen tune {display or model_path}' on the OpenCL device",
              f"# '{device}': the median of {frames} frames of each flexible component at the",
              "# model's sizes, on the CPU (its function) and on the device (its kernel, enqueue",
@@ -217,10 +216,10 @@ def _median(frames: int, call, finish=None) -> float:
 
 def _gpu_time(context, queue, system, plan, node, inputs, frames) -> float:
     import numpy as np
-    import pyopencl as cl
 
     from . import runtime
 
+    api = device_api.get()
     t = node.type
     la = plan.launch(node.name)
     out_sizes = [p.data.size for p in node.outputs.values()]
@@ -237,19 +236,17 @@ def _gpu_time(context, queue, system, plan, node, inputs, frames) -> float:
         with tempfile.TemporaryDirectory() as folder:
             path = Path(folder) / f"{node.name}.cl"
             path.write_text(group_kernel(node, "tune", system.device), encoding="utf-8")
-            program = runtime.build_program(context, path, f"{node.name} ({t.name})")
+            program = api.build_program(context, path, f"{node.name} ({t.name})")
     else:
-        program = runtime.build_program(context, t.kernel_file, f"{node.name} ({t.name})")
+        program = api.build_program(context, t.kernel_file, f"{node.name} ({t.name})")
     comp = cls(context, queue, program, **node.params)
     try:
         comp.initialize(*(p.data.size for p in node.inputs.values()))
         arguments = [a.port if a.kind == "buffer" else getattr(np, a.host_type)(a.value)
                      for a in la.arguments]
         comp.config_gpu(la.tile, la.local_size, la.global_size, arguments, la.settings_source)
-        mf = cl.mem_flags
-        buffers = [cl.Buffer(context, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=x)
-                   for x in inputs.values()]
-        return _median(frames, lambda: comp.execute(*buffers), queue.finish)
+        buffers = [api.filled_buffer(context, x) for x in inputs.values()]
+        return _median(frames, lambda: comp.execute(*buffers), lambda: api.finish(queue))
     finally:
         comp.free_memory()
 
@@ -257,21 +254,21 @@ def _gpu_time(context, queue, system, plan, node, inputs, frames) -> float:
 def _transfer(context, queue, nbytes: int, frames: int) -> tuple[float, float]:
     """(seconds per copy, bytes per second): a tiny copy's time, and the largest port's."""
     import numpy as np
-    import pyopencl as cl
 
+    api = device_api.get()
     small = np.zeros(TRANSFER_PROBE_BYTES, np.uint8)
     big = np.zeros(nbytes, np.uint8)
-    dsmall = cl.Buffer(context, cl.mem_flags.READ_WRITE, small.nbytes)
-    dbig = cl.Buffer(context, cl.mem_flags.READ_WRITE, big.nbytes)
+    dsmall = api.device_buffer(context, small.nbytes)
+    dbig = api.device_buffer(context, big.nbytes)
 
     def both(host, dev):
-        cl.enqueue_copy(queue, dev, host)
-        cl.enqueue_copy(queue, host, dev)
-        queue.finish()
+        api.copy(queue, dev, host)
+        api.copy(queue, host, dev)
+        api.finish(queue)
 
     latency = _median(frames, lambda: both(small, dsmall)) / 2
     per_copy = _median(frames, lambda: both(big, dbig)) / 2
     bandwidth = nbytes / max(per_copy - latency, 1e-9)
-    dsmall.release()
-    dbig.release()
+    api.release(dsmall)
+    api.release(dbig)
     return latency, bandwidth

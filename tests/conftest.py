@@ -114,11 +114,8 @@ def run_generated(context, queue, ctype, params: dict, arrays, out_shape: tuple,
     (oname, oport), = ctype.outputs.items()
     shapes = {p: a.shape[:2] for p, a in zip(ctype.inputs, arrays, strict=True)}
     shapes[oname] = tuple(out_shape[:2])
-    # sizes and a stencil's radius are constants of the kernel; other parameters arguments
-    constants = tuple((n, params[n]) for n in sorted(ctype.fusable.radius_names()))
-    # array parameters are tables in the kernel's source: their values are part of it too
-    tables = tuple((n, params[n]) for n, d in ctype.params.items() if d.shape)
-    key = (ctype.name, tuple(sorted(shapes.items())), constants, tables)
+    # sizes and parameters are constants of the kernel: one build for each
+    key = (ctype.name, tuple(sorted(shapes.items())), tuple(sorted(params.items())))
     if key not in _GENERATED:
         group = group_of_one(ctype, params, shapes)
         _GENERATED[key] = cl.Program(context, group_kernel(group, "test")).build(), group
@@ -132,7 +129,7 @@ def run_generated(context, queue, ctype, params: dict, arrays, out_shape: tuple,
     out = cl.Buffer(context, mf.READ_WRITE, max(result.nbytes, 1))
     cl.enqueue_fill_buffer(queue, out, np.uint8(0xA5), 0, max(result.nbytes, 1))
     kernel = cl.Kernel(program, kernel_name(group))
-    kernel.set_args(*launch_arguments(group, buffers, out, params, tile))
+    kernel.set_args(*launch_arguments(group, buffers, out, tile))
     rows = -(-shapes[oname][0] // tile)
     cl.enqueue_nd_range_kernel(queue, kernel, (bx, rows * by, bz), (bx, by, bz))
     cl.enqueue_copy(queue, result, out)
@@ -143,7 +140,7 @@ def run_generated(context, queue, ctype, params: dict, arrays, out_shape: tuple,
 
 
 # Collectors for tests that build models: one standard type per element type and channel
-# count (Keep3, Keep1, KeepS3, KeepS1, KeepI4, KeepI5), one class for all, keeping a copy of every frame.
+# count (Keep3, Keep1, KeepS3, KeepS1), one class for all, keeping a copy of every frame.
 KEEP_TYPES = "component_types:\n" + "".join(f"""
   {name}:
     kind: standard
@@ -152,9 +149,7 @@ KEEP_TYPES = "component_types:\n" + "".join(f"""
       image: {{memory: cpu, dtype: {dtype}, channels: {channels}}}
     python: {{file: keep.py, class: Keep}}
 """ for name, dtype, channels in (("Keep3", "uint8", 3), ("Keep1", "uint8", 1),
-                                  ("KeepS3", "int16", 3), ("KeepS1", "int16", 1),
-                                  # tables of things found (features.yaml): int32 rows
-                                  ("KeepI4", "int32", 4), ("KeepI5", "int32", 5)))
+                                  ("KeepS3", "int16", 3), ("KeepS1", "int16", 1)))
 KEEP_PY = """import numpy as np
 
 
@@ -181,5 +176,4 @@ def write_keep_types(folder: Path) -> None:
 
 def keep_type_for(port) -> str:
     """The Keep type that takes what a port (a PortDecl) carries."""
-    prefix = {"int16": "KeepS", "int32": "KeepI"}.get(port.dtype, "Keep")
-    return prefix + str(port.channels)
+    return ("KeepS" if port.dtype == "int16" else "Keep") + str(port.channels)

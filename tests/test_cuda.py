@@ -86,6 +86,38 @@ def test_every_generated_kernel_compiles(major, arch, cuda_builds):
     assert files >= len(MODELS) * len(VARIANTS)
 
 
+def library_operation_kernels() -> dict[str, str]:
+    """The kernel the generator writes for each fusable library type alone (a group of one,
+    what a lone component runs), with its default parameters on a 37x53 frame and on
+    a one-pixel frame, as the CUDA backend writes it: {type and size: .cu text}."""
+    from gpucompgen.backend.opencl.fused import group_kernel, group_of_one
+    from gpucompgen.model import library_types
+
+    out = {}
+    for name, ctype in sorted(library_types().items()):
+        if ctype.fusable is None:
+            continue
+        params = {p: d.default for p, d in ctype.params.items()}
+        for h, w in ((37, 53), (1, 1)):
+            shapes = dict.fromkeys([*ctype.inputs, *ctype.outputs], (h, w))
+            text = group_kernel(group_of_one(ctype, params, shapes), "test")
+            out[f"{name}-{h}x{w}"] = prelude.cuda_source(text)
+    return out
+
+
+@pytest.mark.parametrize(("major", "arch"), TARGETS, ids=lambda v: str(v))
+def test_every_library_operation_kernel_compiles(major, arch):
+    """Every fusable library type's generated kernel, not only those the example models
+    use, compiles for every target: a type no model uses still runs on a Jetson."""
+    lib = nvrtc_of(major)
+    kernels = library_operation_kernels()
+    assert len(kernels) >= 2 * 20
+    for key, text in kernels.items():
+        compiled = lib.compile(text, key + ".cu", arch)
+        assert compiled.ok, f"{key} for sm_{arch}:\n{compiled.log}"
+        assert compiled.cubin[:4] == b"\x7fELF"
+
+
 def test_the_cuda_program_is_the_opencl_program_on_the_cuda_runtime(tmp_path):
     """Line for line the same program (every transfer, launch and size) but the runtime
     import, the device named in the docstring and the kernel file names."""
@@ -219,19 +251,80 @@ class CudaKernels:
         self.programs = {}
 
     def run(self, type_name, arrays, params, setting=(16, 16, 16)):
+        """The type's kernel on arrays: the generated one of a fusable type (what a lone
+        component runs), else its hand-written kernel (Resize, Crop)."""
         from test_imgproc import imgproc_types
 
+        ctype = imgproc_types()[type_name]
+        if ctype.fusable is not None:
+            return self._generated(ctype, arrays, params, setting)
+        return self._hand(ctype, arrays, params, setting)
+
+    def _one_shot(self, component, inputs: dict, shape, dtype, channels):
+        """Upload inputs, run component once, download its output; free everything."""
+        cuda = self.cuda
+        uploads = []
+        for array in inputs.values():
+            size = cuda.Size(array.shape[0], array.shape[1],
+                             array.shape[2] if array.ndim == 3 else 1)
+            adapter = cuda.CpuToGpuAdapter(self.context, self.queue, array.nbytes)
+            adapter.initialize(size, array.dtype)
+            uploads.append(adapter)
+        down = cuda.GpuToCpuAdapter(self.context, self.queue,
+                                    int(np.prod(shape)) * dtype.itemsize)
+        down.initialize(cuda.Size(shape[0], shape[1], channels), dtype)
+        buffers = [a.transfer(np.ascontiguousarray(x)) for a, x in zip(uploads, inputs.values())]
+        result = down.transfer(component.execute(*buffers)).reshape(shape).copy()
+        for part in (*uploads, component, down):
+            part.free_memory()
+        return result
+
+    def _generated(self, ctype, arrays, params, setting):
+        from gpucompgen.backend.opencl import fused
+        from gpucompgen.model import DTYPES
+
+        cuda = self.cuda
+        (oname, oport), = ctype.outputs.items()
+        shapes = {p: a.shape[:2] for p, a in zip(ctype.inputs, arrays, strict=True)}
+        shapes[oname] = shapes[next(iter(ctype.inputs))]
+        group = fused.group_of_one(ctype, params, shapes)
+        cu = self.tmp / f"{ctype.name}-{len(self.programs)}.cu"
+        cu.write_text(prelude.cuda_source(fused.group_kernel(group, "test")))
+        program = cuda.build_program(self.context, cu, ctype.name)
+        self.programs[cu] = program
+        ports = {p: f"m_{p}" for p in ctype.inputs}
+        tile, bx, by = setting
+        global_size, local_size = fused.launch_geometry(group, tile, bx, by)
+        arguments = fused.launch_arguments(group, ports, oname, tile)
+        dtype = np.dtype(DTYPES[oport.dtype][0])
+        shape = shapes[oname] + ((oport.channels,) if oport.channels > 1 else ())
+
+        class One(cuda.KernelComponent):
+            function = fused.kernel_name(group)
+            inputs = tuple((ports[p], np.dtype(DTYPES[d.dtype][0])) for p, d in
+                           ctype.inputs.items())
+            outputs = ((oname, dtype),)
+
+            def output_sizes(self, *ins):
+                return [cuda.Size(shape[0], shape[1], oport.channels)]
+
+        component = One(self.context, self.queue, program)
+        component.initialize(*[cuda.Size(1, 1, 1) for _ in arrays])
+        component.config_gpu(tile, local_size, global_size, arguments)
+        return self._one_shot(component, dict(zip(ctype.inputs, arrays)), shape, dtype,
+                              oport.channels)
+
+    def _hand(self, ctype, arrays, params, setting):
         from gpucompgen import sizeexpr
         from gpucompgen.backend.opencl.convention import kernel_parameters
         from gpucompgen.model import DTYPES
 
         cuda = self.cuda
-        ctype = imgproc_types()[type_name]
         path = ctype.kernel_file
         if path not in self.programs:
             cu = self.tmp / (path.stem + ".cu")
             cu.write_text(prelude.cuda_source(path.read_text()))
-            self.programs[path] = cuda.build_program(self.context, cu, type_name)
+            self.programs[path] = cuda.build_program(self.context, cu, ctype.name)
         inputs = dict(zip(ctype.inputs, arrays))
         sizes = {k: v.shape[:2] for k, v in inputs.items()}
         ints = {k: v for k, v in params.items() if ctype.params[k].type == "int"}
@@ -263,32 +356,14 @@ class CudaKernels:
                 return [cuda.Size(shape[0], shape[1], oport.channels)]
 
         component = One(self.context, self.queue, self.programs[path])
-        uploads = []
-        for array in inputs.values():
-            size = cuda.Size(array.shape[0], array.shape[1],
-                             array.shape[2] if array.ndim == 3 else 1)
-            adapter = cuda.CpuToGpuAdapter(self.context, self.queue, array.nbytes)
-            adapter.initialize(size, np.uint8)
-            uploads.append(adapter)
         component.initialize(*[cuda.Size(1, 1, 1) for _ in inputs])
         tile, bx, by = setting
         component.config_gpu(tile, (bx, by, 1),
                              (-(-shape[1] // tile) * bx, -(-shape[0] // tile) * by, 1),
                              arguments)
-        down = cuda.GpuToCpuAdapter(self.context, self.queue, int(np.prod(shape)) *
-                                    dtype.itemsize)
-        down.initialize(cuda.Size(shape[0], shape[1], oport.channels), dtype)
-        buffers = [a.transfer(np.ascontiguousarray(x)) for a, x in zip(uploads, arrays)]
-        result = down.transfer(component.execute(*buffers)).reshape(shape).copy()
-        for part in (*uploads, component, down):
-            part.free_memory()
-        return result
+        return self._one_shot(component, inputs, shape, dtype, oport.channels)
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "launches the library's hand kernels, which the generated kernels replaced after this "
-    "test was verified on an H100 (hand kernels remain for Resize and Crop only); it must "
-    "build the generated kernels with fused.group_of_one, as test_imgproc does for OpenCL"))
 def test_every_library_operation_on_cuda_equals_cpu_and_opencv(cuda_runtime, tmp_path):
     """Each imgproc type on the photographs, two parameter sets and two GPU settings: the
     CUDA kernel equals the CPU form byte for byte, within the documented difference of

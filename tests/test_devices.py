@@ -35,14 +35,14 @@ def no_ctx(monkeypatch):
 def test_a_device_that_cannot_compile_is_passed_over(monkeypatch, no_ctx):
     found = statuses(("pthread-AMD EPYC", "error: unknown target CPU 'generic'"),
                      ("pthread-skylake-avx512", None))
-    monkeypatch.setattr(runtime.devices, "survey_devices", lambda stop_at_first_usable=False: found)
+    monkeypatch.setattr(runtime.opencl, "survey_devices", lambda stop_at_first_usable=False: found)
     assert runtime.select_device() is found[1].device
 
 
 def test_no_usable_device_names_every_device_and_its_problem(monkeypatch, no_ctx):
     found = statuses(("cpu-a", "error: unknown target CPU 'generic'"),
                      ("gpu-b", "error: out of resources"))
-    monkeypatch.setattr(runtime.devices, "survey_devices", lambda stop_at_first_usable=False: found)
+    monkeypatch.setattr(runtime.opencl, "survey_devices", lambda stop_at_first_usable=False: found)
     with pytest.raises(PipelineError) as err:
         runtime.select_device()
     text = str(err.value)
@@ -52,7 +52,7 @@ def test_no_usable_device_names_every_device_and_its_problem(monkeypatch, no_ctx
 
 
 def test_no_device_at_all_says_what_to_install(monkeypatch, no_ctx):
-    monkeypatch.setattr(runtime.devices, "survey_devices", lambda stop_at_first_usable=False: [])
+    monkeypatch.setattr(runtime.opencl, "survey_devices", lambda stop_at_first_usable=False: [])
     with pytest.raises(PipelineError, match="no OpenCL device found; install"):
         runtime.select_device()
 

@@ -202,8 +202,9 @@ class Kernels:
                 args.append(np.int32(setting[0]))
         kernel.set_args(*args)
         tile, bx, by = setting
-        cl.enqueue_nd_range_kernel(self.queue, kernel,
-                                   (-(-shape[1] // tile) * bx, -(-shape[0] // tile) * by, 1),
+        # as the system launches it (passes/lower.py): whole rows a work-group, or squares
+        gx = bx if ctype.cover == "rows" else -(-shape[1] // tile) * bx
+        cl.enqueue_nd_range_kernel(self.queue, kernel, (gx, -(-shape[0] // tile) * by, 1),
                                    (bx, by, 1))
         cl.enqueue_copy(self.queue, result, buffers[oname])
         self.queue.finish()

@@ -66,8 +66,8 @@ class Snippets:
         shapes = {p: a.shape[:2] for p, a in zip(t.inputs, arrays, strict=True)}
         (oname,) = t.outputs
         shapes[oname] = expected.shape[:2]
-        # sizes are constants of the kernel, parameter values its arguments
-        key = (type_name, tuple(sorted(shapes.items())))
+        # sizes and parameter values are constants of the kernel: one build for each
+        key = (type_name, tuple(sorted(shapes.items())), tuple(sorted(params.items())))
         if key not in self.built:
             source, kparams = one_member_group(type_name, params, shapes)
             self.built[key] = cl.Program(self.context, source).build(), kparams
@@ -83,9 +83,6 @@ class Snippets:
         for p in kparams:
             if p.kind == "buffer":
                 args.append(out if p.role == "output" else buffers[p.port])
-            elif p.role == "param":
-                value = params[p.param.split(".", 1)[1]]
-                args.append(np.float32(value) if p.c_type == "float" else np.int32(value))
             elif p.role == "tile":
                 args.append(np.int32(tile))
             else:
@@ -263,3 +260,18 @@ def test_fused_unfused_cpu_and_opencv_give_the_same_bytes(programs, end):
         for i, (got, expected) in enumerate(zip(outputs[end], reference, strict=True)):
             assert got.dtype == expected.dtype
             np.testing.assert_array_equal(got, expected, err_msg=f"{variant}: {end}, frame {i}")
+
+
+def test_rgb_to_hsv_kernel_equals_opencv_on_every_colour(cl_context, cl_queue):
+    """Every one of the 2^24 colours once (a 4096x4096 frame): the generated RgbToHsv
+    kernel's float quotient, corrected to OpenCV's integer division tables, gives
+    cv2.cvtColor's bytes (a quotient off by one would show on some colour)."""
+    from conftest import run_generated
+
+    require_opencl()
+    v = np.arange(1 << 24, dtype=np.uint32)
+    frame = np.stack([(v >> 16) & 255, (v >> 8) & 255, v & 255], -1).astype(np.uint8)
+    frame = frame.reshape(4096, 4096, 3)
+    got = run_generated(cl_context, cl_queue, imgproc_types()["RgbToHsv"], {}, [frame],
+                        frame.shape)
+    np.testing.assert_array_equal(got, cv2.cvtColor(frame, cv2.COLOR_RGB2HSV))

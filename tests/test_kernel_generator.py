@@ -220,3 +220,55 @@ def test_the_gpu_schedule_gives_the_same_bytes(tmp_path):
     assert kernels and all("_x += _nx" in k for k in kernels)
     _, expected = _frames(model, tmp_path / "off", "off")
     np.testing.assert_array_equal(got[0], expected[0])
+
+
+# -- parameters as build constants ---------------------------------------------------------
+@settings(max_examples=200, deadline=None)
+@given(st.floats(width=32, allow_nan=False, allow_infinity=False))
+def test_a_float_parameter_is_written_as_the_same_float32(value):
+    """c_literal writes the float32 the kernel argument np.float32(value) was: C reads the
+    literal (a float, suffix f) back to the same bits."""
+    from gpucompgen.runtime.programs import c_literal
+
+    text = c_literal(value, "float")
+    assert text.endswith(("f", "f)"))
+    assert np.float32(float(text.strip("()").removesuffix("f"))) == np.float32(value)
+
+
+def test_build_options_override_a_generated_kernels_model_values(cl_context, cl_queue):
+    """The program builds a generated kernel with -D NAME=VALUE (runtime.build_program's
+    defines, after --set): the option wins over the value the file defines, and a build
+    without it gets the model's value.  ThresholdGray's thresh_type picks the rule."""
+    import cv2
+    import pyopencl as cl
+
+    from gpucompgen.backend.opencl.convention import group_constants
+    from gpucompgen.backend.opencl.fused import (
+        group_kernel,
+        group_of_one,
+        kernel_name,
+        launch_arguments,
+    )
+    from gpucompgen.model import library_types
+    from gpucompgen.runtime.programs import define_options
+
+    require_opencl()
+    frame = np.random.default_rng(3).integers(0, 256, (9, 13), np.uint8)
+    params = {"thresh": 100, "maxval": 200, "thresh_type": 0}
+    group = group_of_one(library_types()["ThresholdGray"], params,
+                         {"image": (9, 13), "thresholded": (9, 13)})
+    macro = next(p.name for p in group_constants(group) if p.param == "m.thresh_type")
+    source = group_kernel(group, "test")
+    mf = cl.mem_flags
+    src = cl.Buffer(cl_context, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=frame)
+    dst = cl.Buffer(cl_context, mf.WRITE_ONLY, frame.nbytes)
+    for options, rule in (((), cv2.THRESH_BINARY),
+                          (define_options({macro: np.int32(1)}), cv2.THRESH_BINARY_INV)):
+        program = cl.Program(cl_context, source).build(options=list(options))
+        kernel = cl.Kernel(program, kernel_name(group))
+        kernel.set_args(*launch_arguments(group, {"image": src}, dst, 4))
+        cl.enqueue_nd_range_kernel(cl_queue, kernel, (8, 3 * 8, 1), (8, 8, 1))
+        got = np.empty_like(frame)
+        cl.enqueue_copy(cl_queue, got, dst)
+        cl_queue.finish()
+        np.testing.assert_array_equal(got, cv2.threshold(frame, 100, 200, rule)[1])

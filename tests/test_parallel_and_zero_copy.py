@@ -299,6 +299,8 @@ def test_lane_ends_no_host_read_covers_are_waited_for_at_frame_end(tmp_path):
     result = compile_model(model, tmp_path / "o", fusion="off")
     assert result.system.frame_end_waits == ["blur3"]
     assert "cl.wait_for_events([blur3.event])  # frame complete\n" in result.files[0].text
+    # its output is assigned to no variable the program never uses (pyflakes' F841)
+    assert "\n            blur3.execute(camera1_image_gpu, wait_for=" in result.files[0].text
     require_opencl()
     write(result, tmp_path / "o")
     module = load_generated(tmp_path / "o" / "parallel_branches.py", "branches_dangling")

@@ -10,14 +10,14 @@ import subprocess
 import sys
 import textwrap
 from pathlib import Path
-from types import SimpleNamespace
 
 import pytest
 from conftest import ROOT, load_generated, require_opencl
 
 from gpucompgen.build import compile_model, write
-from gpucompgen.runtime import PipelineError, build_program, check_work_group, load_class
-from gpucompgen.runtime.devices import fitting_block
+from gpucompgen.runtime import PipelineError, build_program, load_class
+from gpucompgen.runtime.devices import KernelLimits, check_work_group_fits, fitting_block
+from gpucompgen.runtime.facts import DeviceFacts
 from gpucompgen.runtime.programs import clean_build_log
 
 DATA = ROOT / "tests" / "data"
@@ -204,35 +204,22 @@ def test_the_broken_kernel_program_reports_its_log_once(tmp_path):
 
 # -- work-group limits -------------------------------------------------------------------------
 
-class FakeKernel:
-    def __init__(self, work_group_size: int, multiple: int = 32):
-        self.work_group_size, self.multiple = work_group_size, multiple
+# The check is the runtime core's: the kernel's limits and the device's facts in, no device
+# (the OpenCL module's check_work_group queries them; test_parallel_and_zero_copy.py).
 
-    def get_work_group_info(self, param, device):
-        import pyopencl as cl
-
-        if param == cl.kernel_work_group_info.WORK_GROUP_SIZE:
-            return self.work_group_size
-        return self.multiple
-
-
-_ids = iter(range(10_000, 20_000))
-
-
-def fake_device(max_work_item_sizes=(1024, 1024, 64)):
-    return SimpleNamespace(int_ptr=next(_ids), name="Fake GPU ", max_compute_units=8,
-                           max_work_group_size=1024, max_work_item_sizes=max_work_item_sizes,
-                           local_mem_size=48 * 1024, global_mem_size=4 * 2**30,
-                           max_mem_alloc_size=2**30, host_unified_memory=False,
-                           type=4)  # cl.device_type.GPU
+def fake_facts(max_work_item_sizes=(1024, 1024, 64)):
+    return DeviceFacts(name="Fake GPU", compute_units=8, max_work_group_size=1024,
+                       max_work_item_sizes=max_work_item_sizes, local_mem_size=48 * 1024,
+                       global_mem_size=4 * 2**30, max_mem_alloc_size=2**30,
+                       host_unified_memory=False)
 
 
 def test_settings_that_fit_pass():
-    pytest.importorskip("pyopencl")
-    limits = check_work_group(FakeKernel(256), fake_device(), (16, 16, 1), "detector")
+    limits = check_work_group_fits(KernelLimits(256, 32), fake_facts(), (16, 16, 1),
+                                   "detector")
     assert limits.work_group_size == 256
-    check_work_group(FakeKernel(256), fake_device(), (16, 16, 1), "detector",
-                     settings_source="model")
+    check_work_group_fits(KernelLimits(256, 32), fake_facts(), (16, 16, 1), "detector",
+                          settings_source="model")
 
 
 @pytest.mark.parametrize("local,wg,dims,fit", [
@@ -242,11 +229,10 @@ def test_settings_that_fit_pass():
     ((8, 8, 1), 1, (1024, 1024, 64), (1, 1, 1)),
 ])
 def test_settings_from_the_model_say_what_to_change_there(local, wg, dims, fit):
-    pytest.importorskip("pyopencl")
     threads = local[0] * local[1] * local[2]
     with pytest.raises(PipelineError) as caught:
-        check_work_group(FakeKernel(wg), fake_device(dims), local, "detector",
-                         settings_source="model")
+        check_work_group_fits(KernelLimits(wg, 32), fake_facts(dims), local, "detector",
+                              settings_source="model")
     message = str(caught.value)
     assert message.startswith(f"detector: GPU settings {local} ({threads:,} threads) do not "
                               f"fit device 'Fake GPU' (kernel limit {wg:,} threads")
@@ -257,7 +243,7 @@ def test_settings_from_the_model_say_what_to_change_there(local, wg, dims, fit):
     assert fit[0] * fit[1] * fit[2] <= wg and all(v <= d for v, d in zip(fit, dims))
     with pytest.raises(PipelineError, match=r"rebuild for this device with 'gpucompgen build "
                                             r"--device auto'$"):
-        check_work_group(FakeKernel(wg), fake_device(dims), local, "detector")
+        check_work_group_fits(KernelLimits(wg, 32), fake_facts(dims), local, "detector")
 
 
 def test_fitting_block_keeps_what_fits_and_halves_the_largest():

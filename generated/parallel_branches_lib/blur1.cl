@@ -4,8 +4,7 @@
 // Each member's snippet is a function of the element (y, x, c) it computes;
 // an input read <port>(y, x, c) calls the producing member, or loads from a
 // group input.  Sizes are constants: the system fixed them at build time.
-// Kernel arguments, in the calling convention's order: _in0 = image, _out = blur1_smooth,
-// _m0_radius = blur1_radius.
+// Kernel arguments, in the calling convention's order: _in0 = image, _out = blur1_smooth.
 
 // the nearest position in 0..n-1 (BORDER_REPLICATE)
 static inline int _clamp(const int p, const int n)
@@ -15,13 +14,11 @@ static inline int _clamp(const int p, const int n)
 
 #define _PARAMS \
     __global const uchar *restrict _in0, \
-    __global uchar *restrict _out, \
-    const int _m0_radius
+    __global uchar *restrict _out
 
 #define _ARGS \
     _in0, \
-    _out, \
-    _m0_radius
+    _out
 
 // blur1: BoxBlur (stencil, radius radius, border clamp); every element
 #define image(y_, x_, c_) _in0[3 * ((size_t)_clamp((y_), 480) * 640 + _clamp((x_), 640)) + (c_)]
@@ -60,29 +57,28 @@ static inline uchar _f0_blur1_in(_PARAMS, const int y, const int x, const int c)
 #undef image
 
 // 480 rows of 640 pixels, 3 channels as 1920 elements a row.  Work-group g computes the
-// rows [g * tile, g * tile + tile); its block_y threads take them in turn, its block_x
-// threads each a contiguous run of the row.
+// rows [g * tile, g * tile + tile); its threads take them in turn, each a whole row (a CPU
+// runs a work-group's threads one after another: a row is the longest loop, which the
+// compiler vectorizes).
 // Elements 2 or more from every edge read inside the frame: the interior version, without
 // border rules, computes them.
 __kernel void blur1(_PARAMS, const int _tile)
 {
     const int _y0 = get_group_id(1) * _tile;
     const int _y1 = min(_y0 + _tile, 480);
-    const int _nx = get_local_size(0);
-    const int _per = (1920 + _nx - 1) / _nx;
-    const int _x0 = min((int)get_local_id(0) * _per, 1920);
-    const int _x1 = min(_x0 + _per, 1920);
-    for (int _y = _y0 + get_local_id(1); _y < _y1; _y += get_local_size(1)) {
+    const int _k = get_local_id(1) * get_local_size(0) + get_local_id(0);
+    const int _n = get_local_size(0) * get_local_size(1);
+    for (int _y = _y0 + _k; _y < _y1; _y += _n) {
         __global uchar *_row = _out + (size_t)_y * 1920;
         if (_y >= 2 && _y < 478) {
-            for (int _x = _x0; _x < min(_x1, 6); _x++)
+            for (int _x = 0; _x < 6; _x++)
                 _row[_x] = _f0_blur1(_ARGS, _y, _x / 3, _x % 3);
-            for (int _x = max(_x0, 6); _x < min(_x1, 1914); _x++)
+            for (int _x = 6; _x < 1914; _x++)
                 _row[_x] = _f0_blur1_in(_ARGS, _y, _x, 0);
-            for (int _x = max(_x0, 1914); _x < _x1; _x++)
+            for (int _x = 1914; _x < 1920; _x++)
                 _row[_x] = _f0_blur1(_ARGS, _y, _x / 3, _x % 3);
         } else {
-            for (int _x = _x0; _x < _x1; _x++)
+            for (int _x = 0; _x < 1920; _x++)
                 _row[_x] = _f0_blur1(_ARGS, _y, _x / 3, _x % 3);
         }
     }

@@ -1,14 +1,18 @@
 """Backends: everything specific to one way of running kernels, picked by name.
 
-    opencl/  pyopencl host code, OpenCL C kernels (the default)
+    opencl/  Python host code over OpenCL, OpenCL C kernels (the default)
     cuda/    cuda-python host code, the same kernels as CUDA C++ under a prelude
 
-Each backend package has a ``render`` module with ``render(system, source, model_dir)``;
-``renderer(name)`` imports the one asked for, so nothing generic imports a backend.
+Each backend package has a ``render`` module with ``render(system, source, model_dir)``
+and may have a ``reserved`` module (``WORDS``: its kernel language's reserved words, which
+no model name may take; ``MODULES``: the modules its generated programs import, which no
+system may be named after).  The functions here import the backend asked for by name, so
+nothing generic imports a backend (tests/test_architecture.py checks it).
 """
 
 from __future__ import annotations
 
+import functools
 import importlib
 from collections.abc import Callable
 
@@ -24,9 +28,48 @@ def renderer(name: str | None) -> Callable:
     return importlib.import_module(f"{__name__}.{name}.render").render
 
 
+# The runtime module a backend's generated programs import
+RUNTIMES = {"opencl": "gpucompgen.runtime", "cuda": "gpucompgen.runtime.cuda"}
+
+
+def runtime_module(name: str | None):
+    """The runtime module of backend `name` (ImportError without its device API)."""
+    return importlib.import_module(RUNTIMES[name or DEFAULT])
+
+
 def device_query(name: str | None) -> Callable | None:
     """What ``--device auto`` asks for backend `name`: a function returning DeviceFacts
     (None: the OpenCL device, gpucompgen.device's default)."""
     if (name or DEFAULT) == "cuda":
-        return importlib.import_module("gpucompgen.runtime.cuda").device_facts
+        return runtime_module("cuda").device_facts
     return None
+
+
+@functools.cache
+def _reserved(attribute: str) -> frozenset[str]:
+    names: set[str] = set()
+    for name in BACKENDS:
+        try:
+            module = importlib.import_module(f"{__name__}.{name}.reserved")
+        except ModuleNotFoundError:
+            continue
+        names |= getattr(module, attribute, frozenset())
+    return frozenset(names)
+
+
+def reserved_words() -> frozenset[str]:
+    """Every backend's kernel-language reserved words: a model builds for any backend."""
+    return _reserved("WORDS")
+
+
+def module_names() -> frozenset[str]:
+    """The modules every backend's generated programs (and their runtime) import."""
+    return _reserved("MODULES")
+
+
+def signature_checker(language: str = "opencl"):
+    """(check, SignatureError) of the kernel language that type files' kernel files are
+    written in: check(ctype, text, function) raises SignatureError where the kernel's
+    definition does not take what the calling convention passes."""
+    module = importlib.import_module(f"{__name__}.{language}.signature")
+    return module.check, module.SignatureError

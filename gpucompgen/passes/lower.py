@@ -13,9 +13,9 @@ import ast
 import copy
 import math
 import re
-from dataclasses import replace
+from dataclasses import dataclass, field, replace
 
-from ..backend.opencl.convention import PARAM_C_TYPES, group_parameters, kernel_parameters
+from ..convention import group_constants, group_parameters, kernel_parameters
 from ..ir import AdapterNode, ComponentNode, GroupNode, System
 from ..model import DTYPES, ComponentType, Endpoint
 from ..plan import (
@@ -25,6 +25,7 @@ from ..plan import (
     GroupPlan,
     KernelClass,
     Launch,
+    LibSource,
     Part,
     Program,
     ProgramPlan,
@@ -169,6 +170,41 @@ def cpu_used_types(system: System) -> list[ComponentType]:
     return [t for t in used_types(system, "cpu") if t.flexible]
 
 
+def lib_sources(system: System, files: dict[str, str]) -> tuple[LibSource, ...]:
+    """Every kernel and user Python file the lib folder holds, once each, with its checked
+    text: per used type, its kernel (a GPU one), its CPU function file (a user's flexible
+    type on the CPU), its class file (a user's standard type); then the kernels built only
+    to check them; then each fused group's generated kernel (no text: the backend writes
+    it)."""
+    found: list[LibSource] = []
+    written: set[str] = set()
+    gpu, cpu, used = gpu_used_types(system), cpu_used_types(system), used_types(system)
+
+    def add(key: str, kind: str, users: list[str], text: str, origin) -> None:
+        name = files[key]
+        if name not in written:  # a file several types share is copied once
+            written.add(name)
+            found.append(LibSource(name, kind, tuple(sorted(users)), text, str(origin)))
+
+    for t in used:
+        if t in gpu:
+            add(kernel_key(t), "kernel", [u.name for u in gpu if kernel_key(u) == kernel_key(t)],
+                t.kernel_text, t.kernel_file)
+        if t.flexible and t.origin == "user" and t in cpu:
+            add(cpu_lib_key(t), "cpu", [u.name for u in cpu if u.origin == "user"
+                                        and cpu_lib_key(u) == cpu_lib_key(t)],
+                t.cpu_text, t.cpu_file)
+        if not t.gpu_aware and t.origin == "user":
+            add(lib_key(t), "python", [u.name for u in used if not u.gpu_aware
+                                       and u.origin == "user" and lib_key(u) == lib_key(t)],
+                t.python_text, t.python_file)
+    for t in checked_kernel_types(system):
+        add(kernel_key(t), "checked_kernel", [t.name], t.kernel_text, t.kernel_file)
+    for g in system.kernel_groups:  # the backend's kernel generator writes their text
+        found.append(LibSource(files[lib_key(g.type)], "group", (g.name,), ""))
+    return tuple(found)
+
+
 def np_name(dtype: str) -> str:
     return DTYPES[dtype][0]
 
@@ -208,6 +244,19 @@ def kernel_class(t: ComponentType, file: str, group: GroupNode | None = None) ->
         grid=t.grid, rows=t.cover == "rows")
 
 
+def param_argument(node: ComponentNode, p) -> Argument:
+    """A parameter's value as the kernel takes it: an argument of a hand kernel, a
+    constant (build option) of a group's generated kernel (p.param 'member.param')."""
+    group = isinstance(node, GroupNode)
+    owner, pname = (node.member(p.param.split(".")[0]), p.param.split(".")[1]) \
+        if group else (node, p.param)
+    host = p.dtype
+    value = owner.params[pname]
+    value = float(value) if host == "float32" else int(value)
+    return Argument(p.name, p.kind, host_type=host, value=value,
+                    param=f"{owner.name}.{pname}")
+
+
 def launch(system: System, node: ComponentNode, program: str) -> Launch:
     """The kernel launch of a GPU component: arguments in convention order, sizes decided."""
     s = system.settings[node.name]
@@ -226,13 +275,7 @@ def launch(system: System, node: ComponentNode, program: str) -> Launch:
             args.append(Argument(p.name, "scalar", port=p.port, host_type="int32",
                                  value=getattr(data, p.dim)))
         elif p.role == "param":
-            owner, pname = (node.member(p.param.split(".")[0]), p.param.split(".")[1]) \
-                if group else (node, p.param)
-            host = PARAM_C_TYPES[owner.type.params[pname].type][1].removeprefix("np.")
-            value = owner.params[pname]
-            value = float(value) if host == "float32" else int(value)
-            args.append(Argument(p.name, "scalar", host_type=host, value=value,
-                                 param=f"{owner.name}.{pname}"))
+            args.append(param_argument(node, p))
         else:  # the tile
             args.append(Argument(p.name, "scalar", host_type="int32", value=s.tile))
     grid = system.data(Endpoint(node.name, t.grid))
@@ -244,12 +287,79 @@ def launch(system: System, node: ComponentNode, program: str) -> Launch:
                   resident_threads(system, node.name))
 
 
+def _defines(group: GroupNode | None) -> tuple[Argument, ...]:
+    """The build options of a group's generated kernel: its members' parameters."""
+    if group is None:
+        return ()
+    return tuple(param_argument(group, p) for p in group_constants(group))
+
+
 def lower(system: System) -> ProgramPlan:
-    model = system.model
     files = lib_files(system)
     types = used_types(system)
     gpu_types = gpu_used_types(system) + [g.type for g in system.kernel_groups]
     taken = set(system.nodes)
+    functions = _function_vars(system, taken)
+    sharing, programs = _program_vars(system, files, gpu_types, taken)
+    queues, n_lanes = _queue_vars(system, gpu_types)
+    n_sets = system.frames_in_flight
+    sources = [n for n in system.order if isinstance(system.nodes[n], ComponentNode)
+               and not system.nodes[n].inputs and not system.nodes[n].on_gpu]
+    lo = _Lowering(system, queues, functions, programs, sources)
+    for name in system.order:
+        node = system.nodes[name]
+        in_vars = tuple(f"{system.input_var(Endpoint(name, p))}_size" for p in node.inputs)
+        outs = tuple((f"{system.output_vars[Endpoint(name, p)]}_size", p,
+                      system.data(Endpoint(name, p)).size) for p in node.outputs)
+        if isinstance(node, AdapterNode):
+            _lower_adapter(lo, name, node, in_vars, outs)
+        else:
+            _lower_component(lo, name, node, in_vars, outs)
+    steps = _stream_steps(lo)
+    imports, user_classes = _imports(system, files, functions, types)
+    users, why = _program_users(system, gpu_types)
+    groups = {g.type.name: g for g in system.kernel_groups}
+    groups_by_key = {_type_key(g.type): g for g in system.kernel_groups}
+    return ProgramPlan(
+        system=system.name, mode=system.mode, execution=system.execution,
+        device_name=system.device.name, zero_copy=system.zero_copy,
+        zero_copy_reason=system.zero_copy_reason, queues=queues if n_lanes or gpu_types else (),
+        programs=tuple(Program(programs[_type_key(m[0])], files[lib_key(m[0])],
+                               ", ".join(f"{users[_type_key(t)]} "
+                                         f"({t.name}{why.get(_type_key(t), '')})"
+                                         for t in m),
+                               _defines(groups_by_key.get(_type_key(m[0]))))
+                       for m in sharing.values()),
+        imports=tuple(sorted(imports)), user_classes=tuple(user_classes),
+        kernel_classes=tuple(kernel_class(t, files[lib_key(t)], groups.get(t.name))
+                             for t in gpu_types),
+        groups=tuple(GroupPlan(g.name, tuple((m.name, m.type.name, m.type.fusable.form)
+                                             for m in g.members), files[lib_key(g.type)],
+                               tuple((p, str(end)) for p, end in g.feeds.items()),
+                               tuple((f"{m.name}.{p}", str(port.data), m is not g.root)
+                                     for m in g.members for p, port in m.outputs.items()),
+                               g.estimate)
+                     for g in system.groups),
+        generated=tuple((g.name, g.root.type.name, g.root.type.fusable.form,
+                         files[lib_key(g.type)])
+                        for g in system.kernel_groups if len(g.members) == 1),
+        unfused=tuple(system.unfused.items()), fusion=system.fusion,
+        parts=tuple(lo.parts), buffers=tuple(lo.buffers), launches=tuple(lo.launches),
+        transfers=tuple(lo.transfers), steps=tuple(steps),
+        frame_end_waits=tuple(system.frame_end_waits),
+        thread_budget=system.thread_budget, thread_budget_source=_budget_source(system),
+        concurrent=tuple((g, sum(resident_threads(system, n) for n in g))
+                         for g in system.concurrent),
+        lib_files={v: k for k, v in files.items()},
+        lib_dir=lib_dir_name(system.name), lib_sources=lib_sources(system, files),
+        frames_in_flight=n_sets, stages=flight_stages(system, steps),
+        flight_notes=tuple(system.flight_notes), buffer_sets=tuple(system.buffer_sets.items()),
+        staging=system.staging, staging_reason=system.staging_reason,
+        placement=tuple(system.placement.lines()) if system.placement else ())
+
+
+def _function_vars(system: System, taken: set[str]) -> dict[str, str]:
+    """The variable of each flexible type's CPU function (type name -> variable)."""
     functions: dict[str, str] = {}  # flexible type on the CPU -> its function's variable
     for t in cpu_used_types(system):
         var = f"{t.snake}_on_cpu"
@@ -257,6 +367,13 @@ def lower(system: System) -> ProgramPlan:
             var += "_"
         functions[t.name] = var
         taken.add(var)
+    return functions
+
+
+def _program_vars(system: System, files: dict[str, str], gpu_types: list[ComponentType],
+                  taken: set[str]) -> tuple[dict[str, list[ComponentType]],
+                                            dict[tuple[str, str], str]]:
+    """The types sharing each kernel file, and the program variable of each type."""
     # one OpenCL program per kernel file, however many of the types used share it
     # (color.cl, filter.cl, ...): the file is compiled once, and each component makes
     # its own kernel object from the program
@@ -273,146 +390,191 @@ def lower(system: System) -> ProgramPlan:
         for t in members:
             programs[_type_key(t)] = var
         taken.add(var)
+    return sharing, programs
+
+
+def _queue_vars(system: System, gpu_types: list[ComponentType]) -> tuple[tuple[str, ...], int]:
+    """The queue variable of each lane, and the number of lanes."""
     n_lanes = max(system.lanes.values(), default=0) + 1 if system.lanes else 0
     queues = ("queue",) if n_lanes == 1 else tuple(f"queue{i}" for i in range(n_lanes))
     if system.lanes or gpu_types:
         queues = queues or ("queue",)
+    return queues, n_lanes
 
-    def queue_of(name: str) -> str:
-        return queues[system.lanes.get(name, 0)]
 
-    standard = system.mode == "standard"
+@dataclass
+class _Lowering:
+    """What lower() decided before walking the nodes, and the records it collects."""
+
+    system: System
+    queues: tuple[str, ...]
+    functions: dict[str, str]
+    programs: dict[tuple[str, str], str]
+    sources: list[str]
+    parts: list[Part] = field(default_factory=list)
+    buffers: list[Buffer] = field(default_factory=list)
+    launches: list[Launch] = field(default_factory=list)
+    transfers: list[Transfer] = field(default_factory=list)
+    steps: list[Step] = field(default_factory=list)
+    pending_checks: list[Step] = field(default_factory=list)
+    head: list[Step] = field(default_factory=list)  # the sources' steps
+
+    def queue_of(self, name: str) -> str:
+        return self.queues[self.system.lanes.get(name, 0)]
+
+    def sets(self, name: str) -> int:
+        return self.system.frames_in_flight if name in self.system.buffer_sets else 1
+
+    def sets_why(self, name: str) -> str:  # stage-frames: why a part's buffers have their sets
+        return self.system.buffer_sets.get(name) or self.system.one_set.get(name, "")
+
+
+def _lower_adapter(lo: _Lowering, name: str, node: AdapterNode, in_vars: tuple,
+                   outs: tuple) -> None:
+    """An adapter's transfer, buffers, part and step."""
+    system, buffers, sets, sets_why = lo.system, lo.buffers, lo.sets, lo.sets_why
     parallel = system.execution == "parallel"
-    n_sets = system.frames_in_flight
-
-    def sets(name: str) -> int:
-        return n_sets if name in system.buffer_sets else 1
-
-    def sets_why(name: str) -> str:  # stage-frames: why a part's buffers have their sets
-        return system.buffer_sets.get(name) or system.one_set.get(name, "")
-
     pinned = system.staging == "pinned"
-    parts, buffers, launches, transfers, steps = [], [], [], [], []
-    sources = [n for n in system.order if isinstance(system.nodes[n], ComponentNode)
-               and not system.nodes[n].inputs and not system.nodes[n].on_gpu]
-    pending_checks: list[Step] = []
-    head: list[Step] = []  # the sources' steps
-    for name in system.order:
-        node = system.nodes[name]
-        in_vars = tuple(f"{system.input_var(Endpoint(name, p))}_size" for p in node.inputs)
-        outs = tuple((f"{system.output_vars[Endpoint(name, p)]}_size", p,
-                      system.data(Endpoint(name, p)).size) for p in node.outputs)
-        if isinstance(node, AdapterNode):
-            data = node.outputs["output"].data
-            consumers = tuple(system.readers(Endpoint(name, "output")))
-            blocking = node.direction == "gpu2cpu" or not parallel
-            transfers.append(Transfer(name, node.direction, data, node.zero_copy, blocking,
-                                      node.source, consumers))
-            cls = ("CpuToGpuAdapter" if node.direction == "cpu2gpu" else "GpuToCpuAdapter")
-            if node.zero_copy:
-                cls = f"ZeroCopy{cls}"
-                if node.direction == "cpu2gpu" and sets(name) > 1:
-                    buffers.append(Buffer(name, "output", f"{name} ({node.source}) kept",
-                                          "host", data, sets(name), sets_why(name)))
-            else:
-                side = "device" if node.direction == "cpu2gpu" else "host"
-                if side == "host" and pinned:
-                    side = "pinned host"
-                buffers.append(Buffer(name, "output", f"{name} ({node.source})", side, data,
-                                      sets(name), sets_why(name)))
-                if node.direction == "cpu2gpu" and pinned:
-                    buffers.append(Buffer(name, "staging", f"{name} staging", "pinned host",
-                                          data, sets(name), sets_why(name)))
-            runs = ("copy" if not node.zero_copy else
-                    "map" if node.direction == "gpu2cpu" else "in place")
-            options = [("nbytes", data.nbytes)]
-            if node.direction == "cpu2gpu" and not node.zero_copy:
-                options.append(("blocking", blocking))
-            if sets(name) > 1:
-                options.append(("buffer_sets", sets(name)))
-                if (node.zero_copy and node.direction == "gpu2cpu"
-                        and queue_of(name) == queue_of(
-                            system.writer(Endpoint(name, "input")).component)):
-                    # the in-order queue puts the unmap before the writer's next kernel; a
-                    # host wait would also wait for later frames' kernels queued before it
-                    options.append(("wait_unmap", False))
-            if pinned and not node.zero_copy:
-                options.append(("staging", "pinned"))
-            parts.append(Part(name, "adapter", f"runtime.{cls}", runs=runs,
-                              stage=system.stages[name], queue=queue_of(name),
-                              options=tuple(options),
-                              note=f"{node.source} -> {', '.join(map(str, consumers))}",
-                              init_inputs=in_vars, init_outputs=outs,
-                              dtype=np_name(data.dtype)))
-            steps.append(Step("transfer", name, (system.input_var(Endpoint(name, "input")),),
-                              (system.output_vars[Endpoint(name, "output")],),
-                              tuple(system.waits.get(name, ()))))
-            continue
-        t = node.type
-        params = tuple((k, node.params[k]) for k in t.params)
-        group = isinstance(node, GroupNode)
-        options: list[tuple[str, object]] = []
-        if node.on_gpu:
-            device_ports = ({**node.inputs, **node.outputs} if standard else node.outputs)
-            for p, port in device_ports.items():
-                buffers.append(Buffer(name, p, f"{name}.{p}", "device", port.data, sets(name),
-                                   sets_why(name)))
-            if standard:
-                for p, port in node.outputs.items():
-                    buffers.append(Buffer(name, p, f"{name}.{p} (host)", "host", port.data,
-                                          sets(name)))
-                for p, port in node.inputs.items():
-                    transfers.append(Transfer(name, "cpu2gpu", port.data))
-                for p, port in node.outputs.items():
-                    transfers.append(Transfer(name, "gpu2cpu", port.data))
-                options.append(("copies_own_data", True))
-            elif system.zero_copy:
-                options.append(("host_visible", True))
-            if sets(name) > 1:
-                options.append(("buffer_sets", sets(name)))
-            launches.append(launch(system, node, programs[_type_key(t)]))
-        else:
-            for p, port in node.outputs.items():
-                buffers.append(Buffer(name, p, f"{name}.{p}", "host", port.data,
-                                      sets_why=sets_why(name)))
-        if t.flexible and not node.on_gpu:
-            parts.append(Part(name, "component", "runtime.CpuFunctionComponent", t.name, "CPU",
-                              system.stages[name], params=params, init_inputs=in_vars,
-                              init_outputs=outs, function=functions[t.name],
-                              ports=tuple(tuple((p, np_name(d.dtype)) for p, d in ports.items())
-                                          for ports in (t.inputs, t.outputs))))
-        else:
-            what = t.name if not group else \
-                node.root.type.name if len(node.members) == 1 else "fused group"
-            parts.append(Part(name, "component", t.name, what,
-                              "GPU" if node.on_gpu else "CPU", system.stages[name],
-                              queue_of(name) if node.on_gpu else None,
-                              programs.get(_type_key(t)) if node.on_gpu else None, params,
-                              tuple(options), init_inputs=in_vars, init_outputs=outs))
-        # the sources run first, whatever the schedule: the end of the stream is known
-        # before any part works on the frame (independent chains end together)
-        (head if name in sources else steps).append(Step(
-            "execute", name, tuple(system.input_var(Endpoint(name, p)) for p in node.inputs),
-            tuple(system.output_vars[Endpoint(name, p)] for p in node.outputs),
-            tuple(system.waits.get(name, ())) if not standard else ()))
-        # what a CPU component returns is checked where it enters another part (a
-        # source's after the end-of-stream test: None ends the stream there)
-        checks = [Step("check", name, (system.output_vars[Endpoint(name, p)],),
-                       note=f"{name}.{p}", shape=port.data.size.shape,
-                       dtype=np_name(port.data.dtype))
-                  for p, port in node.outputs.items()
-                  if not node.on_gpu and system.readers(Endpoint(name, p))]
-        if name in sources:
-            pending_checks += checks
-        else:
-            steps += checks
-        for a in system.unmap_after.get(name, []):
-            steps.append(Step("unmap", a, note=f"the device may write "
-                              f"{system.nodes[a].source} again"))
+    data = node.outputs["output"].data
+    consumers = tuple(system.readers(Endpoint(name, "output")))
+    blocking = node.direction == "gpu2cpu" or not parallel
+    lo.transfers.append(Transfer(name, node.direction, data, node.zero_copy, blocking,
+                                 node.source, consumers))
+    cls = ("CpuToGpuAdapter" if node.direction == "cpu2gpu" else "GpuToCpuAdapter")
+    if node.zero_copy:
+        cls = f"ZeroCopy{cls}"
+        if node.direction == "cpu2gpu" and sets(name) > 1:
+            buffers.append(Buffer(name, "output", f"{name} ({node.source}) kept",
+                                  "host", data, sets(name), sets_why(name)))
+    else:
+        side = "device" if node.direction == "cpu2gpu" else "host"
+        if side == "host" and pinned:
+            side = "pinned host"
+        buffers.append(Buffer(name, "output", f"{name} ({node.source})", side, data,
+                              sets(name), sets_why(name)))
+        if node.direction == "cpu2gpu" and pinned:
+            buffers.append(Buffer(name, "staging", f"{name} staging", "pinned host",
+                                  data, sets(name), sets_why(name)))
+    runs = ("copy" if not node.zero_copy else
+            "map" if node.direction == "gpu2cpu" else "in place")
+    options = [("nbytes", data.nbytes)]
+    if node.direction == "cpu2gpu" and not node.zero_copy:
+        options.append(("blocking", blocking))
+    if sets(name) > 1:
+        options.append(("buffer_sets", sets(name)))
+        if (node.zero_copy and node.direction == "gpu2cpu"
+                and lo.queue_of(name) == lo.queue_of(
+                    system.writer(Endpoint(name, "input")).component)):
+            # the in-order queue puts the unmap before the writer's next kernel; a
+            # host wait would also wait for later frames' kernels queued before it
+            options.append(("wait_unmap", False))
+    if pinned and not node.zero_copy:
+        options.append(("staging", "pinned"))
+    lo.parts.append(Part(name, "adapter", f"runtime.{cls}", runs=runs,
+                         stage=system.stages[name], queue=lo.queue_of(name),
+                         options=tuple(options),
+                         note=f"{node.source} -> {', '.join(map(str, consumers))}",
+                         init_inputs=in_vars, init_outputs=outs,
+                         dtype=np_name(data.dtype)))
+    lo.steps.append(Step("transfer", name, (system.input_var(Endpoint(name, "input")),),
+                         (system.output_vars[Endpoint(name, "output")],),
+                         tuple(system.waits.get(name, ()))))
 
-    ends = tuple(system.output_vars[Endpoint(s, p)] for s in sources
+
+def _lower_component(lo: _Lowering, name: str, node: ComponentNode | GroupNode,
+                     in_vars: tuple, outs: tuple) -> None:
+    """A component's (or group's) buffers, transfers (standard mode), launch, part, step,
+    the checks of what it returns, and the unmaps after it."""
+    system, buffers, sets, sets_why = lo.system, lo.buffers, lo.sets, lo.sets_why
+    standard = system.mode == "standard"
+    t = node.type
+    params = tuple((k, node.params[k]) for k in t.params)
+    group = isinstance(node, GroupNode)
+    options: list[tuple[str, object]] = []
+    if node.on_gpu:
+        device_ports = ({**node.inputs, **node.outputs} if standard else node.outputs)
+        for p, port in device_ports.items():
+            buffers.append(Buffer(name, p, f"{name}.{p}", "device", port.data, sets(name),
+                                  sets_why(name)))
+        if standard:
+            for p, port in node.outputs.items():
+                buffers.append(Buffer(name, p, f"{name}.{p} (host)", "host", port.data,
+                                      sets(name)))
+            for p, port in node.inputs.items():
+                lo.transfers.append(Transfer(name, "cpu2gpu", port.data))
+            for p, port in node.outputs.items():
+                lo.transfers.append(Transfer(name, "gpu2cpu", port.data))
+            options.append(("copies_own_data", True))
+        elif system.zero_copy:
+            options.append(("host_visible", True))
+        if sets(name) > 1:
+            options.append(("buffer_sets", sets(name)))
+        lo.launches.append(launch(system, node, lo.programs[_type_key(t)]))
+    else:
+        for p, port in node.outputs.items():
+            buffers.append(Buffer(name, p, f"{name}.{p}", "host", port.data,
+                                  sets_why=sets_why(name)))
+    if t.flexible and not node.on_gpu:
+        lo.parts.append(Part(name, "component", "runtime.CpuFunctionComponent", t.name, "CPU",
+                             system.stages[name], params=params, init_inputs=in_vars,
+                             init_outputs=outs, function=lo.functions[t.name],
+                             ports=tuple(tuple((p, np_name(d.dtype)) for p, d in ports.items())
+                                         for ports in (t.inputs, t.outputs))))
+    else:
+        what = t.name if not group else \
+            node.root.type.name if len(node.members) == 1 else "fused group"
+        lo.parts.append(Part(name, "component", t.name, what,
+                             "GPU" if node.on_gpu else "CPU", system.stages[name],
+                             lo.queue_of(name) if node.on_gpu else None,
+                             lo.programs.get(_type_key(t)) if node.on_gpu else None, params,
+                             tuple(options), init_inputs=in_vars, init_outputs=outs))
+    # the sources run first, whatever the schedule: the end of the stream is known
+    # before any part works on the frame (independent chains end together)
+    (lo.head if name in lo.sources else lo.steps).append(Step(
+        "execute", name, tuple(system.input_var(Endpoint(name, p)) for p in node.inputs),
+        _execute_outputs(lo, name, node),
+        tuple(system.waits.get(name, ())) if not standard else ()))
+    # what a CPU component returns is checked where it enters another part (a
+    # source's after the end-of-stream test: None ends the stream there)
+    checks = [Step("check", name, (system.output_vars[Endpoint(name, p)],),
+                   note=f"{name}.{p}", shape=port.data.size.shape,
+                   dtype=np_name(port.data.dtype))
+              for p, port in node.outputs.items()
+              if not node.on_gpu and system.readers(Endpoint(name, p))]
+    if name in lo.sources:
+        lo.pending_checks += checks
+    else:
+        lo.steps += checks
+    for a in system.unmap_after.get(name, []):
+        lo.steps.append(Step("unmap", a, note=f"the device may write "
+                             f"{system.nodes[a].source} again"))
+
+
+def _execute_outputs(lo: _Lowering, name: str, node: ComponentNode | GroupNode) -> tuple:
+    """The variables an execute step assigns: '_' for an output nobody reads (a source's
+    outputs excepted: the end-of-stream test reads them), none when no output is read, so
+    that the program assigns no variable it never uses."""
+    system = lo.system
+    outputs = tuple(system.output_vars[Endpoint(name, p)]
+                    if name in lo.sources or system.readers(Endpoint(name, p)) else "_"
+                    for p in node.outputs)
+    return () if all(v == "_" for v in outputs) else outputs
+
+
+def _stream_steps(lo: _Lowering) -> list[Step]:
+    """The stream loop's steps: the sources', the end-of-stream test, the checks of what
+    the sources returned, then the rest in order."""
+    system = lo.system
+    ends = tuple(system.output_vars[Endpoint(s, p)] for s in lo.sources
                  for p in system.nodes[s].outputs)
-    steps = head + ([Step("end_of_stream", inputs=ends)] if ends else []) + pending_checks + steps
+    return (lo.head + ([Step("end_of_stream", inputs=ends)] if ends else [])
+            + lo.pending_checks + lo.steps)
+
+
+def _imports(system: System, files: dict[str, str], functions: dict[str, str],
+             types: list[ComponentType]) -> tuple[list, list[UserClass]]:
+    """The library's imports the program needs, and the user's classes and CPU functions
+    it loads from the lib folder."""
     imports, user_classes = [], []
     for t in cpu_used_types(system):
         if t.origin == "library":
@@ -429,6 +591,13 @@ def lower(system: System) -> ProgramPlan:
                             "" if t.python_class == t.name else t.name))
         else:
             user_classes.append(UserClass(t.name, files[lib_key(t)], t.python_class))
+    return imports, user_classes
+
+
+def _program_users(system: System, gpu_types: list[ComponentType]) -> tuple[
+        dict[tuple[str, str], str], dict[tuple[str, str], str]]:
+    """The components each kernel's type serves (for the program's comment), and why a
+    type's kernel is only built to check it."""
     users = {_type_key(t): _some([n for n in system.order
                             if isinstance(system.nodes[n], (ComponentNode, GroupNode))
                             and system.nodes[n].type is t and system.nodes[n].on_gpu])
@@ -444,45 +613,15 @@ def lower(system: System) -> ProgramPlan:
         why[_type_key(t)] = "; " + " and ".join(
             w for w, names in (("fused", fused), ("its generated kernel alone", alone),
                                ("on the CPU", on_cpu)) if names) + ": built only to check it"
-    groups = {g.type.name: g for g in system.kernel_groups}
-    asked = model.thread_budget
-    budget_source = ("platform.thread_budget" if asked and asked <= system.thread_budget else
-                     "device total" if not asked else
-                     f"device total; platform.thread_budget {asked:,} is more")
-    return ProgramPlan(
-        system=system.name, mode=system.mode, execution=system.execution,
-        device_name=system.device.name, zero_copy=system.zero_copy,
-        zero_copy_reason=system.zero_copy_reason, queues=queues if n_lanes or gpu_types else (),
-        programs=tuple(Program(programs[_type_key(m[0])], files[lib_key(m[0])],
-                               ", ".join(f"{users[_type_key(t)]} "
-                                         f"({t.name}{why.get(_type_key(t), '')})"
-                                         for t in m))
-                       for m in sharing.values()),
-        imports=tuple(sorted(imports)), user_classes=tuple(user_classes),
-        kernel_classes=tuple(kernel_class(t, files[lib_key(t)], groups.get(t.name))
-                             for t in gpu_types),
-        groups=tuple(GroupPlan(g.name, tuple((m.name, m.type.name, m.type.fusable.form)
-                                             for m in g.members), files[lib_key(g.type)],
-                               tuple((p, str(end)) for p, end in g.feeds.items()),
-                               tuple((f"{m.name}.{p}", str(port.data), m is not g.root)
-                                     for m in g.members for p, port in m.outputs.items()),
-                               g.estimate)
-                     for g in system.groups),
-        generated=tuple((g.name, g.root.type.name, g.root.type.fusable.form,
-                         files[lib_key(g.type)])
-                        for g in system.kernel_groups if len(g.members) == 1),
-        unfused=tuple(system.unfused.items()), fusion=system.fusion,
-        parts=tuple(parts), buffers=tuple(buffers), launches=tuple(launches),
-        transfers=tuple(transfers), steps=tuple(steps),
-        frame_end_waits=tuple(system.frame_end_waits),
-        thread_budget=system.thread_budget, thread_budget_source=budget_source,
-        concurrent=tuple((g, sum(resident_threads(system, n) for n in g))
-                         for g in system.concurrent),
-        lib_files={v: k for k, v in files.items()},
-        frames_in_flight=n_sets, stages=flight_stages(system, steps),
-        flight_notes=tuple(system.flight_notes), buffer_sets=tuple(system.buffer_sets.items()),
-        staging=system.staging, staging_reason=system.staging_reason,
-        placement=tuple(system.placement.lines()) if system.placement else ())
+    return users, why
+
+
+def _budget_source(system: System) -> str:
+    """Where the thread budget comes from, for the plan."""
+    asked = system.model.thread_budget
+    return ("platform.thread_budget" if asked and asked <= system.thread_budget else
+            "device total" if not asked else
+            f"device total; platform.thread_budget {asked:,} is more")
 
 
 def flight_stages(system: System, steps: list[Step]) -> tuple[FlightStage, ...]:

@@ -1,15 +1,20 @@
 """The small runtime that generated programs import (``from gpucompgen import runtime``).
 
-It holds what every generated program needs and nothing of the generator; it imports
-pyopencl and numpy only. One module per concern:
+It holds what every generated program needs and nothing of the generator: a neutral core
+that imports numpy only, and one module per device API behind the device interface
+(device_api.py).  ``from gpucompgen import runtime`` is the runtime of OpenCL programs: the
+core's names and the OpenCL module's.  CUDA programs import ``runtime.cuda`` instead.
+
+The core, one module per concern:
 
     errors      PipelineError (a problem the user can act on) and Stopped (a signal)
     sizes       Size, the size of the data on one port
     facts       DeviceFacts: the device facts the generator plans for and the runtime checks
-    devices     device selection, queues, device and kernel limits, the memory check
+    device_api  the device interface: what the core asks of a device API, picked by name
+    devices     device status, kernel limits, the work-group and memory checks
     adapters    the CPU<->GPU adapters (copying and zero-copy), the same in every system
     components  KernelComponent, the base class of generated GPU-aware component classes
-    programs    building kernel files, with the component named in errors
+    programs    kernel files and build logs made readable, the component named in errors
     frames      shape and element type of frames crossing components
     lifecycle   size checks, user modules, failures named by component, freeing
     profiling   --profile: event times and bytes moved
@@ -18,6 +23,11 @@ pyopencl and numpy only. One module per concern:
     signals     SIGINT and SIGTERM stop a run cleanly
     overrides   --set, --input and --output, checked against the program's PARAMS
     cli         the generated program's command line (main)
+
+The device APIs:
+
+    opencl      OpenCL: device selection, facts, building, memory, copies, launches, events
+    cuda        CUDA (cuda-python): the names an OpenCL program calls, driving CUDA
 
 Everything is importable from ``gpucompgen.runtime`` as before.
 """
@@ -33,21 +43,11 @@ from .adapters import (
 from .cli import add_program_options, main
 from .components import CpuFunctionComponent, KernelComponent
 from .devices import (
-    NO_DEVICE_HINT,
     DeviceLimits,
     DeviceStatus,
     KernelLimits,
     _build_problem,
     check_device_memory,
-    check_work_group,
-    create_context,
-    create_queue,
-    device_limits,
-    kernel_limits,
-    probe_device,
-    select_device,
-    survey_devices,
-    unusable_message,
 )
 from .errors import PipelineError, Stopped
 from .frames import check_frame
@@ -64,10 +64,23 @@ from .lifecycle import (
     model_path,
 )
 from .monitor import Monitor
+from .opencl import (
+    NO_DEVICE_HINT,
+    build_program,
+    check_work_group,
+    create_context,
+    create_queue,
+    device_limits,
+    kernel_limits,
+    probe_device,
+    quiet_compiler,
+    select_device,
+    survey_devices,
+    unusable_message,
+)
 from .overrides import Param, param_values
 from .pipeline import FrameFailure, stream_in_flight
 from .profiling import Profile
-from .programs import build_program, quiet_compiler
 from .signals import _stop_on_signals
 from .sizes import Size
 

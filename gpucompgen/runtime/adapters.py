@@ -4,17 +4,25 @@ chose, and calls transfer() once a frame.
 
 Copying adapters own one buffer (device for CPU-to-GPU, host for GPU-to-CPU); zero-copy
 adapters, on devices with unified host memory, let the other side use the memory in place.
+They reach the device through the device interface (device_api.py): `api` names the
+device API's module (default: OpenCL's).
 """
 
 from __future__ import annotations
 
+from typing import Any, ClassVar
+
+from . import device_api
 from .errors import PipelineError
 from .frames import read_only
 from .sizes import Size
 
 
 class _Adapter:
+    api: ClassVar[Any] = None  # the device API's module (None: device_api's default)
+
     def __init__(self, context, queue, nbytes: int):
+        self._api = self.api or device_api.get()
         self.context = context
         self.queue = queue
         self.nbytes = nbytes  # a frame's bytes, from the system plan
@@ -34,30 +42,6 @@ class _Adapter:
         if host.nbytes != self.nbytes:
             raise PipelineError(f"frame of {host.nbytes:,} bytes where {self.nbytes:,} "
                                 "were expected")
-
-
-def _pinned(context, queue, shape, dtype, flags):
-    """A pinned host array: a buffer the implementation allocates in page-locked host
-    memory (ALLOC_HOST_PTR), mapped once for the host.  Copies to and from it run at the
-    device's DMA speed; a pageable array is staged through such memory by the driver on
-    every copy.  Returns (buffer, mapped array)."""
-    import numpy as np
-    import pyopencl as cl
-
-    nbytes = int(np.prod(shape)) * np.dtype(dtype).itemsize
-    buffer = cl.Buffer(context, flags | cl.mem_flags.ALLOC_HOST_PTR, nbytes)
-    view, _ = cl.enqueue_map_buffer(queue, buffer, cl.map_flags.READ | cl.map_flags.WRITE, 0,
-                                    shape, np.dtype(dtype), is_blocking=True)
-    return buffer, view
-
-
-def _release_pinned(queue, pinned) -> None:
-    """Unmap and release pinned staging buffers without waiting: the unmap is queued behind
-    whatever the device still runs (a kernel that never ends must not keep free_all from
-    returning), and OpenCL releases the memory once its commands are done."""
-    for buffer, view in pinned:
-        view.base.release(queue)
-        buffer.release()
 
 
 class CpuToGpuAdapter(_Adapter):
@@ -81,20 +65,17 @@ class CpuToGpuAdapter(_Adapter):
         self._turn = 0
 
     def initialize(self, size, dtype):
-        import pyopencl as cl
-
+        api = self._api
         size = super().initialize(size, dtype)
         for _ in range(self.buffer_sets):
-            self.buffers.append(cl.Buffer(self.context, cl.mem_flags.READ_ONLY, self.nbytes))
+            self.buffers.append(api.device_buffer(self.context, self.nbytes, "read"))
             if self.staging == "pinned":
-                self.pinned.append(_pinned(self.context, self.queue, size.shape, dtype,
-                                           cl.mem_flags.READ_WRITE))
+                self.pinned.append(api.pinned(self.context, self.queue, size.shape, dtype))
         self.buffer = self.buffers[0]
         return size
 
     def transfer(self, host, wait_for=None):
         import numpy as np
-        import pyopencl as cl
 
         self._check(host)
         k = self._turn
@@ -105,17 +86,17 @@ class CpuToGpuAdapter(_Adapter):
             np.copyto(source, np.reshape(host, source.shape), casting="no")
         else:
             source = np.ascontiguousarray(host)
-        self.event = cl.enqueue_copy(self.queue, self.buffer, source,
-                                     is_blocking=self.blocking, wait_for=wait_for)
+        self.event = self._api.copy(self.queue, self.buffer, source,
+                                    blocking=self.blocking, wait_for=wait_for)
         if self.profile is not None:
             self.profile.copy(self, "cpu2gpu", self.event, self.nbytes)
         return self.buffer
 
     def free_memory(self):
         pinned, self.pinned = self.pinned, []
-        _release_pinned(self.queue, pinned)
+        self._api.release_pinned(self.queue, pinned)
         for buffer in self.buffers:
-            buffer.release()
+            self._api.release(buffer)
         self.buffers, self.buffer = [], None
 
 
@@ -146,48 +127,42 @@ class ZeroCopyCpuToGpuAdapter(_Adapter):
 
     def initialize(self, size, dtype):
         import numpy as np
-        import pyopencl as cl
 
         size = super().initialize(size, dtype)
         if self.buffer_sets > 1:
-            self._map_queue = cl.CommandQueue(self.context, device=self.queue.device)
+            self._map_queue = self._api.side_queue(self.queue)
             for _ in range(self.buffer_sets):
                 host = np.empty(size.shape, dtype)
-                self.snapshots.append((host, cl.Buffer(
-                    self.context, cl.mem_flags.READ_ONLY | cl.mem_flags.USE_HOST_PTR,
-                    hostbuf=host)))
+                self.snapshots.append((host, self._api.host_buffer(self.context, host)))
         return size
 
     def transfer(self, host, wait_for=None):
         import numpy as np
-        import pyopencl as cl
 
+        api = self._api
         self._check(host)
         if self.snapshots:
             k = self._turn
             self._turn = (k + 1) % self.buffer_sets
             self.host, self.buffer = self.snapshots[k]
-            view, _ = cl.enqueue_map_buffer(
-                self._map_queue, self.buffer, cl.map_flags.WRITE_INVALIDATE_REGION, 0,
-                self.host.shape, self.host.dtype, is_blocking=True)
+            view, _ = api.map(self._map_queue, self.buffer, self.host.shape, self.host.dtype,
+                              "write")
             np.copyto(view, np.reshape(host, view.shape), casting="no")
-            view.base.release(self._map_queue).wait()  # unmapped: the device sees the frame
+            api.unmap(self._map_queue, view).wait()  # unmapped: the device sees the frame
             return self.buffer
         self.free_memory()  # the previous frame's buffer: its frame is complete
         self.host = np.ascontiguousarray(host)  # kept alive while the device reads it
-        self.buffer = cl.Buffer(self.context,
-                                cl.mem_flags.READ_ONLY | cl.mem_flags.USE_HOST_PTR,
-                                hostbuf=self.host)
+        self.buffer = api.host_buffer(self.context, self.host)
         return self.buffer
 
     def free_memory(self):
         if self.buffer is not None and not self.snapshots:
-            self.buffer.release()
+            self._api.release(self.buffer)
         self.buffer = None
         self.host = None
         snapshots, self.snapshots = self.snapshots, []
         for _, buffer in snapshots:
-            buffer.release()
+            self._api.release(buffer)
         self._map_queue = None
 
 
@@ -210,13 +185,12 @@ class GpuToCpuAdapter(_Adapter):
 
     def initialize(self, size, dtype):
         import numpy as np
-        import pyopencl as cl
 
         size = super().initialize(size, dtype)
         for _ in range(self.buffer_sets):
             if self.staging == "pinned":
-                self.pinned.append(_pinned(self.context, self.queue, size.shape, dtype,
-                                           cl.mem_flags.READ_WRITE))
+                self.pinned.append(self._api.pinned(self.context, self.queue, size.shape,
+                                                    dtype))
                 self.hosts.append(self.pinned[-1][1])
             else:
                 self.hosts.append(np.empty(size.shape, dtype))
@@ -224,12 +198,10 @@ class GpuToCpuAdapter(_Adapter):
         return size
 
     def transfer(self, buffer, wait_for=None):
-        import pyopencl as cl
-
         k = self._turn
         self._turn = (k + 1) % self.buffer_sets
         self.host = self.hosts[k]
-        self.event = cl.enqueue_copy(self.queue, self.host, buffer, wait_for=wait_for)
+        self.event = self._api.copy(self.queue, self.host, buffer, wait_for=wait_for)
         if self.profile is not None:
             self.profile.copy(self, "gpu2cpu", self.event, self.nbytes)
         return read_only(self.host)  # every reader gets the same frame: none may write it
@@ -237,7 +209,7 @@ class GpuToCpuAdapter(_Adapter):
     def free_memory(self):
         self.hosts, self.host = [], None
         pinned, self.pinned = self.pinned, []
-        _release_pinned(self.queue, pinned)
+        self._api.release_pinned(self.queue, pinned)
 
 
 class ZeroCopyGpuToCpuAdapter(_Adapter):
@@ -269,14 +241,10 @@ class ZeroCopyGpuToCpuAdapter(_Adapter):
         return self.views[-1] if self.views else None
 
     def transfer(self, buffer, wait_for=None):
-        import numpy as np
-        import pyopencl as cl
-
         if len(self.views) >= self.buffer_sets:
             raise PipelineError("buffer mapped twice: unmap() was not called")
-        view, self.event = cl.enqueue_map_buffer(
-            self.queue, buffer, cl.map_flags.READ, 0, self.shape, np.dtype(self.dtype),
-            is_blocking=True, wait_for=wait_for)
+        view, self.event = self._api.map(self.queue, buffer, self.shape, self.dtype, "read",
+                                         wait_for=wait_for)
         self.views.append(view)
         if self.profile is not None:
             self.profile.mapping(self, "map", self.event)
@@ -285,7 +253,7 @@ class ZeroCopyGpuToCpuAdapter(_Adapter):
     def unmap(self):
         if self.views:
             view = self.views.popleft()
-            event = view.base.release(self.queue)
+            event = self._api.unmap(self.queue, view)
             if self.wait_unmap:
                 event.wait()
             if self.profile is not None:

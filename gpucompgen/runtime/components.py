@@ -4,14 +4,15 @@ A generated class declares what differs per type — its kernel function, its po
 their element types, and how its output sizes follow from its inputs and parameters —
 and the generated ``run()`` passes what differs per system: the GPU settings, global and
 local sizes and the kernel's arguments in calling-convention order (buffers by port name,
-scalars as values).  This class allocates, launches and frees.
+scalars as values).  This class allocates, launches and frees, through the device
+interface (device_api.py): `api` names the device API's module (default: OpenCL's).
 """
 
 from __future__ import annotations
 
 from typing import Any, ClassVar
 
-from .devices import check_work_group
+from . import device_api
 from .frames import read_only
 from .sizes import Size
 
@@ -21,6 +22,7 @@ class KernelComponent:
     # (port, numpy element type) in the type's order
     inputs: ClassVar[tuple[tuple[str, Any], ...]] = ()
     outputs: ClassVar[tuple[tuple[str, Any], ...]] = ()
+    api: ClassVar[Any] = None  # the device API's module (None: device_api's default)
 
     def __init__(self, context, queue, program, *, copies_own_data: bool = False,
                  host_visible: bool = False, buffer_sets: int = 1, **params: Any):
@@ -29,15 +31,14 @@ class KernelComponent:
         in host-visible memory, so a zero-copy adapter can map them; buffer_sets: with
         frames in flight, one set of buffers per frame in flight, used in turn (another
         stage reads set f while this one writes set f + 1)."""
-        import pyopencl as cl
-
+        api = self._api = self.api or device_api.get()
         self.context = context
         self.queue = queue
         self.buffer_sets = buffer_sets
         # one kernel object per buffer set: arguments that do not change from frame to
         # frame are set once per set, not once per launch
-        self.kernels = [cl.Kernel(program, self.function) for _ in range(buffer_sets)]
-        self._enqueue = cl.enqueue_nd_range_kernel  # looked up once, not once a frame
+        self.kernels = [api.kernel(program, self.function) for _ in range(buffer_sets)]
+        self._enqueue = api.launcher()  # looked up once, not once a frame
         self.kernel = self.kernels[0]
         self.copies_own_data = copies_own_data
         self.host_visible = host_visible
@@ -67,29 +68,28 @@ class KernelComponent:
     def initialize(self, *inputs: Size):
         """Input sizes in, output sizes out; memory is allocated once, here."""
         import numpy as np
-        import pyopencl as cl
 
+        api = self._api
         for port, size in zip(self._inputs, inputs):
             self.sizes[port] = Size(*size)
         out_sizes = list(self.output_sizes(*inputs))
         for port, size in zip(self._outputs, out_sizes):
             self.sizes[port] = size
-        mf = cl.mem_flags
         for _ in range(self.buffer_sets):
             buffers, hosts = {}, {}
             if self.copies_own_data:
                 for port, dtype in self._inputs.items():
-                    buffers[port] = cl.Buffer(self.context, mf.READ_ONLY,
-                                              self.sizes[port].nbytes(dtype))
+                    buffers[port] = api.device_buffer(self.context,
+                                                      self.sizes[port].nbytes(dtype), "read")
                 for port, dtype in self._outputs.items():
-                    buffers[port] = cl.Buffer(self.context, mf.WRITE_ONLY,
-                                              self.sizes[port].nbytes(dtype))
+                    buffers[port] = api.device_buffer(self.context,
+                                                      self.sizes[port].nbytes(dtype), "write")
                     hosts[port] = np.empty(self.sizes[port].shape, dtype)
             else:
-                flags = mf.READ_WRITE | (mf.ALLOC_HOST_PTR if self.host_visible else 0)
                 for port, dtype in self._outputs.items():
-                    buffers[port] = cl.Buffer(self.context, flags,
-                                              self.sizes[port].nbytes(dtype))
+                    buffers[port] = api.device_buffer(
+                        self.context, self.sizes[port].nbytes(dtype), "read_write",
+                        host_visible=self.host_visible)
             self.sets.append(buffers)
             self.host_sets.append(hosts)
             given = [(hosts if self.copies_own_data else buffers)[port] for port in self._outputs]
@@ -101,8 +101,8 @@ class KernelComponent:
         """The GPU settings the system chose, used for every frame; arguments in the
         calling convention's order: a port's name stands for its buffer."""
         self.tile, self.local_size, self.global_size = tile, local_size, global_size
-        _check_work_group(self.kernel, self.queue.device, local_size, type(self).__name__,
-                          settings_source)
+        self._api.check_work_group(self.kernel, self._api.device_of(self.queue), local_size,
+                                   type(self).__name__, settings_source=settings_source)
         inputs = [port for port, _ in self.inputs]
         # (argument index, input index): filled in by execute() with the inputs it is given
         self._slots = [(i, inputs.index(arg)) for i, arg in enumerate(arguments)
@@ -122,12 +122,10 @@ class KernelComponent:
         if bound is None or len(bound) != len(given) or any(
                 a is not b for a, b in zip(bound, given)):
             args = self._argument_sets[k]
-            if self.copies_own_data:
-                kernel.set_args(*args)
-            else:
+            if not self.copies_own_data:
                 for i, j in self._slots:
                     args[i] = given[j]
-                kernel.set_args(*args)
+            self._api.set_args(kernel, *args)
             self._bound[k] = given
         return kernel
 
@@ -148,18 +146,17 @@ class KernelComponent:
         """A standard component's frame: its inputs to the device, the kernel, its outputs
         back, all waited for by the blocking copies back."""
         import numpy as np
-        import pyopencl as cl
 
+        copy = self._api.copy
         buffers, hosts = self.sets[k], self.host_sets[k]
-        copied_in = [cl.enqueue_copy(self.queue, buffers[port], np.ascontiguousarray(x))
+        copied_in = [copy(self.queue, buffers[port], np.ascontiguousarray(x))
                      for port, x in zip(self._inputs, inputs)]
         ran = self._enqueue(self.queue, self._kernel_for(k, ()), self.global_size,
                             self.local_size)
-        copied_out = [cl.enqueue_copy(self.queue, hosts[port], buffers[port])
-                      for port in self._outputs]
+        copied_out = [copy(self.queue, hosts[port], buffers[port]) for port in self._outputs]
         if self.profile is not None:
             for port, event in zip(self._inputs, copied_in):
-                self.profile.copy(self, "cpu2gpu", event, buffers[port].size)
+                self.profile.copy(self, "cpu2gpu", event, self._api.nbytes(buffers[port]))
             self.profile.kernel(self, ran)
             for port, event in zip(self._outputs, copied_out):
                 self.profile.copy(self, "gpu2cpu", event, hosts[port].nbytes)
@@ -171,16 +168,9 @@ class KernelComponent:
             for port, _ in self.outputs + self.inputs:
                 buffer = buffers.pop(port, None)
                 if buffer is not None:
-                    buffer.release()
+                    self._api.release(buffer)
         self.sets, self.host_sets, self._results = [], [], []
         self._argument_sets = []
-
-
-def _check_work_group(kernel, device, local_size, component: str, settings_source: str):
-    # settings_source says who chose the settings ("model" for gpu_settings), so that a
-    # run-time limit error says what to change
-    return check_work_group(kernel, device, local_size, component,
-                            settings_source=settings_source)
 
 
 class CpuFunctionComponent:

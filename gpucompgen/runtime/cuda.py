@@ -56,7 +56,7 @@ from .monitor import Monitor
 from .overrides import Param, param_values
 from .pipeline import FrameFailure, stream_in_flight
 from .profiling import Profile
-from .programs import clean_build_log, read_kernel_file
+from .programs import clean_build_log, define_options, read_kernel_file
 from .sizes import Size
 
 __all__ = [
@@ -272,7 +272,7 @@ class CudaQueue:
 
 
 def wait_for_events(events) -> None:
-    """The host waits until these commands are done (pyopencl's wait_for_events)."""
+    """The host waits until these commands are done (the OpenCL runtime's wait_for_events)."""
     for event in events:
         if event is not None:
             event.wait()
@@ -290,7 +290,7 @@ class _Times:
 
 class CudaEvent:
     """What a command left behind: an event recorded after it on its stream (and one
-    before it when profiling).  .wait() and .profile.start/.end (ns) as in pyopencl."""
+    before it when profiling).  .wait() and .profile.start/.end (ns), the device interface's events."""
 
     def __init__(self, queue: CudaQueue):
         cu = _driver()
@@ -481,9 +481,11 @@ class CudaProgram:
 
 
 def build_program(context: CudaContext, path: Path, component: str,
-                  options: tuple[str, ...] = ()) -> CudaProgram:
+                  options: tuple[str, ...] = (), defines: dict | None = None) -> CudaProgram:
     """Compile one .cu file for the device's architecture (cached on disk) and load it;
-    a failure names the component and file and gives NVRTC's messages."""
+    a failure names the component and file and gives NVRTC's messages.  defines: the
+    kernel's constants as -D options, as for OpenCL (programs.define_options)."""
+    options = (*options, *define_options(defines))
     path = Path(path)
     source = read_kernel_file(path, component)
     arch = context.device.arch

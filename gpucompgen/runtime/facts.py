@@ -1,8 +1,9 @@
 """Device facts: the one declaration of what the generator plans for and the runtime checks.
 
 The generator plans GPU settings and memory for described devices (profiles in
-``gpucompgen.device``); ``query`` reads the same facts from a real OpenCL device, for
-``--device auto`` at build time and for the program's checks at run time.
+``gpucompgen.device``); each device API reads the same facts from a real device
+(``opencl.facts``, ``cuda.device_facts``), for ``--device auto`` at build time and for the
+program's checks at run time.
 """
 
 from __future__ import annotations
@@ -33,23 +34,3 @@ class DeviceFacts:
         d = asdict(self)
         d["max_work_item_sizes"] = list(self.max_work_item_sizes)
         return d
-
-
-def query(device: Any) -> DeviceFacts:
-    """The facts of a pyopencl device (the OpenCL queries, made in this one place)."""
-    import pyopencl as cl
-
-    sizes = tuple(device.max_work_item_sizes)[:3]
-    sizes = tuple(sizes) + (1,) * (3 - len(sizes))
-    return DeviceFacts(
-        name=device.name.strip(),
-        compute_units=device.max_compute_units,
-        max_work_group_size=device.max_work_group_size,
-        max_work_item_sizes=sizes,
-        local_mem_size=device.local_mem_size,
-        global_mem_size=device.global_mem_size,
-        max_mem_alloc_size=device.max_mem_alloc_size,
-        host_unified_memory=bool(getattr(device, "host_unified_memory", False)),
-        threads_per_compute_unit=2048 if device.type & cl.device_type.GPU else
-        device.max_work_group_size,
-    )

@@ -1,4 +1,5 @@
-"""Building kernel files into OpenCL programs with readable errors."""
+"""Kernel files and their build logs, made readable: what every device API's build does
+with a kernel file and a compiler's messages (opencl.build_program, cuda.build_program)."""
 
 from __future__ import annotations
 
@@ -7,26 +8,9 @@ import os
 import re
 import sys
 import tempfile
-import warnings
 from pathlib import Path
 
 from .errors import PipelineError
-
-
-@contextlib.contextmanager
-def quiet_compiler():
-    """Keep a successful build's compiler chatter off the user's terminal.
-
-    NVIDIA's OpenCL compiler returns a non-empty log for kernels that build fine, which
-    pyopencl turns into a CompilerWarning on stderr every run. As in pyopencl, setting
-    PYOPENCL_COMPILER_OUTPUT=1 shows it; a failed build always shows its log.
-    """
-    import pyopencl as cl
-
-    with warnings.catch_warnings():
-        if os.environ.get("PYOPENCL_COMPILER_OUTPUT") != "1":
-            warnings.simplefilter("ignore", cl.CompilerWarning)
-        yield
 
 
 @contextlib.contextmanager
@@ -79,7 +63,7 @@ def clean_build_log(log: str) -> list[str]:
 
 
 def _log_from_error(text: str) -> str:
-    """The build log inside pyopencl's error text (when the program object is gone):
+    """The build log inside the OpenCL binding's error text (when the program object is gone):
     after 'Build on <device>:', before '(options: ...)' and '(source saved as ...)'."""
     _, found, after = text.partition("Build on ")
     if not found:
@@ -130,35 +114,30 @@ def read_kernel_file(path: Path, component: str) -> str:
                             f"(byte {exc.start:,})") from None
 
 
-def build_program(context, path: Path, component: str, options: tuple[str, ...] = ()):
-    """Build one kernel file once; a failure names the component and file and gives the
-    compiler's messages once, as file:line:col (a #line directive makes the compiler
-    name the kernel file and its own line numbers)."""
-    import pyopencl as cl
+def c_literal(value, c_type: str) -> str:
+    """A parameter's value as an OpenCL C (and CUDA C++) literal of c_type ('int' or
+    'float'): a float32 by its shortest decimal that reads back as the same float32, the
+    value the kernel argument np.float32(value) had; negative values in parentheses, so
+    that the macro is one operand wherever it stands."""
+    import numpy as np
 
-    path = Path(path)
-    source = read_kernel_file(path, component)
-    header, body = _split_header(source)
-    name = path.name.replace("\\", "\\\\").replace('"', '\\"')
-    program = cl.Program(context, f'{header}#line 1 "{name}"\n{body}')
-    with _captured_stderr() as captured:
-        try:
-            with quiet_compiler():
-                return program.build(options=list(options))
-        except cl.RuntimeError as exc:
-            error = exc
-    log = ""
-    raw = getattr(program, "_prg", None)
-    if raw is not None:
-        with contextlib.suppress(Exception):
-            log = "\n".join(str(raw.get_build_info(d, cl.program_build_info.LOG))
-                            for d in context.devices)
-    if not log.strip():
-        log = _log_from_error(str(error))
-    lines = clean_build_log(log + "\n" + "".join(captured))
-    lines = _name_unnamed_source(lines, path.name, header.count("\n") + 1)
-    if not lines:
-        lines = [str(error).strip().splitlines()[0] if str(error).strip() else
-                 type(error).__name__]
-    text = "\n".join(f"  {line}" for line in lines)
-    raise PipelineError(f"{component}: kernel file {path.name} failed to build:\n{text}")
+    if c_type == "float":
+        v = np.float32(value)
+        if not np.isfinite(v):
+            raise ValueError(f"no literal for the float {value!r}: parameters are finite")
+        text = np.format_float_positional(v, unique=True, trim="0") \
+            if 1e-4 <= abs(float(v)) < 1e16 or v == 0 else \
+            np.format_float_scientific(v, unique=True, trim="0")
+        text = text.replace("+", "") + ("f" if "e" in text or "." in text else ".0f")
+    else:
+        text = str(int(value))
+    return f"({text})" if text.startswith("-") else text
+
+
+def define_options(defines: dict | None) -> tuple[str, ...]:
+    """Build options -D NAME=VALUE for a kernel's constants: {name: np.int32 or
+    np.float32 value} (the generated program states each one with its type)."""
+    import numpy as np
+
+    return tuple(f"-D{name}={c_literal(v, 'float' if isinstance(v, np.floating) else 'int')}"
+                 for name, v in (defines or {}).items())

@@ -40,6 +40,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from . import device_api
 from .errors import Stopped
 
 SIGNALS = (signal.SIGINT, signal.SIGTERM)
@@ -252,20 +253,22 @@ def blocked_at(worker: threading.Thread, parts: dict[str, Any]) -> str:
     if frame is None:
         return "outside Python"
     by_id = {id(obj): name for name, obj in parts.items() if obj is not None}
+    api = device_api.get()
     innermost = frame
     component = opencl = None
     program_line = None
     while frame is not None:
         module = frame.f_globals.get("__name__", "")
-        if module.split(".")[0] == "pyopencl":
-            opencl = frame.f_code.co_name  # keeps the outermost pyopencl frame
+        binding = api.api_frames(module)
+        if binding:
+            opencl = frame.f_code.co_name  # keeps the outermost frame of the API's binding
         elif component is None:
             owner = frame.f_locals.get("self")
             if owner is not None and id(owner) in by_id:
                 component = f"{by_id[id(owner)]}.{frame.f_code.co_name}()"
         # the line of the generated program (or a user's module), not of the runtime's
         # adapters and kernel components that it called
-        if program_line is None and module.split(".")[0] not in ("pyopencl", "numpy") \
+        if program_line is None and not binding and module.split(".")[0] != "numpy" \
                 and not module.startswith("gpucompgen.runtime"):
             program_line = frame
         frame = frame.f_back
@@ -279,7 +282,7 @@ def blocked_at(worker: threading.Thread, parts: dict[str, Any]) -> str:
     if source:
         text += f" ({source})"
     if opencl:
-        text += f", waiting in pyopencl's {opencl}()"
+        text += f", waiting in {api.NAME}'s {opencl}()"
     elif _looks_like_opencl(source):
         text += ", waiting in OpenCL"
     return text
@@ -292,19 +295,17 @@ def _looks_like_opencl(source: str) -> bool:
 
 def running_kernels(parts: dict[str, Any]) -> list[str]:
     """Parts whose last OpenCL command (their .event) is running on the device now."""
-    try:
-        import pyopencl as cl
-    except ImportError:
-        return []
+    api = device_api.get()
     found = []
     for name, part in parts.items():
         event = getattr(part, "event", None)
         if event is None:
             continue
-        state = None
-        with contextlib.suppress(Exception):  # a released or foreign event: nothing to say
-            state = event.command_execution_status
-        if state == cl.command_execution_status.RUNNING:
+        try:
+            running = api.is_running(event)
+        except ImportError:  # no device API installed: no command can be running
+            return []
+        if running:
             found.append(name)
     return found
 

@@ -119,7 +119,7 @@ def model_schema() -> dict[str, Any]:
                          "the device has no unified host memory (default)"),
         "fusion": _enum(model.FUSION, "auto: chains of fusable GPU components run as one "
                         "kernel (default); off: one kernel per component"),
-        "backend": _enum(model.BACKENDS, "opencl: pyopencl and OpenCL C kernels (default); "
+        "backend": _enum(model.BACKENDS, "opencl: OpenCL C kernels driven from Python (default); "
                          "cuda: cuda-python and the same kernels as CUDA C++ (docs/cuda.md)"),
     })
     # a type name, or lib.Name for a library type a model's own type shadows

@@ -181,7 +181,15 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
         'dilate.dilated': 60_200,
     })
     fused_hsv_red_program = runtime.build_program(
-        context, LIB_DIR / 'group_hsv_red.cu', 'hsv_red (FusedHsvRed)')
+        context, LIB_DIR / 'group_hsv_red.cu', 'hsv_red (FusedHsvRed)',
+        defines={  # the kernel's constants, its members' parameters: -D NAME=VALUE
+            '_m1_lowerb_0': np.int32(params['red.lowerb_0']),
+            '_m1_lowerb_1': np.int32(params['red.lowerb_1']),
+            '_m1_lowerb_2': np.int32(params['red.lowerb_2']),
+            '_m1_upperb_0': np.int32(params['red.upperb_0']),
+            '_m1_upperb_1': np.int32(params['red.upperb_1']),
+            '_m1_upperb_2': np.int32(params['red.upperb_2']),
+        })
     erode_gray_program = runtime.build_program(context, LIB_DIR / 'erode.cu', 'erode (ErodeGray)')
     dilate_gray_program = runtime.build_program(
         context, LIB_DIR / 'dilate.cu', 'dilate (DilateGray)')
@@ -240,12 +248,6 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
             tile=32, local_size=(8, 8, 1), global_size=(8, 56, 1),
             settings_source='preferred', arguments=[
                 'hsv_image', 'mask',  # buffers: inputs, then outputs
-                np.int32(params['red.lowerb_0']),  # red_lowerb_0
-                np.int32(params['red.lowerb_1']),  # red_lowerb_1
-                np.int32(params['red.lowerb_2']),  # red_lowerb_2
-                np.int32(params['red.upperb_0']),  # red_upperb_0
-                np.int32(params['red.upperb_1']),  # red_upperb_1
-                np.int32(params['red.upperb_2']),  # red_upperb_2
                 np.int32(32),  # tile
             ])
 

@@ -201,7 +201,16 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
         'dilate.dilated': 60_200,
     })
     rgb_to_hsv_program = runtime.build_program(context, LIB_DIR / 'hsv.cl', 'hsv (RgbToHsv)')
-    in_range_program = runtime.build_program(context, LIB_DIR / 'red.cl', 'red (InRange)')
+    in_range_program = runtime.build_program(
+        context, LIB_DIR / 'red.cl', 'red (InRange)',
+        defines={  # the kernel's constants, its members' parameters: -D NAME=VALUE
+            '_m0_lowerb_0': np.int32(params['red.lowerb_0']),
+            '_m0_lowerb_1': np.int32(params['red.lowerb_1']),
+            '_m0_lowerb_2': np.int32(params['red.lowerb_2']),
+            '_m0_upperb_0': np.int32(params['red.upperb_0']),
+            '_m0_upperb_1': np.int32(params['red.upperb_1']),
+            '_m0_upperb_2': np.int32(params['red.upperb_2']),
+        })
     erode_gray_program = runtime.build_program(context, LIB_DIR / 'erode.cl', 'erode (ErodeGray)')
     dilate_gray_program = runtime.build_program(
         context, LIB_DIR / 'dilate.cl', 'dilate (DilateGray)')
@@ -263,12 +272,6 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
             tile=32, local_size=(8, 8, 1), global_size=(8, 56, 1),
             settings_source="component's own", arguments=[
                 'image', 'mask',  # buffers: inputs, then outputs
-                np.int32(params['red.lowerb_0']),  # red_lowerb_0
-                np.int32(params['red.lowerb_1']),  # red_lowerb_1
-                np.int32(params['red.lowerb_2']),  # red_lowerb_2
-                np.int32(params['red.upperb_0']),  # red_upperb_0
-                np.int32(params['red.upperb_1']),  # red_upperb_1
-                np.int32(params['red.upperb_2']),  # red_upperb_2
                 np.int32(32),  # tile
             ])
 

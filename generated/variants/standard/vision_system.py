@@ -147,7 +147,11 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
     image_merger_program = runtime.build_program(
         context, LIB_DIR / 'merger.cl', 'merger (ImageMerger)')
     object_detector_program = runtime.build_program(
-        context, LIB_DIR / 'detector.cl', 'detector (ObjectDetector)')
+        context, LIB_DIR / 'detector.cl', 'detector (ObjectDetector)',
+        defines={  # the kernel's constants, its members' parameters: -D NAME=VALUE
+            '_m0_red_min': np.int32(params['detector.red_min']),
+            '_m0_margin': np.int32(params['detector.margin']),
+        })
 
     # every component and adapter, filled in as it is constructed; those initialized are
     # freed once each, in reverse order
@@ -208,8 +212,6 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
             tile=32, local_size=(8, 8, 1), global_size=(8, 120, 1),
             settings_source="component's own", arguments=[
                 'frame', 'mask',  # buffers: inputs, then outputs
-                np.int32(params['detector.red_min']),  # detector_red_min
-                np.int32(params['detector.margin']),  # detector_margin
                 np.int32(32),  # tile
             ])
 

@@ -186,7 +186,11 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
     box_blur_blur2_program = runtime.build_program(
         context, LIB_DIR / 'blur2.cl', 'blur2 (BoxBlurBlur2)')
     fused_merger_detector_program = runtime.build_program(
-        context, LIB_DIR / 'group_merger_detector.cl', 'merger_detector (FusedMergerDetector)')
+        context, LIB_DIR / 'group_merger_detector.cl', 'merger_detector (FusedMergerDetector)',
+        defines={  # the kernel's constants, its members' parameters: -D NAME=VALUE
+            '_m1_red_min': np.int32(params['detector.red_min']),
+            '_m1_margin': np.int32(params['detector.margin']),
+        })
 
     # every component and adapter, filled in as it is constructed; those initialized are
     # freed once each, in reverse order
@@ -259,7 +263,6 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
             tile=32, local_size=(8, 8, 1), global_size=(8, 120, 1),
             settings_source='preferred', arguments=[
                 'image', 'smooth',  # buffers: inputs, then outputs
-                np.int32(2),  # blur1_radius
                 np.int32(32),  # tile
             ])
 
@@ -269,7 +272,6 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
             tile=32, local_size=(8, 8, 1), global_size=(8, 120, 1),
             settings_source='preferred', arguments=[
                 'image', 'smooth',  # buffers: inputs, then outputs
-                np.int32(2),  # blur2_radius
                 np.int32(32),  # tile
             ])
 
@@ -279,8 +281,6 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
             tile=32, local_size=(8, 8, 1), global_size=(8, 120, 1),
             settings_source='preferred', arguments=[
                 'merger_left', 'merger_right', 'mask',  # buffers: inputs, then outputs
-                np.int32(params['detector.red_min']),  # detector_red_min
-                np.int32(params['detector.margin']),  # detector_margin
                 np.int32(32),  # tile
             ])
 

@@ -124,7 +124,11 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
         'merger_detector.mask': 614_400,
     })
     fused_merger_detector_program = runtime.build_program(
-        context, LIB_DIR / 'group_merger_detector.cl', 'merger_detector (FusedMergerDetector)')
+        context, LIB_DIR / 'group_merger_detector.cl', 'merger_detector (FusedMergerDetector)',
+        defines={  # the kernel's constants, its members' parameters: -D NAME=VALUE
+            '_m1_red_min': np.int32(params['detector.red_min']),
+            '_m1_margin': np.int32(params['detector.margin']),
+        })
 
     # every component and adapter, filled in as it is constructed; those initialized are
     # freed once each, in reverse order
@@ -186,8 +190,6 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
             tile=32, local_size=(16, 16, 1), global_size=(16, 240, 1),
             settings_source='model', arguments=[
                 'merger_left', 'merger_right', 'mask',  # buffers: inputs, then outputs
-                np.int32(params['detector.red_min']),  # detector_red_min
-                np.int32(params['detector.margin']),  # detector_margin
                 np.int32(32),  # tile
             ])
 

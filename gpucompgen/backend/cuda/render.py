@@ -17,8 +17,8 @@ import re
 from pathlib import PurePosixPath
 
 from ...errors import Diagnostic, GpucompgenError
-from ...passes.lower import gpu_used_types
-from ..opencl.render import HEADER_PREFIX, OutputFile, source_path
+from ...output import HEADER_PREFIX, OutputFile, source_path
+from ..opencl.render import API_IMPORT
 from ..opencl.render import render as render_opencl
 from .prelude import PRELUDE, translate, unportable
 
@@ -35,7 +35,7 @@ _PROGRAM_LINES = (
      "select the CUDA device with\nCUDA_DEVICE (default 0)."),
     ("OpenCL profiling events time every kernel and copy",
      "CUDA events time every kernel and copy"),
-    ("import pyopencl as cl\n", ""),  # its one use, below, is the runtime's
+    (API_IMPORT, ""),  # its one use, below, is the runtime's
     ("cl.wait_for_events(", "runtime.wait_for_events("),
 )
 
@@ -45,12 +45,13 @@ def check_portable(system) -> None:
     OpenCL-only construct is an error at its place in the kernel file, saying what to
     write instead."""
     problems = []
-    for t in gpu_used_types(system):
-        for u in unportable(t.kernel_text):
-            where = str(t.kernel_file) if t.kernel_file else t.name
+    launched = [(name, src) for src in system.plan.lib_sources if src.kind == "kernel"
+                for name in src.users]
+    for name, src in sorted(launched, key=lambda pair: pair[0]):  # by type, as they are used
+        for u in unportable(src.text):
             problems.append(Diagnostic(
-                where, u.line, u.column, "error",
-                f"component type {t.name}: '{u.text}' ({u.what}) is OpenCL-only; the CUDA "
+                src.origin or name, u.line, u.column, "error",
+                f"component type {name}: '{u.text}' ({u.what}) is OpenCL-only; the CUDA "
                 "backend cannot compile it",
                 f"{u.hint}; docs/cuda.md lists the portable subset"))
     if problems:

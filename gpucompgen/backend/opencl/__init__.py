@@ -2,8 +2,8 @@
 
     convention.py   the kernel calling convention (kernel_parameters) and the C type names
     reserved.py     OpenCL C reserved words, which no model name may take
-    render.py       prints a ProgramPlan through the templates into the program's files
-    templates/      the Jinja templates: they print the plan's records, nothing is decided there
+    render.py       prints a ProgramPlan through the templates (templates/opencl/ at the top
+                    of the checkout) into the program's files
 
 The device queries are the runtime's (gpucompgen.runtime.facts), because generated
 programs import the runtime and not the generator; the generator reuses them for

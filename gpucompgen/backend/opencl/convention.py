@@ -1,24 +1,24 @@
-"""The kernel calling convention: the one declaration of a kernel's parameter list.
+"""The kernel calling convention in OpenCL C: the neutral order (gpucompgen.convention)
+with its element types spelled as OpenCL C names.
 
-A GPU-aware component's kernel takes, in this order:
-
-1. one ``__global`` pointer per input port, then one per output port, of the port's
-   element type (inputs may be ``const``);
-2. for every port in the same order, its height then its width, as ``int``;
-3. every parameter of the type in declaration order: ``float`` for float parameters,
-   ``int`` for int and bool parameters;
-4. ``int tile``: the tile the system chose (pixels, or rows, one work-group covers).
-
-The generated program sets its arguments from this list, the ``check`` command compares a
-user's kernel with it, and the benchmark's hand-written variant follows it: nothing else
-restates the order.
+A GPU-aware component's kernel takes ``__global`` pointers for its ports (inputs may be
+``const``), each port's height and width as ``int``, its parameters (``float`` for float
+parameters, ``int`` for int and bool ones) and ``int tile``, in the order
+:func:`gpucompgen.convention.kernel_parameters` declares.  The ``check`` command compares
+a user's kernel with it (signature.py) and the kernel generator declares its kernels
+with it (fused.py).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
-# element type -> (OpenCL C type, numpy scalar type)
+from ...convention import HOST_TYPES, Param
+from ...convention import group_constants as _group_constants
+from ...convention import group_parameters as _group_parameters
+from ...convention import kernel_parameters as _kernel_parameters
+
+# element type -> OpenCL C type
 C_TYPES = {
     "uint8": "uchar",
     "int8": "char",
@@ -29,8 +29,7 @@ C_TYPES = {
     "float32": "float",
 }
 # parameter type -> (OpenCL C scalar type, numpy conversion used by the host)
-PARAM_C_TYPES = {"int": ("int", "np.int32"), "bool": ("int", "np.int32"),
-                 "float": ("float", "np.float32")}
+PARAM_C_TYPES = {t: (C_TYPES[h], f"np.{h}") for t, h in HOST_TYPES.items()}
 
 
 @dataclass(frozen=True)
@@ -38,7 +37,7 @@ class KernelParam:
     """One parameter of a kernel, as the convention requires it."""
 
     name: str  # the conventional name (the kernel may call it anything)
-    kind: str  # "buffer" | "scalar"
+    kind: str  # "buffer" | "scalar" | "constant" (a build option: group_constants)
     c_type: str  # element type of a buffer, or the scalar's type
     role: str  # "input" | "output" | "size" | "param" | "tile"
     port: str = ""  # the port a buffer or size belongs to
@@ -53,24 +52,13 @@ class KernelParam:
         return f"const {self.c_type} {self.name}"
 
 
+def _spelled(p: Param) -> KernelParam:
+    return KernelParam(p.name, p.kind, C_TYPES[p.dtype], p.role, p.port, p.dim, p.param)
+
+
 def kernel_parameters(ctype) -> list[KernelParam]:
     """The parameter list a GPU-aware component type's kernel must have."""
-    params: list[KernelParam] = []
-    for role, ports in (("input", ctype.inputs), ("output", ctype.outputs)):
-        for name, port in ports.items():
-            params.append(KernelParam(name, "buffer", C_TYPES[port.dtype], role, port=name))
-    for ports in (ctype.inputs, ctype.outputs):
-        for name in ports:
-            for dim in ("height", "width"):
-                params.append(KernelParam(f"{name}_{dim}", "scalar", "int", "size",
-                                          port=name, dim=dim))
-    for name, decl in ctype.params.items():
-        if decl.shape:  # an array parameter: a constant table of the generated kernel
-            continue
-        params.append(KernelParam(name, "scalar", PARAM_C_TYPES[decl.type][0], "param",
-                                  param=name))
-    params.append(KernelParam("tile", "scalar", "int", "tile"))
-    return params
+    return [_spelled(p) for p in _kernel_parameters(ctype)]
 
 
 def signature_text(ctype, function: str | None = None) -> str:
@@ -80,30 +68,12 @@ def signature_text(ctype, function: str | None = None) -> str:
 
 
 def group_parameters(group) -> list[KernelParam]:
-    """The parameter list of a fused group's generated kernel (passes/fuse.py).
+    """The parameter list of a fused group's generated kernel (see
+    gpucompgen.convention.group_parameters)."""
+    return [_spelled(p) for p in _group_parameters(group)]
 
-    1. one ``__global`` pointer per group input (named <member>_<port>, the member input
-       it feeds), then the group's output (named <root>_<port>);
-    2. every member's parameters in declaration order, named <member>_<parameter>, but
-       array parameters, which the kernel's source holds as ``__constant`` tables;
-    3. ``int tile``.
 
-    No sizes: the system fixed every port's size when it was built, and the generated
-    kernel states them as constants, so that the compiler folds composed index maps
-    (``h - 1 - (h - 1 - y)`` is ``y``) and drops tests that cannot fail.
-    """
-    params: list[KernelParam] = []
-    for name, port in group.inputs.items():
-        params.append(KernelParam(name, "buffer", C_TYPES[port.dtype], "input", port=name))
-    for name, port in group.outputs.items():
-        params.append(KernelParam(f"{group.root.name}_{name}", "buffer", C_TYPES[port.dtype],
-                                  "output", port=name))
-    for m in group.members:
-        for pname, decl in m.type.params.items():
-            if decl.shape:  # an array: a __constant table in the kernel's source
-                continue
-            params.append(KernelParam(f"{m.name}_{pname}", "scalar",
-                                      PARAM_C_TYPES[decl.type][0], "param",
-                                      param=f"{m.name}.{pname}"))
-    params.append(KernelParam("tile", "scalar", "int", "tile"))
-    return params
+def group_constants(group) -> list[KernelParam]:
+    """The members' parameters of a group's generated kernel, as build constants (see
+    gpucompgen.convention.group_constants)."""
+    return [_spelled(p) for p in _group_constants(group)]

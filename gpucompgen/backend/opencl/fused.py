@@ -17,8 +17,12 @@ its ports' accessors and sizes, its parameters.
 The schedule (what makes it fast; Halide's algorithm vs schedule, Intel's guide for CPU
 OpenCL devices):
 
-- Every size is a constant (the system fixed them at build time), every function is
-  visible and inlined: a chain of index maps folds to one index expression.
+- Every size is a constant (the system fixed them at build time), every parameter a
+  macro the program defines when it builds the kernel (-D, after --set; the model's
+  values are the file's defaults), every function is visible and inlined: a chain of
+  index maps folds to one index expression, a rule chosen by a parameter is chosen once.
+  (A pointwise chain with Threshold's thresh_type a kernel argument took 3.05 ms a
+  640x360 frame on PoCL, its selects keeping the row loop scalar; a constant: 0.28 ms.)
 - Borders outside the hot path.  A stencil's reads outside its input follow its border
   rule (clamp, reflect101) in the accessor; where the group has stencils and no index
   map, each member has a second, interior version whose accessors read without any
@@ -30,11 +34,16 @@ OpenCL devices):
   is a row of W x C elements computed alike: the kernel stores one element at a time, a
   loop the compiler turns into vector loads and stores (a read k pixels away is k x C
   elements away).  Otherwise a work-item computes
-  a pixel's channels together and stores them as one vector (vstore3 for three).
-- Work split from device facts (schedule()): on a CPU device a work-item takes a
-  contiguous run of the row (the compiler vectorizes the straight-line loop over it);
-  on a GPU adjacent work-items take adjacent elements (coalesced).  Work-groups cover
-  ``tile`` whole rows, their block_y threads taking the rows in turn.
+  a pixel's channels together, one store statement a channel (the compiler turns the
+  row loop into interleaved vector stores; it leaves a loop of vstore3 scalar).
+- Work split from device facts (schedule()): work-groups cover ``tile`` whole rows.  On
+  a CPU device a work-item takes whole rows, the work-group's items in turn: a CPU runs
+  a work-group's items one after another on one core, so splitting a row among them
+  only shortens the loop the compiler vectorizes (AVX-512 takes 64 to 256 bytes an
+  iteration: a run of 80 pixels ran mostly in the scalar remainder; ErodeGray 0.076 ->
+  0.036 ms a 640x360 frame, MedianBlurGray 0.158 -> 0.099).  The loop bounds are then
+  constants.  On a GPU its block_y threads take the rows in turn and adjacent block_x
+  threads adjacent elements (coalesced).
 """
 
 from __future__ import annotations
@@ -45,7 +54,7 @@ from ...ir import GroupNode
 from ...model import DTYPES, Endpoint
 from ...snippet import accessor_calls, is_name, is_shifted, uses_outside_calls
 
-VECTOR_WIDTHS = (2, 3, 4, 8, 16)  # OpenCL C vector types: a pixel stored at once
+MAX_UNROLLED_CHANNELS = 4  # a pixel of at most this many channels: one store statement each
 
 BORDER_RULES = {
     "reflect101": [
@@ -130,7 +139,7 @@ def is_cpu(device) -> bool:
 
 
 def schedule(device) -> str:
-    """'runs' (a work-item a contiguous run of the row) on CPUs, 'strided' on GPUs."""
+    """'runs' (a work-item whole rows) on CPUs, 'strided' on GPUs."""
     return "runs" if is_cpu(device) else "strided"
 
 
@@ -173,10 +182,11 @@ def group_of_one(ctype, params: dict, shapes: dict[str, tuple[int, int]], member
                      members=[node], feeds={f"{member}_{p}": Endpoint(member, p) for p in ins})
 
 
-def launch_arguments(group: GroupNode, inputs: dict, output, params: dict, tile: int) -> list:
+def launch_arguments(group: GroupNode, inputs: dict, output, tile: int) -> list:
     """The kernel arguments of a group of one (group_of_one) launched by hand, in the
     calling convention's order (convention.group_parameters): inputs by the member's port
-    name, the output buffer, the member's parameters (params by name) and the tile."""
+    name, the output buffer and the tile.  The member's parameters are constants of the
+    kernel text (its defaults: the values group_of_one was given)."""
     import numpy as np
 
     from .convention import group_parameters
@@ -187,9 +197,6 @@ def launch_arguments(group: GroupNode, inputs: dict, output, params: dict, tile:
         if p.kind == "buffer":
             args.append(output if p.role == "output" else
                         inputs[group.feeds[p.port].port])
-        elif p.role == "param":
-            v = params[p.param.split(".", 1)[1]]
-            args.append(np.float32(v) if p.c_type == "float" else np.int32(v))
         else:
             args.append(np.int32(tile))
     return args
@@ -242,11 +249,13 @@ def _radius(m) -> int:
 
 
 def group_kernel(group: GroupNode, header: str, device=None) -> str:
-    from .convention import group_parameters
+    from .convention import group_constants, group_parameters
 
     params = group_parameters(group)
+    constants = group_constants(group)
     index = {m.name: i for i, m in enumerate(group.members)}
-    names = _param_names(group, params, index)
+    names = _param_names(params)
+    names.update({p.param: p.name for p in constants})  # 'member.param' -> its macro
     decls = [_declaration(p, names[p.name]) for p in params if p.role != "tile"]
     args = [names[p.name] for p in params if p.role != "tile"]
     root = group.root
@@ -268,6 +277,7 @@ def group_kernel(group: GroupNode, header: str, device=None) -> str:
                        + ", ".join(f"{names[p.name]} = {p.name}" for p in params
                                    if p.role != "tile") + "."),
              "",
+             *_constants(group, constants),
              *[line for rule, text in BORDER_RULES.items()
                if any(m.type.fusable.form == "stencil" and m.type.fusable.border == rule
                       for m in group.members) for line in text],
@@ -296,7 +306,7 @@ def group_kernel(group: GroupNode, header: str, device=None) -> str:
     return "\n".join(lines)
 
 
-def _param_names(group, params, index) -> dict[str, str]:
+def _param_names(params) -> dict[str, str]:
     """Each kernel parameter's name in the kernel text: generator namespace."""
     names, inputs = {}, 0
     for p in params:
@@ -305,12 +315,29 @@ def _param_names(group, params, index) -> dict[str, str]:
             inputs += 1
         elif p.role == "output":
             names[p.name] = "_out"
-        elif p.role == "param":
-            member, pname = p.param.split(".", 1)
-            names[p.name] = f"_m{index[member]}_{pname}"
         else:
             names[p.name] = "_tile"
     return names
+
+
+def _constants(group: GroupNode, constants) -> list[str]:
+    """The members' parameters as macros: the program builds the file with -D NAME=VALUE
+    (runtime.build_program's defines, after --set); the model's values are the defaults of
+    a build without them (tests, tune, benchmarks)."""
+    from ...convention import c_literal
+
+    if not constants:
+        return []
+    lines = _comment("Parameters: constants of the build, so that the compiler folds them "
+                     "(a rule chosen by a parameter is chosen once, not per element).  The "
+                     "program builds this file with -D NAME=VALUE, its values after --set; "
+                     "below, the model's values, for a build without them.")
+    for p in constants:
+        member, pname = p.param.split(".", 1)
+        value = group.member(member).params[pname]
+        lines += [f"#ifndef {p.name}", f"#define {p.name} {c_literal(value, p.c_type)}",
+                  "#endif"]
+    return [*lines, ""]
 
 
 def _declaration(p, name: str) -> str:
@@ -382,7 +409,7 @@ def _member(m, feeds: dict[Endpoint, str], producer: dict[Endpoint, Endpoint], i
             # that the compiler unrolls a loop over it
             lines.append(f"    const int {pname} = {int(m.params[pname])};")
             continue
-        lines.append(f"    const {c} {pname} = _m{index[m.name]}_{pname};")
+        lines.append(f"    const {c} {pname} = {names[f'{m.name}.{pname}']};")
     # printed from the parsed snippet; built-in calls swapped for their inline versions
     for line in inline_builtins("\n".join(decl.lines()), used).splitlines():
         if line.lstrip().startswith("for ("):
@@ -439,18 +466,28 @@ def _kernel(group: GroupNode, out_name: str, out_port, names, flat: bool,
     per_row = w * channels if flat else w
     stride = w * channels
 
-    def store(fn: str, indent: str, pixel: bool = False) -> list[str]:
+    def store(fn: str, pixel: bool = False) -> list[str]:
+        """The statements storing element (or pixel) _x of the row."""
         call = f"{fn}(_ARGS, _y, _x, {{c}})"
         if flat and pixel and channels > 1:  # an element of the flat row, by pixel
-            return [f"{indent}_row[_x] = {fn}(_ARGS, _y, _x / {channels}, _x % {channels});"]
+            return [f"_row[_x] = {fn}(_ARGS, _y, _x / {channels}, _x % {channels});"]
         if flat or channels == 1:
-            return [f"{indent}_row[_x] = " + call.format(c=0) + ";"]
-        if channels in VECTOR_WIDTHS:
-            values = ", ".join(call.format(c=c) for c in range(channels))
-            return [f"{indent}vstore{channels}(({out_c}{channels})(",
-                    *_wrap(values, indent + "    "), f"{indent}    _x, _row);"]
-        return [f"{indent}for (int _c = 0; _c < {channels}; _c++)",
-                f"{indent}    _row[{channels} * _x + _c] = " + call.format(c="_c") + ";"]
+            return ["_row[_x] = " + call.format(c=0) + ";"]
+        if channels <= MAX_UNROLLED_CHANNELS:
+            # one store a channel, not one vstoreN a pixel: PoCL vectorizes the row loop
+            # of these (interleaved stores) and not of a vstore3 (FlipHorizontal on RGB:
+            # 0.34 ms a 640x360 frame with vstore3, 0.10 ms so)
+            return [f"_row[{channels} * _x + {c}] = " + call.format(c=c) + ";"
+                    for c in range(channels)]
+        return [f"for (int _c = 0; _c < {channels}; _c++)",
+                f"    _row[{channels} * _x + _c] = " + call.format(c="_c") + ";"]
+
+    def block(head: str, fn: str, depth: int, pixel: bool = False) -> list[str]:
+        """head (a loop or a branch) over the store statements, at depth levels."""
+        pad, body = "    " * depth, store(fn, pixel)
+        if len(body) == 1:
+            return [pad + head, f"{pad}    {body[0]}"]
+        return [f"{pad}{head} {{", *(f"{pad}    {b}" for b in body), pad + "}"]
 
     border = _function(root.name, index, False)
     inner = _function(root.name, index, True)
@@ -458,15 +495,15 @@ def _kernel(group: GroupNode, out_name: str, out_port, names, flat: bool,
         what = f"{channels} channel{'s' if channels > 1 else ''} as {per_row} elements a row"
     elif channels == 1:
         what = "one channel"
-    elif channels in VECTOR_WIDTHS:
-        what = f"{channels} channels stored as one {out_c}{channels}"
     else:
-        what = f"{channels} channels"
-    split = ("its block_x threads each a contiguous run of the row" if how == "runs" else
-             "its block_x threads adjacent elements of the row, in turn")
+        what = f"{channels} channels a pixel"
+    split = ("its threads take them in turn, each a whole row (a CPU runs a work-group's "
+             "threads one after another: a row is the longest loop, which the compiler "
+             "vectorizes)" if how == "runs" else
+             "its block_y threads take them in turn, its block_x threads adjacent elements "
+             "of the row, in turn")
     lines = _comment(f"{h} rows of {w} pixels, {what}.  Work-group g computes the rows "
-                     "[g * tile, g * tile + tile); its block_y threads take them in turn, "
-                     f"{split}.")
+                     f"[g * tile, g * tile + tile); {split}.")
     if edge is not None:
         lines += _comment(f"Elements {edge} or more from every edge read inside the frame: "
                           "the interior version, without border rules, computes them.")
@@ -474,45 +511,40 @@ def _kernel(group: GroupNode, out_name: str, out_port, names, flat: bool,
         f"__kernel void {kernel_name(group)}(_PARAMS, const int _tile)",
         "{",
         "    const int _y0 = get_group_id(1) * _tile;",
-        f"    const int _y1 = min(_y0 + _tile, {h});",
-        "    const int _nx = get_local_size(0);"]
+        f"    const int _y1 = min(_y0 + _tile, {h});"]
     if how == "runs":
-        lines += [f"    const int _per = ({per_row} + _nx - 1) / _nx;",
-                  f"    const int _x0 = min((int)get_local_id(0) * _per, {per_row});",
-                  f"    const int _x1 = min(_x0 + _per, {per_row});"]
-    lines += ["    for (int _y = _y0 + get_local_id(1); _y < _y1; _y += get_local_size(1)) {",
-              f"        __global {out_c} *_row = _out + (size_t)_y * {stride};"]
+        lines += ["    const int _k = get_local_id(1) * get_local_size(0) + get_local_id(0);",
+                  "    const int _n = get_local_size(0) * get_local_size(1);",
+                  "    for (int _y = _y0 + _k; _y < _y1; _y += _n) {"]
+    else:
+        lines += ["    const int _nx = get_local_size(0);",
+                  "    for (int _y = _y0 + get_local_id(1); _y < _y1; _y += get_local_size(1)) {"]
+    lines += [f"        __global {out_c} *_row = _out + (size_t)_y * {stride};"]
     if how == "runs":
         loop = "for (int _x = {a}; _x < {b}; _x++)"
         if edge is None:
-            lines += ["        " + loop.format(a="_x0", b="_x1"), *store(border, " " * 12)]
+            lines += block(loop.format(a=0, b=per_row), border, 2)
         else:
             k = channels if flat else 1  # elements a pixel
             lo, hi = edge * k, max(edge, w - edge) * k
             lines += [f"        if (_y >= {edge} && _y < {h - edge}) {{",
-                      "            " + loop.format(a="_x0", b=f"min(_x1, {lo})"),
-                      *store(border, " " * 16, True),
-                      "            " + loop.format(a=f"max(_x0, {lo})",
-                                                   b=f"min(_x1, {(w - edge) * k})"),
-                      *store(inner, " " * 16),
-                      "            " + loop.format(a=f"max(_x0, {hi})", b="_x1"),
-                      *store(border, " " * 16, True),
+                      *block(loop.format(a=0, b=lo), border, 3, True),
+                      *block(loop.format(a=lo, b=(w - edge) * k), inner, 3),
+                      *block(loop.format(a=hi, b=per_row), border, 3, True),
                       "        } else {",
-                      "            " + loop.format(a="_x0", b="_x1"),
-                      *store(border, " " * 16, True),
+                      *block(loop.format(a=0, b=per_row), border, 3, True),
                       "        }"]
     else:
         loop = f"for (int _x = get_local_id(0); _x < {per_row}; _x += _nx)"
         if edge is None:
-            lines += ["        " + loop, *store(border, " " * 12)]
+            lines += block(loop, border, 2)
         else:
             k = channels if flat else 1
             lines += [f"        const bool _inside = _y >= {edge} && _y < {h - edge};",
                       "        " + loop + " {",
-                      f"            if (_inside && _x >= {edge * k} && _x < {(w - edge) * k})",
-                      *store(inner, " " * 16),
-                      "            else",
-                      *store(border, " " * 16, True),
+                      *block(f"if (_inside && _x >= {edge * k} && _x < {(w - edge) * k})",
+                             inner, 3),
+                      *block("else", border, 3, True),
                       "        }"]
     lines += ["    }", "}", ""]
     return lines
@@ -523,16 +555,3 @@ def _comment(text: str, width: int = 92) -> list[str]:
     import textwrap
 
     return ["// " + line for line in textwrap.wrap(text, width - 3, break_on_hyphens=False)]
-
-
-def _wrap(text: str, indent: str, width: int = 92) -> list[str]:
-    """Comma-separated values over lines of at most width characters, each ending ','."""
-    lines, line = [], ""
-    for part in text.split(", "):
-        if line and len(indent) + len(line) + len(part) + 2 > width:
-            lines.append(f"{indent}{line},")
-            line = part
-        else:
-            line = f"{line}, {part}" if line else part
-    lines.append(f"{indent}{line}),")
-    return lines

@@ -1,7 +1,8 @@
 """OpenCL C reserved words: no model name may become one (kernels use port and parameter
-names)."""
+names); and the modules an OpenCL program and its runtime import, after which no system may
+be named (its program's folder comes first on sys.path)."""
 
-OPENCL_RESERVED = frozenset({
+WORDS = frozenset({
     "auto", "break", "case", "char", "const", "continue", "default", "do", "double", "else",
     "enum", "extern", "float", "for", "goto", "if", "inline", "int", "long", "register",
     "restrict", "return", "short", "signed", "sizeof", "static", "struct", "switch", "typedef",
@@ -12,3 +13,6 @@ OPENCL_RESERVED = frozenset({
     "private", "__private", "read_only", "__read_only", "write_only", "__write_only", "read_write",
     "__read_write", "complex", "imaginary", "true", "false",
 })
+
+# pyopencl and the packages it imports
+MODULES = frozenset({"pyopencl", "pytools", "platformdirs", "siphash24", "typing_extensions"})

@@ -6,22 +6,27 @@
 // an input read <port>(y, x, c) calls the producing member, or loads from a
 // group input.  Sizes are constants: the system fixed them at build time.
 // Kernel arguments, in the calling convention's order: _in0 = merger_left, _in1 =
-// merger_right, _out = detector_mask, _m1_red_min = detector_red_min, _m1_margin =
-// detector_margin.
+// merger_right, _out = detector_mask.
+
+// Parameters: constants of the build, so that the compiler folds them (a rule chosen by a
+// parameter is chosen once, not per element).  The program builds this file with -D
+// NAME=VALUE, its values after --set; below, the model's values, for a build without them.
+#ifndef _m1_red_min
+#define _m1_red_min 150
+#endif
+#ifndef _m1_margin
+#define _m1_margin 80
+#endif
 
 #define _PARAMS \
     __global const uchar *restrict _in0, \
     __global const uchar *restrict _in1, \
-    __global uchar *restrict _out, \
-    const int _m1_red_min, \
-    const int _m1_margin
+    __global uchar *restrict _out
 
 #define _ARGS \
     _in0, \
     _in1, \
-    _out, \
-    _m1_red_min, \
-    _m1_margin
+    _out
 
 // merger: ImageMerger (index_map); every element
 #define left(y_, x_, c_) _in0[3 * ((size_t)(y_) * 640 + (x_)) + (c_)]
@@ -50,19 +55,17 @@ static inline uchar _f1_detector(_PARAMS, const int y, const int x, const int c)
 #undef frame
 
 // 480 rows of 1280 pixels, one channel.  Work-group g computes the rows [g * tile, g * tile
-// + tile); its block_y threads take them in turn, its block_x threads each a contiguous run
-// of the row.
+// + tile); its threads take them in turn, each a whole row (a CPU runs a work-group's
+// threads one after another: a row is the longest loop, which the compiler vectorizes).
 __kernel void merger_detector(_PARAMS, const int _tile)
 {
     const int _y0 = get_group_id(1) * _tile;
     const int _y1 = min(_y0 + _tile, 480);
-    const int _nx = get_local_size(0);
-    const int _per = (1280 + _nx - 1) / _nx;
-    const int _x0 = min((int)get_local_id(0) * _per, 1280);
-    const int _x1 = min(_x0 + _per, 1280);
-    for (int _y = _y0 + get_local_id(1); _y < _y1; _y += get_local_size(1)) {
+    const int _k = get_local_id(1) * get_local_size(0) + get_local_id(0);
+    const int _n = get_local_size(0) * get_local_size(1);
+    for (int _y = _y0 + _k; _y < _y1; _y += _n) {
         __global uchar *_row = _out + (size_t)_y * 1280;
-        for (int _x = _x0; _x < _x1; _x++)
+        for (int _x = 0; _x < 1280; _x++)
             _row[_x] = _f1_detector(_ARGS, _y, _x, 0);
     }
 }

@@ -4,29 +4,37 @@
 // Each member's snippet is a function of the element (y, x, c) it computes;
 // an input read <port>(y, x, c) calls the producing member, or loads from a
 // group input.  Sizes are constants: the system fixed them at build time.
-// Kernel arguments, in the calling convention's order: _in0 = image, _out = red_mask,
-// _m0_lowerb_0 = red_lowerb_0, _m0_lowerb_1 = red_lowerb_1, _m0_lowerb_2 = red_lowerb_2,
-// _m0_upperb_0 = red_upperb_0, _m0_upperb_1 = red_upperb_1, _m0_upperb_2 = red_upperb_2.
+// Kernel arguments, in the calling convention's order: _in0 = image, _out = red_mask.
+
+// Parameters: constants of the build, so that the compiler folds them (a rule chosen by a
+// parameter is chosen once, not per element).  The program builds this file with -D
+// NAME=VALUE, its values after --set; below, the model's values, for a build without them.
+#ifndef _m0_lowerb_0
+#define _m0_lowerb_0 0
+#endif
+#ifndef _m0_lowerb_1
+#define _m0_lowerb_1 140
+#endif
+#ifndef _m0_lowerb_2
+#define _m0_lowerb_2 60
+#endif
+#ifndef _m0_upperb_0
+#define _m0_upperb_0 6
+#endif
+#ifndef _m0_upperb_1
+#define _m0_upperb_1 255
+#endif
+#ifndef _m0_upperb_2
+#define _m0_upperb_2 255
+#endif
 
 #define _PARAMS \
     __global const uchar *restrict _in0, \
-    __global uchar *restrict _out, \
-    const int _m0_lowerb_0, \
-    const int _m0_lowerb_1, \
-    const int _m0_lowerb_2, \
-    const int _m0_upperb_0, \
-    const int _m0_upperb_1, \
-    const int _m0_upperb_2
+    __global uchar *restrict _out
 
 #define _ARGS \
     _in0, \
-    _out, \
-    _m0_lowerb_0, \
-    _m0_lowerb_1, \
-    _m0_lowerb_2, \
-    _m0_upperb_0, \
-    _m0_upperb_1, \
-    _m0_upperb_2
+    _out
 
 // red: InRange (pointwise); every element
 #define image(y_, x_, c_) _in0[3 * ((size_t)(y_) * 301 + (x_)) + (c_)]
@@ -47,19 +55,17 @@ static inline uchar _f0_red(_PARAMS, const int y, const int x, const int c)
 #undef image
 
 // 200 rows of 301 pixels, one channel.  Work-group g computes the rows [g * tile, g * tile
-// + tile); its block_y threads take them in turn, its block_x threads each a contiguous run
-// of the row.
+// + tile); its threads take them in turn, each a whole row (a CPU runs a work-group's
+// threads one after another: a row is the longest loop, which the compiler vectorizes).
 __kernel void red(_PARAMS, const int _tile)
 {
     const int _y0 = get_group_id(1) * _tile;
     const int _y1 = min(_y0 + _tile, 200);
-    const int _nx = get_local_size(0);
-    const int _per = (301 + _nx - 1) / _nx;
-    const int _x0 = min((int)get_local_id(0) * _per, 301);
-    const int _x1 = min(_x0 + _per, 301);
-    for (int _y = _y0 + get_local_id(1); _y < _y1; _y += get_local_size(1)) {
+    const int _k = get_local_id(1) * get_local_size(0) + get_local_id(0);
+    const int _n = get_local_size(0) * get_local_size(1);
+    for (int _y = _y0 + _k; _y < _y1; _y += _n) {
         __global uchar *_row = _out + (size_t)_y * 301;
-        for (int _x = _x0; _x < _x1; _x++)
+        for (int _x = 0; _x < 301; _x++)
             _row[_x] = _f0_red(_ARGS, _y, _x, 0);
     }
 }
