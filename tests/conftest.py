@@ -140,7 +140,7 @@ def run_generated(context, queue, ctype, params: dict, arrays, out_shape: tuple,
 
 
 # Collectors for tests that build models: one standard type per element type and channel
-# count (Keep3, Keep1, KeepS3, KeepS1), one class for all, keeping a copy of every frame.
+# count (Keep3, Keep1, KeepS3, KeepS1, KeepI4, KeepI5), one class for all, keeping a copy of every frame.
 KEEP_TYPES = "component_types:\n" + "".join(f"""
   {name}:
     kind: standard
@@ -149,7 +149,9 @@ KEEP_TYPES = "component_types:\n" + "".join(f"""
       image: {{memory: cpu, dtype: {dtype}, channels: {channels}}}
     python: {{file: keep.py, class: Keep}}
 """ for name, dtype, channels in (("Keep3", "uint8", 3), ("Keep1", "uint8", 1),
-                                  ("KeepS3", "int16", 3), ("KeepS1", "int16", 1)))
+                                  ("KeepS3", "int16", 3), ("KeepS1", "int16", 1),
+                                  # tables of things found (features.yaml): int32 rows
+                                  ("KeepI4", "int32", 4), ("KeepI5", "int32", 5)))
 KEEP_PY = """import numpy as np
 
 
@@ -176,4 +178,5 @@ def write_keep_types(folder: Path) -> None:
 
 def keep_type_for(port) -> str:
     """The Keep type that takes what a port (a PortDecl) carries."""
-    return ("KeepS" if port.dtype == "int16" else "Keep") + str(port.channels)
+    prefix = {"int16": "KeepS", "int32": "KeepI"}.get(port.dtype, "Keep")
+    return prefix + str(port.channels)
