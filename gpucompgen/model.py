@@ -792,6 +792,18 @@ def _check_signature(doc, rep, base, ctype: ComponentType, kspec: dict) -> None:
         rep.error(pos, f"kernel file {where}: {exc.message}", exc.hint)
 
 
+def _no_array_params(doc, rep, base, ctype: ComponentType) -> None:
+    """A hand-written kernel's arguments are numbers (the calling convention): array
+    parameters reach generated kernels only."""
+    for pname, decl in ctype.params.items():
+        if decl.shape:
+            rep.error(doc.pos(*base, "params", pname, "type"),
+                      f"array parameter '{pname}' of '{ctype.name}' cannot reach a "
+                      "hand-written kernel (its arguments are numbers)",
+                      "declare a 'fusable:' form instead of 'kernel:' (its generated kernel "
+                      "gets the array as a constant table), or pass numbers")
+
+
 def _load_kernel(doc, rep, base, ctype: ComponentType, spec,
                  signature_check: bool = True) -> None:
     if "kernel" not in spec and "fusable" in spec:
@@ -811,13 +823,7 @@ def _load_kernel(doc, rep, base, ctype: ComponentType, spec,
                   "or a 'fusable:' form, from which the system generates its kernel")
         return
     _unknown_keys(doc, rep, base + ("kernel",), kspec, KERNEL_KEYS, "kernel")
-    for pname, decl in ctype.params.items():
-        if decl.shape:  # the calling convention passes numbers; arrays reach generated code
-            rep.error(doc.pos(*base, "params", pname, "type"),
-                      f"array parameter '{pname}' of '{ctype.name}' cannot reach a "
-                      "hand-written kernel (its arguments are numbers)",
-                      "declare a 'fusable:' form instead of 'kernel:' (its generated kernel "
-                      "gets the array as a constant table), or pass numbers")
+    _no_array_params(doc, rep, base, ctype)
     found = _resolve_file(doc, rep, base + ("kernel", "file"), ctype.decl_file.parent,
                           kspec.get("file"), ".cl", "kernel file")
     if found is not None:
