@@ -77,23 +77,22 @@ static inline uchar _f4_merged(_PARAMS, const int y, const int x, const int c)
 #undef left
 #undef right
 
-// 200 rows of 903 pixels, 3 channels stored as one uchar3.  Work-group g computes the rows
-// [g * tile, g * tile + tile); its block_y threads take them in turn, its block_x threads
-// each a contiguous run of the row.
+// 200 rows of 903 pixels, 3 channels a pixel.  Work-group g computes the rows [g * tile, g
+// * tile + tile); its threads take them in turn, each a whole row (a CPU runs a
+// work-group's threads one after another: a row is the longest loop, which the compiler
+// vectorizes).
 __kernel void canny_rgb_to_merged(_PARAMS, const int _tile)
 {
     const int _y0 = get_group_id(1) * _tile;
     const int _y1 = min(_y0 + _tile, 200);
-    const int _nx = get_local_size(0);
-    const int _per = (903 + _nx - 1) / _nx;
-    const int _x0 = min((int)get_local_id(0) * _per, 903);
-    const int _x1 = min(_x0 + _per, 903);
-    for (int _y = _y0 + get_local_id(1); _y < _y1; _y += get_local_size(1)) {
+    const int _k = get_local_id(1) * get_local_size(0) + get_local_id(0);
+    const int _n = get_local_size(0) * get_local_size(1);
+    for (int _y = _y0 + _k; _y < _y1; _y += _n) {
         __global uchar *_row = _out + (size_t)_y * 2709;
-        for (int _x = _x0; _x < _x1; _x++)
-            vstore3((uchar3)(
-                _f4_merged(_ARGS, _y, _x, 0), _f4_merged(_ARGS, _y, _x, 1), _f4_merged(_ARGS,
-                _y, _x, 2)),
-                _x, _row);
+        for (int _x = 0; _x < 903; _x++) {
+            _row[3 * _x + 0] = _f4_merged(_ARGS, _y, _x, 0);
+            _row[3 * _x + 1] = _f4_merged(_ARGS, _y, _x, 1);
+            _row[3 * _x + 2] = _f4_merged(_ARGS, _y, _x, 2);
+        }
     }
 }

@@ -521,19 +521,52 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
     })
     rgb_to_gray_program = runtime.build_program(context, LIB_DIR / 'gray.cl', 'gray (RgbToGray)')
     gaussian_blur_gray_program = runtime.build_program(
-        context, LIB_DIR / 'blur.cl', 'blur (GaussianBlurGray)')
-    sobel_gray_dx_program = runtime.build_program(context, LIB_DIR / 'dx.cl', 'dx (SobelGrayDx)')
-    sobel_gray_dy_program = runtime.build_program(context, LIB_DIR / 'dy.cl', 'dy (SobelGrayDy)')
+        context, LIB_DIR / 'blur.cl', 'blur (GaussianBlurGray)',
+        defines={  # the kernel's constants, its members' parameters: -D NAME=VALUE
+            '_m0_ksize': np.int32(3),
+        })
+    sobel_gray_dx_program = runtime.build_program(
+        context, LIB_DIR / 'dx.cl', 'dx (SobelGrayDx)',
+        defines={  # the kernel's constants, its members' parameters: -D NAME=VALUE
+            '_m0_dx': np.int32(1),
+            '_m0_dy': np.int32(0),
+        })
+    sobel_gray_dy_program = runtime.build_program(
+        context, LIB_DIR / 'dy.cl', 'dy (SobelGrayDy)',
+        defines={  # the kernel's constants, its members' parameters: -D NAME=VALUE
+            '_m0_dx': np.int32(0),
+            '_m0_dy': np.int32(1),
+        })
     convert_scale_abs_gray_absx_program = runtime.build_program(
-        context, LIB_DIR / 'absx.cl', 'absx (ConvertScaleAbsGrayAbsx)')
+        context, LIB_DIR / 'absx.cl', 'absx (ConvertScaleAbsGrayAbsx)',
+        defines={  # the kernel's constants, its members' parameters: -D NAME=VALUE
+            '_m0_alpha': np.float32(params['absx.alpha']),
+            '_m0_beta': np.float32(params['absx.beta']),
+        })
     convert_scale_abs_gray_absy_program = runtime.build_program(
-        context, LIB_DIR / 'absy.cl', 'absy (ConvertScaleAbsGrayAbsy)')
+        context, LIB_DIR / 'absy.cl', 'absy (ConvertScaleAbsGrayAbsy)',
+        defines={  # the kernel's constants, its members' parameters: -D NAME=VALUE
+            '_m0_alpha': np.float32(params['absy.alpha']),
+            '_m0_beta': np.float32(params['absy.beta']),
+        })
     add_weighted_gray_program = runtime.build_program(
-        context, LIB_DIR / 'sobel.cl', 'sobel (AddWeightedGray)')
+        context, LIB_DIR / 'sobel.cl', 'sobel (AddWeightedGray)',
+        defines={  # the kernel's constants, its members' parameters: -D NAME=VALUE
+            '_m0_alpha': np.float32(params['sobel.alpha']),
+            '_m0_beta': np.float32(params['sobel.beta']),
+            '_m0_gamma': np.float32(params['sobel.gamma']),
+        })
     laplacian_gray_program = runtime.build_program(
-        context, LIB_DIR / 'laplace.cl', 'laplace (LaplacianGray)')
+        context, LIB_DIR / 'laplace.cl', 'laplace (LaplacianGray)',
+        defines={  # the kernel's constants, its members' parameters: -D NAME=VALUE
+            '_m0_ksize': np.int32(3),
+        })
     convert_scale_abs_gray_abslap_program = runtime.build_program(
-        context, LIB_DIR / 'abslap.cl', 'abslap (ConvertScaleAbsGrayAbslap)')
+        context, LIB_DIR / 'abslap.cl', 'abslap (ConvertScaleAbsGrayAbslap)',
+        defines={  # the kernel's constants, its members' parameters: -D NAME=VALUE
+            '_m0_alpha': np.float32(params['abslap.alpha']),
+            '_m0_beta': np.float32(params['abslap.beta']),
+        })
     gray_to_rgb_canny_rgb_program = runtime.build_program(
         context, LIB_DIR / 'canny_rgb.cl', 'canny_rgb (GrayToRgbCannyRgb)')
     gray_to_rgb_sobel_rgb_program = runtime.build_program(
@@ -660,7 +693,6 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
             tile=32, local_size=(8, 8, 1), global_size=(8, 56, 1),
             settings_source="component's own", arguments=[
                 'image', 'blurred',  # buffers: inputs, then outputs
-                np.int32(3),  # blur_ksize
                 np.int32(32),  # tile
             ])
 
@@ -670,8 +702,6 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
             tile=32, local_size=(8, 8, 1), global_size=(8, 56, 1),
             settings_source="component's own", arguments=[
                 'image', 'gradient',  # buffers: inputs, then outputs
-                np.int32(1),  # dx_dx
-                np.int32(0),  # dx_dy
                 np.int32(32),  # tile
             ])
 
@@ -681,8 +711,6 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
             tile=32, local_size=(8, 8, 1), global_size=(8, 56, 1),
             settings_source="component's own", arguments=[
                 'image', 'gradient',  # buffers: inputs, then outputs
-                np.int32(0),  # dy_dx
-                np.int32(1),  # dy_dy
                 np.int32(32),  # tile
             ])
 
@@ -692,8 +720,6 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
             tile=32, local_size=(8, 8, 1), global_size=(8, 56, 1),
             settings_source="component's own", arguments=[
                 'src', 'dst',  # buffers: inputs, then outputs
-                np.float32(params['absx.alpha']),  # absx_alpha
-                np.float32(params['absx.beta']),  # absx_beta
                 np.int32(32),  # tile
             ])
 
@@ -703,8 +729,6 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
             tile=32, local_size=(8, 8, 1), global_size=(8, 56, 1),
             settings_source="component's own", arguments=[
                 'src', 'dst',  # buffers: inputs, then outputs
-                np.float32(params['absy.alpha']),  # absy_alpha
-                np.float32(params['absy.beta']),  # absy_beta
                 np.int32(32),  # tile
             ])
 
@@ -714,9 +738,6 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
             tile=32, local_size=(8, 8, 1), global_size=(8, 56, 1),
             settings_source="component's own", arguments=[
                 'src1', 'src2', 'blended',  # buffers: inputs, then outputs
-                np.float32(params['sobel.alpha']),  # sobel_alpha
-                np.float32(params['sobel.beta']),  # sobel_beta
-                np.float32(params['sobel.gamma']),  # sobel_gamma
                 np.int32(32),  # tile
             ])
 
@@ -726,7 +747,6 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
             tile=32, local_size=(8, 8, 1), global_size=(8, 56, 1),
             settings_source="component's own", arguments=[
                 'src', 'dst',  # buffers: inputs, then outputs
-                np.int32(3),  # laplace_ksize
                 np.int32(32),  # tile
             ])
 
@@ -736,8 +756,6 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
             tile=32, local_size=(8, 8, 1), global_size=(8, 56, 1),
             settings_source="component's own", arguments=[
                 'src', 'dst',  # buffers: inputs, then outputs
-                np.float32(params['abslap.alpha']),  # abslap_alpha
-                np.float32(params['abslap.beta']),  # abslap_beta
                 np.int32(32),  # tile
             ])
 

@@ -281,12 +281,29 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
     })
     rgb_to_gray_program = runtime.build_program(context, LIB_DIR / 'gray.cl', 'gray (RgbToGray)')
     gaussian_blur_gray_program = runtime.build_program(
-        context, LIB_DIR / 'blur.cl', 'blur (GaussianBlurGray)')
-    sobel_gray_program = runtime.build_program(context, LIB_DIR / 'sobel.cl', 'sobel (SobelGray)')
+        context, LIB_DIR / 'blur.cl', 'blur (GaussianBlurGray)',
+        defines={  # the kernel's constants, its members' parameters: -D NAME=VALUE
+            '_m0_ksize': np.int32(5),
+        })
+    sobel_gray_program = runtime.build_program(
+        context, LIB_DIR / 'sobel.cl', 'sobel (SobelGray)',
+        defines={  # the kernel's constants, its members' parameters: -D NAME=VALUE
+            '_m0_dx': np.int32(1),
+            '_m0_dy': np.int32(0),
+        })
     convert_scale_abs_gray_program = runtime.build_program(
-        context, LIB_DIR / 'magnitude.cl', 'magnitude (ConvertScaleAbsGray)')
+        context, LIB_DIR / 'magnitude.cl', 'magnitude (ConvertScaleAbsGray)',
+        defines={  # the kernel's constants, its members' parameters: -D NAME=VALUE
+            '_m0_alpha': np.float32(params['magnitude.alpha']),
+            '_m0_beta': np.float32(params['magnitude.beta']),
+        })
     threshold_gray_program = runtime.build_program(
-        context, LIB_DIR / 'strong.cl', 'strong (ThresholdGray)')
+        context, LIB_DIR / 'strong.cl', 'strong (ThresholdGray)',
+        defines={  # the kernel's constants, its members' parameters: -D NAME=VALUE
+            '_m0_thresh': np.int32(params['strong.thresh']),
+            '_m0_maxval': np.int32(params['strong.maxval']),
+            '_m0_thresh_type': np.int32(params['strong.thresh_type']),
+        })
     bitwise_and_mask_gray_program = runtime.build_program(
         context, LIB_DIR / 'cut.cl', 'cut (BitwiseAndMaskGray)')
 
@@ -378,7 +395,6 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
             tile=32, local_size=(8, 8, 1), global_size=(8, 56, 1),
             settings_source="component's own", arguments=[
                 'image', 'blurred',  # buffers: inputs, then outputs
-                np.int32(5),  # blur_ksize
                 np.int32(32),  # tile
             ])
 
@@ -388,8 +404,6 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
             tile=32, local_size=(8, 8, 1), global_size=(8, 56, 1),
             settings_source="component's own", arguments=[
                 'image', 'gradient',  # buffers: inputs, then outputs
-                np.int32(1),  # sobel_dx
-                np.int32(0),  # sobel_dy
                 np.int32(32),  # tile
             ])
 
@@ -399,8 +413,6 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
             tile=32, local_size=(8, 8, 1), global_size=(8, 56, 1),
             settings_source="component's own", arguments=[
                 'src', 'dst',  # buffers: inputs, then outputs
-                np.float32(params['magnitude.alpha']),  # magnitude_alpha
-                np.float32(params['magnitude.beta']),  # magnitude_beta
                 np.int32(32),  # tile
             ])
 
@@ -410,9 +422,6 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
             tile=32, local_size=(8, 8, 1), global_size=(8, 56, 1),
             settings_source="component's own", arguments=[
                 'image', 'thresholded',  # buffers: inputs, then outputs
-                np.int32(params['strong.thresh']),  # strong_thresh
-                np.int32(params['strong.maxval']),  # strong_maxval
-                np.int32(params['strong.thresh_type']),  # strong_thresh_type
                 np.int32(32),  # tile
             ])
 

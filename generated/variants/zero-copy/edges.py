@@ -277,11 +277,32 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
     })
     rgb_to_gray_program = runtime.build_program(context, LIB_DIR / 'gray.cl', 'gray (RgbToGray)')
     gaussian_blur_gray_program = runtime.build_program(
-        context, LIB_DIR / 'blur.cl', 'blur (GaussianBlurGray)')
+        context, LIB_DIR / 'blur.cl', 'blur (GaussianBlurGray)',
+        defines={  # the kernel's constants, its members' parameters: -D NAME=VALUE
+            '_m0_ksize': np.int32(3),
+        })
     fused_dx_to_sobel_program = runtime.build_program(
-        context, LIB_DIR / 'group_dx_to_sobel.cl', 'dx_to_sobel (FusedDxToSobel)')
+        context, LIB_DIR / 'group_dx_to_sobel.cl', 'dx_to_sobel (FusedDxToSobel)',
+        defines={  # the kernel's constants, its members' parameters: -D NAME=VALUE
+            '_m0_dx': np.int32(1),
+            '_m0_dy': np.int32(0),
+            '_m1_dx': np.int32(0),
+            '_m1_dy': np.int32(1),
+            '_m2_alpha': np.float32(params['absx.alpha']),
+            '_m2_beta': np.float32(params['absx.beta']),
+            '_m3_alpha': np.float32(params['absy.alpha']),
+            '_m3_beta': np.float32(params['absy.beta']),
+            '_m4_alpha': np.float32(params['sobel.alpha']),
+            '_m4_beta': np.float32(params['sobel.beta']),
+            '_m4_gamma': np.float32(params['sobel.gamma']),
+        })
     fused_laplace_abslap_program = runtime.build_program(
-        context, LIB_DIR / 'group_laplace_abslap.cl', 'laplace_abslap (FusedLaplaceAbslap)')
+        context, LIB_DIR / 'group_laplace_abslap.cl', 'laplace_abslap (FusedLaplaceAbslap)',
+        defines={  # the kernel's constants, its members' parameters: -D NAME=VALUE
+            '_m0_ksize': np.int32(3),
+            '_m1_alpha': np.float32(params['abslap.alpha']),
+            '_m1_beta': np.float32(params['abslap.beta']),
+        })
     fused_canny_rgb_to_merged_program = runtime.build_program(
         context, LIB_DIR / 'group_canny_rgb_to_merged.cl',
         'canny_rgb_to_merged (FusedCannyRgbToMerged)')
@@ -378,7 +399,6 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
             tile=32, local_size=(8, 8, 1), global_size=(8, 56, 1),
             settings_source='preferred', arguments=[
                 'image', 'blurred',  # buffers: inputs, then outputs
-                np.int32(3),  # blur_ksize
                 np.int32(32),  # tile
             ])
 
@@ -388,17 +408,6 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
             tile=32, local_size=(8, 8, 1), global_size=(8, 56, 1),
             settings_source='preferred', arguments=[
                 'dx_image', 'dy_image', 'blended',  # buffers: inputs, then outputs
-                np.int32(1),  # dx_dx
-                np.int32(0),  # dx_dy
-                np.int32(0),  # dy_dx
-                np.int32(1),  # dy_dy
-                np.float32(params['absx.alpha']),  # absx_alpha
-                np.float32(params['absx.beta']),  # absx_beta
-                np.float32(params['absy.alpha']),  # absy_alpha
-                np.float32(params['absy.beta']),  # absy_beta
-                np.float32(params['sobel.alpha']),  # sobel_alpha
-                np.float32(params['sobel.beta']),  # sobel_beta
-                np.float32(params['sobel.gamma']),  # sobel_gamma
                 np.int32(32),  # tile
             ])
 
@@ -408,9 +417,6 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
             tile=32, local_size=(8, 8, 1), global_size=(8, 56, 1),
             settings_source='preferred', arguments=[
                 'laplace_src', 'dst',  # buffers: inputs, then outputs
-                np.int32(3),  # laplace_ksize
-                np.float32(params['abslap.alpha']),  # abslap_alpha
-                np.float32(params['abslap.beta']),  # abslap_beta
                 np.int32(32),  # tile
             ])
 

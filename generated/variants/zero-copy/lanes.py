@@ -229,11 +229,26 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
     })
     rgb_to_gray_program = runtime.build_program(context, LIB_DIR / 'gray.cl', 'gray (RgbToGray)')
     gaussian_blur_gray_program = runtime.build_program(
-        context, LIB_DIR / 'blur.cl', 'blur (GaussianBlurGray)')
-    sobel_gray_program = runtime.build_program(context, LIB_DIR / 'sobel.cl', 'sobel (SobelGray)')
+        context, LIB_DIR / 'blur.cl', 'blur (GaussianBlurGray)',
+        defines={  # the kernel's constants, its members' parameters: -D NAME=VALUE
+            '_m0_ksize': np.int32(5),
+        })
+    sobel_gray_program = runtime.build_program(
+        context, LIB_DIR / 'sobel.cl', 'sobel (SobelGray)',
+        defines={  # the kernel's constants, its members' parameters: -D NAME=VALUE
+            '_m0_dx': np.int32(1),
+            '_m0_dy': np.int32(0),
+        })
     fused_magnitude_strong_cut_program = runtime.build_program(
         context, LIB_DIR / 'group_magnitude_strong_cut.cl',
-        'magnitude_strong_cut (FusedMagnitudeStrongCut)')
+        'magnitude_strong_cut (FusedMagnitudeStrongCut)',
+        defines={  # the kernel's constants, its members' parameters: -D NAME=VALUE
+            '_m0_alpha': np.float32(params['magnitude.alpha']),
+            '_m0_beta': np.float32(params['magnitude.beta']),
+            '_m1_thresh': np.int32(params['strong.thresh']),
+            '_m1_maxval': np.int32(params['strong.maxval']),
+            '_m1_thresh_type': np.int32(params['strong.thresh_type']),
+        })
 
     # every component and adapter, filled in as it is constructed; those initialized are
     # freed once each, in reverse order
@@ -327,7 +342,6 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
             tile=32, local_size=(8, 8, 1), global_size=(8, 56, 1),
             settings_source='preferred', arguments=[
                 'image', 'blurred',  # buffers: inputs, then outputs
-                np.int32(5),  # blur_ksize
                 np.int32(32),  # tile
             ])
 
@@ -337,8 +351,6 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
             tile=32, local_size=(8, 8, 1), global_size=(8, 56, 1),
             settings_source='preferred', arguments=[
                 'image', 'gradient',  # buffers: inputs, then outputs
-                np.int32(1),  # sobel_dx
-                np.int32(0),  # sobel_dy
                 np.int32(32),  # tile
             ])
 
@@ -348,11 +360,6 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
             tile=32, local_size=(8, 8, 1), global_size=(8, 56, 1),
             settings_source='preferred', arguments=[
                 'magnitude_src', 'cut_mask', 'dst',  # buffers: inputs, then outputs
-                np.float32(params['magnitude.alpha']),  # magnitude_alpha
-                np.float32(params['magnitude.beta']),  # magnitude_beta
-                np.int32(params['strong.thresh']),  # strong_thresh
-                np.int32(params['strong.maxval']),  # strong_maxval
-                np.int32(params['strong.thresh_type']),  # strong_thresh_type
                 np.int32(32),  # tile
             ])
 

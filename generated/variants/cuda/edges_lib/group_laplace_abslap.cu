@@ -6,7 +6,7 @@
 // an input read <port>(y, x, c) calls the producing member, or loads from a
 // group input.  Sizes are constants: the system fixed them at build time.
 // Kernel arguments, in the calling convention's order: _in0 = laplace_src, _out =
-// abslap_dst, _m0_ksize = laplace_ksize, _m1_alpha = abslap_alpha, _m1_beta = abslap_beta.
+// abslap_dst.
 
 // gpucompgen's CUDA prelude: the portable subset of OpenCL C the kernels are
 // written in, mapped to CUDA C++ (see gpucompgen/backend/cuda/prelude.py).
@@ -109,6 +109,19 @@ __device__ inline float4 vload4(const size_t i, const float *p) { return make_fl
 #define inline __device__ inline
 // end of the prelude; the kernel follows as written
 #line 1
+// Parameters: constants of the build, so that the compiler folds them (a rule chosen by a
+// parameter is chosen once, not per element).  The program builds this file with -D
+// NAME=VALUE, its values after --set; below, the model's values, for a build without them.
+#ifndef _m0_ksize
+#define _m0_ksize 3
+#endif
+#ifndef _m1_alpha
+#define _m1_alpha 1.0f
+#endif
+#ifndef _m1_beta
+#define _m1_beta 0.0f
+#endif
+
 // OpenCV's BORDER_REFLECT_101 (gfedcb|abcdefgh|gfedcba) of position p in 0..n-1
 static inline int _reflect101(int p, const int n)
 {
@@ -121,17 +134,11 @@ static inline int _reflect101(int p, const int n)
 
 #define _PARAMS \
     __global const uchar *restrict _in0, \
-    __global uchar *restrict _out, \
-    const int _m0_ksize, \
-    const float _m1_alpha, \
-    const float _m1_beta
+    __global uchar *restrict _out
 
 #define _ARGS \
     _in0, \
-    _out, \
-    _m0_ksize, \
-    _m1_alpha, \
-    _m1_beta
+    _out
 
 // built-ins the snippets call, inline (see fused.py: HELPERS)
 static inline float _fabs(const float v) { return v < 0.0f ? -v : v; }
@@ -204,29 +211,28 @@ static inline uchar _f1_abslap_in(_PARAMS, const int y, const int x, const int c
 #undef src
 
 // 200 rows of 301 pixels, 1 channel as 301 elements a row.  Work-group g computes the rows
-// [g * tile, g * tile + tile); its block_y threads take them in turn, its block_x threads
-// each a contiguous run of the row.
+// [g * tile, g * tile + tile); its threads take them in turn, each a whole row (a CPU runs
+// a work-group's threads one after another: a row is the longest loop, which the compiler
+// vectorizes).
 // Elements 1 or more from every edge read inside the frame: the interior version, without
 // border rules, computes them.
 __kernel void laplace_abslap(_PARAMS, const int _tile)
 {
     const int _y0 = get_group_id(1) * _tile;
     const int _y1 = min(_y0 + _tile, 200);
-    const int _nx = get_local_size(0);
-    const int _per = (301 + _nx - 1) / _nx;
-    const int _x0 = min((int)get_local_id(0) * _per, 301);
-    const int _x1 = min(_x0 + _per, 301);
-    for (int _y = _y0 + get_local_id(1); _y < _y1; _y += get_local_size(1)) {
+    const int _k = get_local_id(1) * get_local_size(0) + get_local_id(0);
+    const int _n = get_local_size(0) * get_local_size(1);
+    for (int _y = _y0 + _k; _y < _y1; _y += _n) {
         __global uchar *_row = _out + (size_t)_y * 301;
         if (_y >= 1 && _y < 199) {
-            for (int _x = _x0; _x < min(_x1, 1); _x++)
+            for (int _x = 0; _x < 1; _x++)
                 _row[_x] = _f1_abslap(_ARGS, _y, _x, 0);
-            for (int _x = max(_x0, 1); _x < min(_x1, 300); _x++)
+            for (int _x = 1; _x < 300; _x++)
                 _row[_x] = _f1_abslap_in(_ARGS, _y, _x, 0);
-            for (int _x = max(_x0, 300); _x < _x1; _x++)
+            for (int _x = 300; _x < 301; _x++)
                 _row[_x] = _f1_abslap(_ARGS, _y, _x, 0);
         } else {
-            for (int _x = _x0; _x < _x1; _x++)
+            for (int _x = 0; _x < 301; _x++)
                 _row[_x] = _f1_abslap(_ARGS, _y, _x, 0);
         }
     }

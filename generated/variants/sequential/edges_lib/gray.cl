@@ -26,19 +26,17 @@ static inline uchar _f0_gray(_PARAMS, const int y, const int x, const int c)
 #undef image
 
 // 200 rows of 301 pixels, one channel.  Work-group g computes the rows [g * tile, g * tile
-// + tile); its block_y threads take them in turn, its block_x threads each a contiguous run
-// of the row.
+// + tile); its threads take them in turn, each a whole row (a CPU runs a work-group's
+// threads one after another: a row is the longest loop, which the compiler vectorizes).
 __kernel void gray_kernel(_PARAMS, const int _tile)
 {
     const int _y0 = get_group_id(1) * _tile;
     const int _y1 = min(_y0 + _tile, 200);
-    const int _nx = get_local_size(0);
-    const int _per = (301 + _nx - 1) / _nx;
-    const int _x0 = min((int)get_local_id(0) * _per, 301);
-    const int _x1 = min(_x0 + _per, 301);
-    for (int _y = _y0 + get_local_id(1); _y < _y1; _y += get_local_size(1)) {
+    const int _k = get_local_id(1) * get_local_size(0) + get_local_id(0);
+    const int _n = get_local_size(0) * get_local_size(1);
+    for (int _y = _y0 + _k; _y < _y1; _y += _n) {
         __global uchar *_row = _out + (size_t)_y * 301;
-        for (int _x = _x0; _x < _x1; _x++)
+        for (int _x = 0; _x < 301; _x++)
             _row[_x] = _f0_gray(_ARGS, _y, _x, 0);
     }
 }

@@ -4,8 +4,14 @@
 // Each member's snippet is a function of the element (y, x, c) it computes;
 // an input read <port>(y, x, c) calls the producing member, or loads from a
 // group input.  Sizes are constants: the system fixed them at build time.
-// Kernel arguments, in the calling convention's order: _in0 = image, _out = blur_blurred,
-// _m0_ksize = blur_ksize.
+// Kernel arguments, in the calling convention's order: _in0 = image, _out = blur_blurred.
+
+// Parameters: constants of the build, so that the compiler folds them (a rule chosen by a
+// parameter is chosen once, not per element).  The program builds this file with -D
+// NAME=VALUE, its values after --set; below, the model's values, for a build without them.
+#ifndef _m0_ksize
+#define _m0_ksize 3
+#endif
 
 // OpenCV's BORDER_REFLECT_101 (gfedcb|abcdefgh|gfedcba) of position p in 0..n-1
 static inline int _reflect101(int p, const int n)
@@ -19,13 +25,11 @@ static inline int _reflect101(int p, const int n)
 
 #define _PARAMS \
     __global const uchar *restrict _in0, \
-    __global uchar *restrict _out, \
-    const int _m0_ksize
+    __global uchar *restrict _out
 
 #define _ARGS \
     _in0, \
-    _out, \
-    _m0_ksize
+    _out
 
 // blur: GaussianBlurGray (stencil, radius 2, border reflect101); every element
 #define image(y_, x_, c_) _in0[(size_t)_reflect101((y_), 200) * 301 + _reflect101((x_), 301)]
@@ -66,29 +70,28 @@ static inline uchar _f0_blur_in(_PARAMS, const int y, const int x, const int c)
 #undef image
 
 // 200 rows of 301 pixels, 1 channel as 301 elements a row.  Work-group g computes the rows
-// [g * tile, g * tile + tile); its block_y threads take them in turn, its block_x threads
-// each a contiguous run of the row.
+// [g * tile, g * tile + tile); its threads take them in turn, each a whole row (a CPU runs
+// a work-group's threads one after another: a row is the longest loop, which the compiler
+// vectorizes).
 // Elements 2 or more from every edge read inside the frame: the interior version, without
 // border rules, computes them.
 __kernel void blur(_PARAMS, const int _tile)
 {
     const int _y0 = get_group_id(1) * _tile;
     const int _y1 = min(_y0 + _tile, 200);
-    const int _nx = get_local_size(0);
-    const int _per = (301 + _nx - 1) / _nx;
-    const int _x0 = min((int)get_local_id(0) * _per, 301);
-    const int _x1 = min(_x0 + _per, 301);
-    for (int _y = _y0 + get_local_id(1); _y < _y1; _y += get_local_size(1)) {
+    const int _k = get_local_id(1) * get_local_size(0) + get_local_id(0);
+    const int _n = get_local_size(0) * get_local_size(1);
+    for (int _y = _y0 + _k; _y < _y1; _y += _n) {
         __global uchar *_row = _out + (size_t)_y * 301;
         if (_y >= 2 && _y < 198) {
-            for (int _x = _x0; _x < min(_x1, 2); _x++)
+            for (int _x = 0; _x < 2; _x++)
                 _row[_x] = _f0_blur(_ARGS, _y, _x, 0);
-            for (int _x = max(_x0, 2); _x < min(_x1, 299); _x++)
+            for (int _x = 2; _x < 299; _x++)
                 _row[_x] = _f0_blur_in(_ARGS, _y, _x, 0);
-            for (int _x = max(_x0, 299); _x < _x1; _x++)
+            for (int _x = 299; _x < 301; _x++)
                 _row[_x] = _f0_blur(_ARGS, _y, _x, 0);
         } else {
-            for (int _x = _x0; _x < _x1; _x++)
+            for (int _x = 0; _x < 301; _x++)
                 _row[_x] = _f0_blur(_ARGS, _y, _x, 0);
         }
     }

@@ -5,22 +5,28 @@
 // an input read <port>(y, x, c) calls the producing member, or loads from a
 // group input.  Sizes are constants: the system fixed them at build time.
 // Kernel arguments, in the calling convention's order: _in0 = image, _out =
-// strong_thresholded, _m0_thresh = strong_thresh, _m0_maxval = strong_maxval,
-// _m0_thresh_type = strong_thresh_type.
+// strong_thresholded.
+
+// Parameters: constants of the build, so that the compiler folds them (a rule chosen by a
+// parameter is chosen once, not per element).  The program builds this file with -D
+// NAME=VALUE, its values after --set; below, the model's values, for a build without them.
+#ifndef _m0_thresh
+#define _m0_thresh 60
+#endif
+#ifndef _m0_maxval
+#define _m0_maxval 255
+#endif
+#ifndef _m0_thresh_type
+#define _m0_thresh_type 0
+#endif
 
 #define _PARAMS \
     __global const uchar *restrict _in0, \
-    __global uchar *restrict _out, \
-    const int _m0_thresh, \
-    const int _m0_maxval, \
-    const int _m0_thresh_type
+    __global uchar *restrict _out
 
 #define _ARGS \
     _in0, \
-    _out, \
-    _m0_thresh, \
-    _m0_maxval, \
-    _m0_thresh_type
+    _out
 
 // strong: ThresholdGray (pointwise); every element
 #define image(y_, x_, c_) _in0[(size_t)(y_) * 301 + (x_)]
@@ -42,19 +48,18 @@ static inline uchar _f0_strong(_PARAMS, const int y, const int x, const int c)
 #undef image
 
 // 200 rows of 301 pixels, 1 channel as 301 elements a row.  Work-group g computes the rows
-// [g * tile, g * tile + tile); its block_y threads take them in turn, its block_x threads
-// each a contiguous run of the row.
+// [g * tile, g * tile + tile); its threads take them in turn, each a whole row (a CPU runs
+// a work-group's threads one after another: a row is the longest loop, which the compiler
+// vectorizes).
 __kernel void strong(_PARAMS, const int _tile)
 {
     const int _y0 = get_group_id(1) * _tile;
     const int _y1 = min(_y0 + _tile, 200);
-    const int _nx = get_local_size(0);
-    const int _per = (301 + _nx - 1) / _nx;
-    const int _x0 = min((int)get_local_id(0) * _per, 301);
-    const int _x1 = min(_x0 + _per, 301);
-    for (int _y = _y0 + get_local_id(1); _y < _y1; _y += get_local_size(1)) {
+    const int _k = get_local_id(1) * get_local_size(0) + get_local_id(0);
+    const int _n = get_local_size(0) * get_local_size(1);
+    for (int _y = _y0 + _k; _y < _y1; _y += _n) {
         __global uchar *_row = _out + (size_t)_y * 301;
-        for (int _x = _x0; _x < _x1; _x++)
+        for (int _x = 0; _x < 301; _x++)
             _row[_x] = _f0_strong(_ARGS, _y, _x, 0);
     }
 }

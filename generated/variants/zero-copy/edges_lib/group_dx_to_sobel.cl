@@ -7,9 +7,44 @@
 // an input read <port>(y, x, c) calls the producing member, or loads from a
 // group input.  Sizes are constants: the system fixed them at build time.
 // Kernel arguments, in the calling convention's order: _in0 = dx_image, _in1 = dy_image,
-// _out = sobel_blended, _m0_dx = dx_dx, _m0_dy = dx_dy, _m1_dx = dy_dx, _m1_dy = dy_dy,
-// _m2_alpha = absx_alpha, _m2_beta = absx_beta, _m3_alpha = absy_alpha, _m3_beta =
-// absy_beta, _m4_alpha = sobel_alpha, _m4_beta = sobel_beta, _m4_gamma = sobel_gamma.
+// _out = sobel_blended.
+
+// Parameters: constants of the build, so that the compiler folds them (a rule chosen by a
+// parameter is chosen once, not per element).  The program builds this file with -D
+// NAME=VALUE, its values after --set; below, the model's values, for a build without them.
+#ifndef _m0_dx
+#define _m0_dx 1
+#endif
+#ifndef _m0_dy
+#define _m0_dy 0
+#endif
+#ifndef _m1_dx
+#define _m1_dx 0
+#endif
+#ifndef _m1_dy
+#define _m1_dy 1
+#endif
+#ifndef _m2_alpha
+#define _m2_alpha 1.0f
+#endif
+#ifndef _m2_beta
+#define _m2_beta 0.0f
+#endif
+#ifndef _m3_alpha
+#define _m3_alpha 1.0f
+#endif
+#ifndef _m3_beta
+#define _m3_beta 0.0f
+#endif
+#ifndef _m4_alpha
+#define _m4_alpha 0.5f
+#endif
+#ifndef _m4_beta
+#define _m4_beta 0.5f
+#endif
+#ifndef _m4_gamma
+#define _m4_gamma 0.0f
+#endif
 
 // OpenCV's BORDER_REFLECT_101 (gfedcb|abcdefgh|gfedcba) of position p in 0..n-1
 static inline int _reflect101(int p, const int n)
@@ -24,34 +59,12 @@ static inline int _reflect101(int p, const int n)
 #define _PARAMS \
     __global const uchar *restrict _in0, \
     __global const uchar *restrict _in1, \
-    __global uchar *restrict _out, \
-    const int _m0_dx, \
-    const int _m0_dy, \
-    const int _m1_dx, \
-    const int _m1_dy, \
-    const float _m2_alpha, \
-    const float _m2_beta, \
-    const float _m3_alpha, \
-    const float _m3_beta, \
-    const float _m4_alpha, \
-    const float _m4_beta, \
-    const float _m4_gamma
+    __global uchar *restrict _out
 
 #define _ARGS \
     _in0, \
     _in1, \
-    _out, \
-    _m0_dx, \
-    _m0_dy, \
-    _m1_dx, \
-    _m1_dy, \
-    _m2_alpha, \
-    _m2_beta, \
-    _m3_alpha, \
-    _m3_beta, \
-    _m4_alpha, \
-    _m4_beta, \
-    _m4_gamma
+    _out
 
 // built-ins the snippets call, inline (see fused.py: HELPERS)
 static inline float _fabs(const float v) { return v < 0.0f ? -v : v; }
@@ -222,29 +235,28 @@ static inline uchar _f4_sobel_in(_PARAMS, const int y, const int x, const int c)
 #undef src2
 
 // 200 rows of 301 pixels, 1 channel as 301 elements a row.  Work-group g computes the rows
-// [g * tile, g * tile + tile); its block_y threads take them in turn, its block_x threads
-// each a contiguous run of the row.
+// [g * tile, g * tile + tile); its threads take them in turn, each a whole row (a CPU runs
+// a work-group's threads one after another: a row is the longest loop, which the compiler
+// vectorizes).
 // Elements 1 or more from every edge read inside the frame: the interior version, without
 // border rules, computes them.
 __kernel void dx_to_sobel(_PARAMS, const int _tile)
 {
     const int _y0 = get_group_id(1) * _tile;
     const int _y1 = min(_y0 + _tile, 200);
-    const int _nx = get_local_size(0);
-    const int _per = (301 + _nx - 1) / _nx;
-    const int _x0 = min((int)get_local_id(0) * _per, 301);
-    const int _x1 = min(_x0 + _per, 301);
-    for (int _y = _y0 + get_local_id(1); _y < _y1; _y += get_local_size(1)) {
+    const int _k = get_local_id(1) * get_local_size(0) + get_local_id(0);
+    const int _n = get_local_size(0) * get_local_size(1);
+    for (int _y = _y0 + _k; _y < _y1; _y += _n) {
         __global uchar *_row = _out + (size_t)_y * 301;
         if (_y >= 1 && _y < 199) {
-            for (int _x = _x0; _x < min(_x1, 1); _x++)
+            for (int _x = 0; _x < 1; _x++)
                 _row[_x] = _f4_sobel(_ARGS, _y, _x, 0);
-            for (int _x = max(_x0, 1); _x < min(_x1, 300); _x++)
+            for (int _x = 1; _x < 300; _x++)
                 _row[_x] = _f4_sobel_in(_ARGS, _y, _x, 0);
-            for (int _x = max(_x0, 300); _x < _x1; _x++)
+            for (int _x = 300; _x < 301; _x++)
                 _row[_x] = _f4_sobel(_ARGS, _y, _x, 0);
         } else {
-            for (int _x = _x0; _x < _x1; _x++)
+            for (int _x = 0; _x < 301; _x++)
                 _row[_x] = _f4_sobel(_ARGS, _y, _x, 0);
         }
     }

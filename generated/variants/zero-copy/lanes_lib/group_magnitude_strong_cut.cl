@@ -6,29 +6,36 @@
 // an input read <port>(y, x, c) calls the producing member, or loads from a
 // group input.  Sizes are constants: the system fixed them at build time.
 // Kernel arguments, in the calling convention's order: _in0 = magnitude_src, _in1 =
-// cut_mask, _out = cut_dst, _m0_alpha = magnitude_alpha, _m0_beta = magnitude_beta,
-// _m1_thresh = strong_thresh, _m1_maxval = strong_maxval, _m1_thresh_type =
-// strong_thresh_type.
+// cut_mask, _out = cut_dst.
+
+// Parameters: constants of the build, so that the compiler folds them (a rule chosen by a
+// parameter is chosen once, not per element).  The program builds this file with -D
+// NAME=VALUE, its values after --set; below, the model's values, for a build without them.
+#ifndef _m0_alpha
+#define _m0_alpha 1.0f
+#endif
+#ifndef _m0_beta
+#define _m0_beta 0.0f
+#endif
+#ifndef _m1_thresh
+#define _m1_thresh 60
+#endif
+#ifndef _m1_maxval
+#define _m1_maxval 255
+#endif
+#ifndef _m1_thresh_type
+#define _m1_thresh_type 0
+#endif
 
 #define _PARAMS \
     __global const short *restrict _in0, \
     __global const uchar *restrict _in1, \
-    __global uchar *restrict _out, \
-    const float _m0_alpha, \
-    const float _m0_beta, \
-    const int _m1_thresh, \
-    const int _m1_maxval, \
-    const int _m1_thresh_type
+    __global uchar *restrict _out
 
 #define _ARGS \
     _in0, \
     _in1, \
-    _out, \
-    _m0_alpha, \
-    _m0_beta, \
-    _m1_thresh, \
-    _m1_maxval, \
-    _m1_thresh_type
+    _out
 
 // built-ins the snippets call, inline (see fused.py: HELPERS)
 static inline float _fabs(const float v) { return v < 0.0f ? -v : v; }
@@ -96,19 +103,17 @@ static inline uchar _f2_cut(_PARAMS, const int y, const int x, const int c)
 #undef mask
 
 // 200 rows of 301 pixels, one channel.  Work-group g computes the rows [g * tile, g * tile
-// + tile); its block_y threads take them in turn, its block_x threads each a contiguous run
-// of the row.
+// + tile); its threads take them in turn, each a whole row (a CPU runs a work-group's
+// threads one after another: a row is the longest loop, which the compiler vectorizes).
 __kernel void magnitude_strong_cut(_PARAMS, const int _tile)
 {
     const int _y0 = get_group_id(1) * _tile;
     const int _y1 = min(_y0 + _tile, 200);
-    const int _nx = get_local_size(0);
-    const int _per = (301 + _nx - 1) / _nx;
-    const int _x0 = min((int)get_local_id(0) * _per, 301);
-    const int _x1 = min(_x0 + _per, 301);
-    for (int _y = _y0 + get_local_id(1); _y < _y1; _y += get_local_size(1)) {
+    const int _k = get_local_id(1) * get_local_size(0) + get_local_id(0);
+    const int _n = get_local_size(0) * get_local_size(1);
+    for (int _y = _y0 + _k; _y < _y1; _y += _n) {
         __global uchar *_row = _out + (size_t)_y * 301;
-        for (int _x = _x0; _x < _x1; _x++)
+        for (int _x = 0; _x < 301; _x++)
             _row[_x] = _f2_cut(_ARGS, _y, _x, 0);
     }
 }
