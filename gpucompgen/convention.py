@@ -52,6 +52,8 @@ def kernel_parameters(ctype) -> list[Param]:
                 params.append(Param(f"{name}_{dim}", "scalar", "int32", "size",
                                     port=name, dim=dim))
     for name, decl in ctype.params.items():
+        if decl.shape:  # an array parameter: a constant table of the generated kernel
+            continue
         params.append(Param(name, "scalar", HOST_TYPES[decl.type], "param", param=name))
     params.append(Param("tile", "scalar", "int32", "tile"))
     return params
@@ -85,9 +87,10 @@ def group_constants(group) -> list[Param]:
     """The members' parameters of a group's generated kernel, in member order then
     declaration order: constants of the kernel's build, set as build options (-D) when the
     program starts.  Each is the macro _m<i>_<parameter> for the group's i-th member (the
-    generator's own namespace: model names start with a letter).  Not a stencil's radius:
-    the kernel writes its window as a literal (fixed at build time, like the sizes)."""
+    generator's own namespace: model names start with a letter).  Not the parameters of a
+    stencil's radius: the kernel writes its window as a literal (fixed at build time, like
+    the sizes); nor array parameters, which the kernel's source holds as __constant tables."""
     return [Param(f"_m{i}_{pname}", "constant", HOST_TYPES[decl.type], "param",
                   param=f"{m.name}.{pname}")
             for i, m in enumerate(group.members) for pname, decl in m.type.params.items()
-            if not (m.type.fusable.form == "stencil" and pname == m.type.fusable.radius)]
+            if pname not in m.type.fusable.radius_names() and not decl.shape]

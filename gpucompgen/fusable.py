@@ -8,7 +8,8 @@ and PyTorch Inductor's ``Pointwise(inner_fn)``, whose loads are index expression
       form: index_map                                # pointwise | index_map | stencil
       value: "image(image_height - 1 - y, x, c)"     # OpenCL C: an expression, or
                                                      # statements ending in 'return ...;'
-      # stencil only: radius: 2 (or an int parameter's name), border: clamp
+      # stencil only: radius: 2 (or an int parameter, or an expression of them such
+      # as 'ksize // 2'), border: clamp
 
 pointwise   reads every input only at (y, x) (any channel)
 index_map   reads each input at one position computed from y, x, c, sizes and parameters
@@ -24,9 +25,11 @@ every library type's snippet.
 
 from __future__ import annotations
 
+import ast
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 
+from . import sizeexpr
 from .errors import Pos
 from .snippet import MAX_SNIPPET, Snippet, analyse, print_lines
 
@@ -44,8 +47,26 @@ class FusableDecl:
     # every name the snippet uses -> 'coordinate' (y, x, c), 'accessor' (an input port
     # read as port(y, x, c)), 'size' (port_height, port_width), 'param', 'local',
     # 'builtin' or 'constant' (built-ins are never renamed)
-    radius: int | str = 0  # stencil: a number or the name of an int parameter
+    radius: int | str = 0  # stencil: a number, or an int parameter or an expression of
+    # int parameters ('ksize // 2', 'iterations * (ksize - 1)'): fixed at build time
     border: str = "clamp"  # stencil
+
+    def radius_of(self, params: Mapping[str, object]) -> int:
+        """The stencil's radius for these parameter values (0 for another form)."""
+        if self.form != "stencil":
+            return 0
+        if isinstance(self.radius, int):
+            return self.radius
+        tree = ast.parse(self.radius.strip(), mode="eval")
+        return max(0, int(sizeexpr.evaluate(tree, {}, params)))
+
+    def radius_names(self) -> set[str]:
+        """The parameters the radius depends on (constants of a generated kernel)."""
+        if self.form != "stencil" or isinstance(self.radius, int):
+            return set()
+        tree = ast.parse(self.radius.strip(), mode="eval")
+        calls = {id(n.func) for n in ast.walk(tree) if isinstance(n, ast.Call)}  # min, max
+        return {n.id for n in ast.walk(tree) if isinstance(n, ast.Name) and id(n) not in calls}
 
     def lines(self, rename: Mapping[str, str] | None = None) -> list[str]:
         """The snippet as C statements ending by returning the element, one a line
@@ -64,8 +85,7 @@ class FusableDecl:
         stencil, 1 otherwise."""
         if self.form != "stencil":
             return 1
-        r = params.get(self.radius, 0) if isinstance(self.radius, str) else self.radius
-        return (2 * int(r) + 1) ** 2
+        return (2 * self.radius_of(params) + 1) ** 2
 
 
 def snippet_position(start: Pos, raw: str | None, style: str | None, value: str,

@@ -50,6 +50,12 @@ ANY = ("any",)
 # "input": a source URI (gpucompgen.io: images, video, camera, stream, recording); a plain
 # path in it is relative to the model file, and the frame size is read from its header
 PARAM_TYPES = {"int": int, "float": float, "bool": bool, "str": str, "path": str, "input": str}
+# array parameters: 'int' or 'float' and one to three dimensions, each a length N or a
+# range of lengths A..B ('int[256]', 'float[2][3]', 'int[3..64][2]'): a lookup table, a
+# structuring element, a warp matrix, a polygon
+ARRAY_TYPE_PATTERN = r"(int|float)((?:\[\d{1,6}(?:\.\.\d{1,6})?\]){1,3})"
+ARRAY_TYPE = re.compile(ARRAY_TYPE_PATTERN)
+MAX_ARRAY_ELEMENTS = 65536  # of one array parameter (a 256 x 256 table)
 KINDS = ("standard", "gpu-aware", "flexible")
 # what 'gpucompgen types' groups the library by (a type's 'family:'), in this order
 FAMILIES = ("colour", "filters", "morphology", "geometry", "arithmetic", "features", "io")
@@ -82,6 +88,15 @@ class ParamDecl:
     minimum: float | None = None
     maximum: float | None = None
     description: str = ""
+    # an array parameter ('int[256]', 'float[2][3]', 'int[3..64][2]'): the (least, most)
+    # length of each dimension, outermost first; () for a scalar. min and max bound every
+    # element; the value is nested tuples, the element type's numbers.
+    shape: tuple[tuple[int, int], ...] = ()
+
+    @property
+    def element(self) -> str:
+        """The type of one value: the type itself, or an array's element type."""
+        return self.type.split("[", 1)[0]
 
 
 @dataclass(frozen=True)
@@ -506,9 +521,19 @@ def _load_type(doc: Document, rep: Reporter, path: Path, origin: str, tname: str
                             else written, f"parameter '{pname}'")
         _unknown_keys(doc, rep, ppath, pspec, PARAM_KEYS, f"parameter '{pname}'")
         ptype = pspec.get("type")
-        if not _named(ptype, PARAM_TYPES):
+        shape: tuple[tuple[int, int], ...] = ()
+        if isinstance(ptype, str) and "[" in ptype:
+            shape, problem = array_shape(ptype)
+            if problem:
+                rep.error(doc.pos(*ppath, "type"), f"parameter '{pname}' has type {ptype!r}: "
+                          f"{problem}", "an array is 'int[N]' or 'float[N]' with one to three "
+                          "dimensions, each a length or a range of lengths, e.g. 'int[256]', "
+                          "'float[2][3]', 'int[3..64][2]'")
+                continue
+        elif not _named(ptype, PARAM_TYPES):
             rep.error(doc.pos(*ppath, "type"), f"parameter '{pname}' has type {ptype!r}",
-                      "use one of 'int', 'float', 'bool', 'str'")
+                      "use one of 'int', 'float', 'bool', 'str', or an array such as "
+                      "'int[256]'")
             continue
         if gpu_kernel_param_problem(kind, ptype):
             rep.error(doc.pos(*ppath, "type"),
@@ -518,11 +543,12 @@ def _load_type(doc: Document, rep: Reporter, path: Path, origin: str, tname: str
         bounds = {}
         for key in ("min", "max"):
             bound = pspec.get(key)
-            if bound is not None and (ptype not in ("int", "float") or not _value_fits(
+            numeric = ptype in ("int", "float") or bool(shape)
+            if bound is not None and (not numeric or not _value_fits(
                     bound, "float") or not math.isfinite(bound)):
                 rep.error(doc.pos(*ppath, key),
                           f"'{key}' of parameter '{pname}' must be a finite number"
-                          + ("" if ptype in ("int", "float") else f", and only for int or "
+                          + ("" if numeric else f", and only for int or "
                              f"float parameters, not {ptype}"),
                           f"remove '{key}' or give a number such as {key}: 0")
                 bound = None
@@ -532,18 +558,22 @@ def _load_type(doc: Document, rep: Reporter, path: Path, origin: str, tname: str
             rep.error(doc.pos(*ppath, "default"), f"default of '{pname}' is empty (null)",
                       f"give {'an' if ptype == 'int' else 'a'} {ptype} default, or remove "
                       "'default:' to make the parameter required")
-        problem = None if default is None else _param_value_problem(
-            default, ParamDecl(pname, ptype, minimum=bounds["min"], maximum=bounds["max"]),
-            kind in ("gpu-aware", "flexible"))
+        decl = ParamDecl(pname, ptype, minimum=bounds["min"], maximum=bounds["max"],
+                         shape=shape)
+        problem, at = (None, ()) if default is None else _value_problem_at(
+            default, decl, kind in ("gpu-aware", "flexible"))
         if problem:
-            rep.error(doc.pos(*ppath, "default"), f"default of '{pname}' {problem}",
+            rep.error(doc.pos(*ppath, "default", *at),
+                      f"default of '{pname}' {problem}",
                       f"give a {ptype} default within min and max, or none to make "
                       "the parameter required")
             default = None
-        ctype.params[pname] = ParamDecl(pname, ptype, default, "default" not in pspec,
+        ctype.params[pname] = ParamDecl(pname, ptype, param_value(default, decl),
+                                        "default" not in pspec,
                                         bounds["min"], bounds["max"],
                                         _text(doc, rep, ppath + ("description",),
-                                              pspec.get("description"), "description"))
+                                              pspec.get("description"), "description"),
+                                        shape)
     # ports
     seen_ports: dict[str, str] = {}
     failed_inputs = 0
@@ -676,8 +706,79 @@ INT32 = (-(1 << 31), (1 << 31) - 1)
 FLOAT32_MAX = 3.4028234663852886e38
 
 
+def array_shape(ptype: str) -> tuple[tuple[tuple[int, int], ...], str]:
+    """The dimensions of an array type such as 'int[3..64][2]' ((3, 64), (2, 2)), and ''
+    or why the text is no array type."""
+    m = ARRAY_TYPE.fullmatch(ptype)
+    if m is None:
+        return (), "not an array type"
+    shape = []
+    for dim in m.group(2)[1:-1].split("]["):
+        low, _, high = dim.partition("..")
+        lo, hi = int(low), int(high or low)
+        if lo < 1 or hi < lo:
+            return (), (f"dimension [{dim}] must be a length of 1 or more, or a range "
+                        "A..B with 1 <= A <= B")
+        if shape and hi != lo:  # rows of one length: a rectangular table
+            return (), f"only the first dimension may be a range of lengths, not [{dim}]"
+        shape.append((lo, hi))
+    if math.prod(hi for _, hi in shape) > MAX_ARRAY_ELEMENTS:
+        return (), f"it may hold more than {MAX_ARRAY_ELEMENTS:,} values"
+    return tuple(shape), ""
+
+
+def _array_problem(value: Any, decl: ParamDecl, kernel: bool,
+                   index: tuple[int, ...] = ()) -> tuple[str, tuple[int, ...]] | None:
+    """Why value is no array of decl's shape, element type and bounds, and the index of
+    the element (or list) where that was found, so that the error points at it."""
+    depth = len(index)
+    where = "".join(f"[{i}]" for i in index)
+    what = f"element {where} " if where else ""
+    if depth == len(decl.shape):
+        element = ParamDecl(decl.name, decl.element, minimum=decl.minimum,
+                            maximum=decl.maximum)
+        problem = _param_value_problem(value, element, kernel)
+        return None if problem is None else (f"{what}{problem}", index)
+    lo, hi = decl.shape[depth]
+    if not isinstance(value, (list, tuple)):
+        return (f"{what}must be a list of {lo}" + (f" to {hi}" if hi != lo else "")
+                + f" values, not {_kind(value)}", index)
+    if not lo <= len(value) <= hi:
+        length = f"{lo}" if lo == hi else f"{lo} to {hi}"
+        return f"{what}has {len(value)} values where {decl.type} takes {length}", index
+    for i, item in enumerate(value):
+        found = _array_problem(item, decl, kernel, index + (i,))
+        if found:
+            return found
+    return None
+
+
+def _value_problem_at(value: Any, decl: ParamDecl,
+                      kernel: bool) -> tuple[str | None, tuple[int, ...]]:
+    """_param_value_problem, and for an array the index of the element at fault."""
+    if decl.shape:
+        return _array_problem(value, decl, kernel) or (None, ())
+    return _param_value_problem(value, decl, kernel), ()
+
+
+def param_value(value: Any, decl: ParamDecl) -> Any:
+    """A checked value as the program keeps it: a float parameter's number as float, an
+    array as nested tuples (immutable, hashable) of its element type's numbers."""
+    if value is None:
+        return None
+    if decl.shape:
+        def freeze(v: Any) -> Any:
+            if isinstance(v, (list, tuple)):
+                return tuple(freeze(i) for i in v)
+            return float(v) if decl.element == "float" else v
+        return freeze(value)
+    return float(value) if decl.type == "float" else value
+
+
 def _param_value_problem(value: Any, decl: ParamDecl, kernel: bool) -> str | None:
     """Why value cannot be given to parameter decl, or None when it can."""
+    if decl.shape:
+        return _value_problem_at(value, decl, kernel)[0]
     if not _value_fits(value, decl.type):
         return f"must be {decl.type}, not {_kind(value)} ({value!r})"
     if decl.type in ("int", "float"):
@@ -697,6 +798,8 @@ def py_yaml(value: Any) -> str:
     """A value as it would be written in YAML (for hints)."""
     if isinstance(value, bool):
         return "true" if value else "false"
+    if isinstance(value, (list, tuple)):  # an array parameter's value
+        return "[" + ", ".join(py_yaml(v) for v in value) + "]"
     return repr(value) if isinstance(value, str) else str(value)
 
 
@@ -930,6 +1033,18 @@ def _check_signature(doc, rep, base, ctype: ComponentType, kspec: dict) -> None:
         rep.error(pos, f"kernel file {where}: {exc.message}", exc.hint)
 
 
+def _no_array_params(doc, rep, base, ctype: ComponentType) -> None:
+    """A hand-written kernel's arguments are numbers (the calling convention): array
+    parameters reach generated kernels only."""
+    for pname, decl in ctype.params.items():
+        if decl.shape:
+            rep.error(doc.pos(*base, "params", pname, "type"),
+                      f"array parameter '{pname}' of '{ctype.name}' cannot reach a "
+                      "hand-written kernel (its arguments are numbers)",
+                      "declare a 'fusable:' form instead of 'kernel:' (its generated kernel "
+                      "gets the array as a constant table), or pass numbers")
+
+
 def _load_kernel(doc, rep, base, ctype: ComponentType, spec,
                  signature_check: bool = True) -> None:
     if "kernel" not in spec and "fusable" in spec:
@@ -949,6 +1064,7 @@ def _load_kernel(doc, rep, base, ctype: ComponentType, spec,
                   "or a 'fusable:' form, from which the system generates its kernel")
         return
     _unknown_keys(doc, rep, base + ("kernel",), kspec, KERNEL_KEYS, "kernel")
+    _no_array_params(doc, rep, base, ctype)
     found = _resolve_file(doc, rep, base + ("kernel", "file"), ctype.decl_file.parent,
                           kspec.get("file"), ".cl", "kernel file")
     if found is not None:
@@ -1035,7 +1151,8 @@ def _load_fusable(doc, rep, base, ctype: ComponentType, fspec) -> None:
                   "e.g. value: \"image(image_height - 1 - y, x, c)\"")
         return
     analysis = fusable_forms.analyse(value, form, list(ctype.inputs), list(ctype.outputs),
-                                     list(ctype.params))
+                                     list(ctype.params),
+                                     arrays=[n for n, d in ctype.params.items() if d.shape])
     start = doc.pos(*path, "value")
     raw, style = doc.sources.get(path + ("value",), (None, None))
     for p in analysis.problems:
@@ -1049,11 +1166,17 @@ def _load_fusable(doc, rep, base, ctype: ComponentType, fspec) -> None:
     if form == "stencil":
         radius = fspec.get("radius")
         int_params = _int_params(ctype)
+        expression = None
+        if isinstance(radius, str) and not _named(radius, int_params):
+            try:  # an expression of int parameters, e.g. 'ksize // 2'
+                expression = sizeexpr.parse(radius, set(), set(int_params))
+            except sizeexpr.SizeExprError:
+                expression = None
         if not (isinstance(radius, int) and not isinstance(radius, bool) and radius >= 0) \
-                and not _named(radius, int_params):
+                and not _named(radius, int_params) and expression is None:
             rep.error(doc.pos(*path, "radius") if "radius" in fspec else doc.key_pos(*path),
                       f"stencil '{ctype.name}' needs 'radius': a number of pixels (0 or "
-                      f"more) or an int parameter, not {radius!r}",
+                      f"more), an int parameter or an expression of them, not {radius!r}",
                       did_you_mean(str(radius), int_params) if int_params else
                       "e.g. radius: 1")
             return
@@ -1644,10 +1767,16 @@ def _instance_params(doc, rep, cpath, ctype: ComponentType, given) -> dict[str, 
                       f"'{ctype.name}' has no parameter '{pname}'",
                       did_you_mean(pname, ctype.params) or f"'{ctype.name}' takes no parameters")
             continue
-        problem = _param_value_problem(value, decl, ctype.gpu_aware)
+        problem, at = _value_problem_at(value, decl, ctype.gpu_aware)
         if problem:
             hint = ""
-            if isinstance(value, bool) and decl.type in ("str", "path", "input"):
+            if decl.shape:
+                hint = (f"give {decl.type}: nested lists of {decl.element} values within "
+                        "the parameter's range"
+                        + (f", e.g. '{pname}: {py_yaml(decl.default)}'"
+                           if decl.default is not None and len(str(decl.default)) <= 60
+                           else ""))
+            elif isinstance(value, bool) and decl.type in ("str", "path", "input"):
                 hint = "YAML 1.1 reads yes/no/on/off as booleans: quote the value"
             elif decl.type in ("int", "float") and _value_fits(value, decl.type):
                 hint = "give a value within the parameter's range"
@@ -1660,10 +1789,10 @@ def _instance_params(doc, rep, cpath, ctype: ComponentType, given) -> dict[str, 
                           "path": "a path, relative to the model file or absolute",
                           "input": "an input URI or a path relative to the model file"}
                 hint = f"give {wanted[decl.type]}, e.g. '{pname}: {py_yaml(example)}'"
-            rep.error(doc.pos(*cpath, "params", pname),
+            rep.error(doc.pos(*cpath, "params", pname, *at),
                       f"parameter '{pname}' of '{ctype.name}' {problem}", hint)
             continue
-        params[pname] = float(value) if decl.type == "float" else value
+        params[pname] = param_value(value, decl)
     for pname, decl in ctype.params.items():
         if pname not in params and pname not in given:
             if decl.required:

@@ -146,7 +146,8 @@ def run_generated(context, queue, ctype, params: dict, arrays, out_shape: tuple,
 
 # Collectors for tests that build models, keeping a copy of every frame: Keep takes any
 # element type and channels (a generic port, resolved from what feeds it); the types of
-# one element type and channel count each (Keep3, Keep1, KeepS3, KeepS1) came first.
+# one element type and channel count each (Keep3, Keep1, KeepS3, KeepS1) came first, and
+# KeepI4, KeepI5 take the int32 tables of things found (features.yaml).
 KEEP_TYPES = "component_types:\n" + "".join(f"""
   {name}:
     kind: standard
@@ -156,6 +157,8 @@ KEEP_TYPES = "component_types:\n" + "".join(f"""
     python: {{file: keep.py, class: Keep}}
 """ for name, dtype, channels in (("Keep3", "uint8", 3), ("Keep1", "uint8", 1),
                                   ("KeepS3", "int16", 3), ("KeepS1", "int16", 1),
+                                  # tables of things found (features.yaml): int32 rows
+                                  ("KeepI4", "int32", 4), ("KeepI5", "int32", 5),
                                   ("Keep", "any", "any")))
 KEEP_PY = """import numpy as np
 
@@ -185,4 +188,5 @@ def keep_type_for(port) -> str:
     """The Keep type that takes what a port (a PortDecl) carries: Keep, for a generic one."""
     if port.generic:
         return "Keep"
-    return ("KeepS" if port.dtype == "int16" else "Keep") + str(port.channels)
+    prefix = {"int16": "KeepS", "int32": "KeepI"}.get(port.dtype, "Keep")
+    return prefix + str(port.channels)

@@ -336,7 +336,8 @@ def test_library_snippets_pass_the_check_and_compile(cl_context):
 
     for name, t in fusable_types.items():
         assert not fusable.analyse(t.fusable.value, t.fusable.form, list(t.inputs),
-                                   list(t.outputs), list(t.params)).problems
+                                   list(t.outputs), list(t.params),
+                                   arrays=[p for p, d in t.params.items() if d.shape]).problems
         ports = {p: port(p, "in", d) for p, d in t.inputs.items()}
         outs = {p: port(p, "out", d) for p, d in t.outputs.items()}
         member = ComponentNode("member", None, ports, outs, type=t,

@@ -70,6 +70,21 @@ def test_schema_rejects_the_bad_type_file_of_the_bad_models():
     assert len(_errors(TYPES, yaml.safe_load(bad.read_text(encoding="utf-8")))) >= 3
 
 
+def test_schema_and_loader_agree_on_array_parameter_types():
+    """The schema's pattern for array types takes what the loader takes, and refuses the
+    same shapes (bad element type, no dimension, four dimensions)."""
+    import re
+
+    pattern = re.compile(schema(TYPES)["properties"]["component_types"]["additionalProperties"]
+                         ["properties"]["params"]["additionalProperties"]["oneOf"][0]
+                         ["anyOf"][1]["pattern"])
+    for text, fine in (("int[256]", True), ("float[2][3]", True), ("int[3..64][2]", True),
+                       ("bool[3]", False), ("int", False), ("int[]", False),
+                       ("int[1][2][3][4]", False), ("int[-1]", False), ("float[2 ]", False)):
+        assert bool(pattern.search(text)) == fine, text
+        assert bool(model.ARRAY_TYPE.fullmatch(text)) == fine, text
+
+
 def test_schema_rejects_bad_types():
     good = yaml.safe_load((ROOT / "tests/data/user_model/my_types.yaml").read_text())
     assert _errors(TYPES, good) == []
@@ -103,7 +118,8 @@ def test_schema_keys_agree_with_the_loader():
     assert set(out["dtype"]["oneOf"][0]["enum"]) == set(model.DTYPES)
     assert set(out["memory"]["enum"]) == set(model.MEMORIES)
     param = t["properties"]["params"]["additionalProperties"]["oneOf"]
-    assert set(param[0]["enum"]) == set(model.PARAM_TYPES)
+    assert set(param[0]["anyOf"][0]["enum"]) == set(model.PARAM_TYPES)
+    assert param[0]["anyOf"][1]["pattern"] == f"^{model.ARRAY_TYPE_PATTERN}$"
     assert set(param[1]["properties"]) == set(model.PARAM_KEYS)
     name = m["system"]
     from gpucompgen.names import MAX_NAME, NAME_RE

@@ -382,7 +382,10 @@ def test_every_library_snippet_compiles_printed_with_every_name_renamed(cl_conte
                   for d in ("height", "width")]
         lines += [f"    const {'float' if d.type == 'float' else 'int'} {name}_{p} = "
                   f"{d.default if not isinstance(d.default, bool) else int(d.default)};"
-                  for p, d in t.params.items()]
+                  for p, d in t.params.items() if not d.shape]
+        lines += [f"    const {'float' if d.element == 'float' else 'int'} {name}_{p}"
+                  f"[{len(d.default)}] = {{{', '.join(map(str, d.default))}}};"
+                  for p, d in t.params.items() if d.shape]  # an array (Lut's table)
         lines += [f"    {line}" for line in f.lines(rename)]
         lines += ["}"] + [f"#undef {name}_{p}" for p in t.inputs]
         functions.append("\n".join(lines))

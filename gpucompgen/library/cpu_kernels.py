@@ -373,3 +373,10 @@ def _store(values: np.ndarray, out: np.ndarray | None, type_name: str,
     target = _output(out, values.shape, type_name, port)
     np.copyto(target, values, casting="unsafe")  # the values are 0..255
     return target
+
+
+# the operations of issue 26 (bitwise.yaml, convert.yaml, filters2.yaml, ...): their CPU
+# forms live in cpu_ops.py; the registry has them all
+from .cpu_ops import CPU_OPS
+
+CPU_IMPLEMENTATIONS.update(CPU_OPS)

@@ -330,7 +330,7 @@ def lower(system: System) -> ProgramPlan:
                                          for t in m),
                                _defines(groups_by_key.get(_type_key(m[0]))))
                        for m in sharing.values()),
-        imports=tuple(sorted(imports)), user_classes=tuple(user_classes),
+        imports=_grouped(imports), user_classes=tuple(user_classes),
         kernel_classes=tuple(kernel_class(t, files[lib_key(t)], groups.get(t.name))
                              for t in gpu_types),
         groups=tuple(GroupPlan(g.name, tuple((m.name, m.type.name, m.type.fusable.form)
@@ -569,6 +569,20 @@ def _stream_steps(lo: _Lowering) -> list[Step]:
                  for p in system.nodes[s].outputs)
     return (lo.head + ([Step("end_of_stream", inputs=ends)] if ends else [])
             + lo.pending_checks + lo.steps)
+
+
+def _grouped(imports) -> tuple[tuple[str, str, str], ...]:
+    """(module, names, alias) import lines as an import sorter writes them: the plain names
+    of one module on one line, sorted; each renamed one on a line of its own."""
+    plain: dict[str, set[str]] = {}
+    renamed = set()
+    for module, name, alias in imports:
+        if alias:
+            renamed.add((module, name, alias))
+        else:
+            plain.setdefault(module, set()).add(name)
+    lines = {(m, ", ".join(sorted(names)), "") for m, names in plain.items()}
+    return tuple(sorted(lines | renamed))
 
 
 def _imports(system: System, files: dict[str, str], functions: dict[str, str],

@@ -35,7 +35,13 @@ TEXT = {"type": "string"}
 SIZE_EXPR = {"type": ["integer", "string"], "maxLength": sizeexpr.MAX_SOURCE,
              "description": "size expression: integers, int parameters, <input>.height/.width, "
                             "+ - * // %, min(a, b, ...), max(a, b, ...)"}
-VALUE = {"type": ["integer", "number", "boolean", "string"]}
+# a parameter's value: a scalar, or an array parameter's (nested) list of numbers
+VALUE = {"anyOf": [{"type": ["integer", "number", "boolean", "string"]},
+                   {"type": "array", "items": {"anyOf": [
+                       {"type": "number"},
+                       {"type": "array", "items": {"anyOf": [
+                           {"type": "number"},
+                           {"type": "array", "items": {"type": "number"}}]}}]}}]}
 SETTING_DESCRIPTIONS = {"tile": "square of the output each work-group covers",
                         "block_x": "work-group size in x", "block_y": "work-group size in y",
                         "block_z": "work-group size in z"}
@@ -192,7 +198,10 @@ def _port() -> dict[str, Any]:
 
 
 def types_schema() -> dict[str, Any]:
-    param_types = _enum(model.PARAM_TYPES)
+    param_types = {"anyOf": [_enum(model.PARAM_TYPES), {
+        "type": "string", "pattern": f"^{model.ARRAY_TYPE_PATTERN}$",
+        "description": "an array of int or float: one to three dimensions, each a length "
+                       "or a range of lengths ('int[256]', 'float[2][3]', 'int[3..64][2]')"}]}
     param = {"oneOf": [param_types, _object(model.PARAM_KEYS, {
         "type": param_types, "default": VALUE, "min": {"type": "number"},
         "max": {"type": "number"}, "description": TEXT}, ("type",))]}

@@ -12,6 +12,7 @@ returning.
 from __future__ import annotations
 
 import re
+from collections.abc import Collection
 from dataclasses import dataclass, field
 
 from ..errors import did_you_mean
@@ -102,7 +103,9 @@ class Analysis:
 
 
 def analyse(text: str, form: str, inputs: list[str], outputs: list[str],
-            params: list[str]) -> Analysis:
+            params: list[str], arrays: Collection[str] = ()) -> Analysis:
+    """Read a snippet: arrays are the array parameters among params (read as
+    table[i] or k[i][j], like local arrays)."""
     if len(text) > MAX_SNIPPET:
         return Analysis(None, problems=[Problem(0, f"the snippet has {len(text):,} characters, "
                                                 f"more than {MAX_SNIPPET:,}",
@@ -120,7 +123,7 @@ def analyse(text: str, form: str, inputs: list[str], outputs: list[str],
     given = {n: "coordinate" for n in COORDINATES}
     given.update({f"{p}_{d}": "size" for p in inputs + outputs for d in ("height", "width")})
     given.update({p: "param" for p in params})
-    resolver = _Resolver(form, given, set(inputs), set(outputs))
+    resolver = _Resolver(form, given, set(inputs), set(outputs), frozenset(arrays))
     resolver.block(tree.body)
     if not tree.expression and not _returns(tree.body):
         last = tree.body[-1] if tree.body else tree
@@ -142,8 +145,9 @@ class _Local:
 
 class _Resolver:
     def __init__(self, form: str, given: dict[str, str], inputs: set[str],
-                 outputs: set[str]) -> None:
+                 outputs: set[str], arrays: frozenset[str] = frozenset()) -> None:
         self.form = form
+        self.arrays = arrays  # array parameters: indexed as local arrays are
         self.given = given
         self.inputs = inputs
         self.outputs = outputs
@@ -364,6 +368,8 @@ class _Resolver:
 
     def index(self, e: Index) -> None:
         base = e.base
+        if isinstance(base, Name) and base.name in self.arrays:
+            return  # an array parameter: its lengths are the instance's, not known here
         local = self.lookup(base.name) if isinstance(base, Name) else None
         if local is None or local.length is None:
             if local is not None or isinstance(base, Name) and base.name in self.given:

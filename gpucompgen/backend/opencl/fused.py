@@ -245,11 +245,7 @@ def margin(group: GroupNode) -> int | None:
 
 
 def _radius(m) -> int:
-    decl = m.type.fusable
-    if decl.form != "stencil":
-        return 0
-    r = decl.radius
-    return int(m.params.get(r, 0)) if isinstance(r, str) else int(r)
+    return m.type.fusable.radius_of(m.params)
 
 
 def group_kernel(group: GroupNode, header: str, device=None) -> str:
@@ -390,6 +386,10 @@ def _member(m, feeds: dict[Endpoint, str], producer: dict[Endpoint, Endpoint], i
                         if port.channels > 1 else f"{buf}[(size_t){yy} * {w} + {xx}]")
         macros.append(pname)
         lines.append(f"#define {pname}(y_, x_, c_) {body}")
+    arrays = {p: d for p, d in m.type.params.items() if d.shape}
+    if arrays and not interior:  # once, before the member's first version
+        lines[1:1] = [line for p, d in arrays.items()
+                      for line in _constant_table(f"_m{index[m.name]}_{p}", d, m.params[p])]
     lines.append(f"static inline {ctype} {_function(m.name, index, interior)}(_PARAMS, "
                  "const int y, const int x, const int c)")
     lines.append("{")
@@ -397,11 +397,17 @@ def _member(m, feeds: dict[Endpoint, str], producer: dict[Endpoint, Endpoint], i
         lines.append(f"    const int {pname}_height = {port.data.height}, "
                      f"{pname}_width = {port.data.width};")
     for pname, pdecl in m.type.params.items():
-        c = "float" if pdecl.type == "float" else "int"
-        if decl.form == "stencil" and pname == decl.radius:
+        c = "float" if pdecl.element == "float" else "int"
+        if pdecl.shape:  # the snippet reads the program's table by the parameter's name
+            inner = "".join(f"[{d}]" for d in _dims(m.params[pname])[1:])
+            lines.append(f"    __constant const {c} (*{pname}){inner} = "
+                         f"_m{index[m.name]}_{pname};" if inner else
+                         f"    __constant const {c} *{pname} = _m{index[m.name]}_{pname};")
+            continue
+        if pname in decl.radius_names():
             # the window is fixed at build time (the interior's margin is): a constant, so
             # that the compiler unrolls a loop over it
-            lines.append(f"    const int {pname} = {_radius(m)};")
+            lines.append(f"    const int {pname} = {int(m.params[pname])};")
             continue
         lines.append(f"    const {c} {pname} = {names[f'{m.name}.{pname}']};")
     # printed from the parsed snippet; built-in calls swapped for their inline versions
@@ -415,6 +421,38 @@ def _member(m, feeds: dict[Endpoint, str], producer: dict[Endpoint, Endpoint], i
     lines += [f"#undef {p}" for p in macros]
     lines.append("")
     return lines
+
+
+def _dims(value) -> list[int]:
+    """The lengths of a (rectangular) nested tuple, outermost first."""
+    dims = []
+    while isinstance(value, tuple):
+        dims.append(len(value))
+        value = value[0] if value else None
+    return dims
+
+
+def _constant_table(name: str, decl, value) -> list[str]:
+    """An array parameter's value as a program-scope __constant table, 12 values a line
+    (floats printed so that they read back as the same float32)."""
+    c = "float" if decl.element == "float" else "int"
+
+    def flat(v):
+        return [x for item in v for x in flat(item)] if isinstance(v, tuple) else [v]
+
+    numbers = [str(int(v)) if c == "int" else _float_literal(v) for v in flat(value)]
+    dims = "".join(f"[{d}]" for d in _dims(value))
+    rows = [", ".join(numbers[i:i + 12]) for i in range(0, len(numbers), 12)]
+    return [f"__constant {c} {name}{dims} = {{",
+            *(f"    {r}," if i < len(rows) - 1 else f"    {r}" for i, r in enumerate(rows)),
+            "};"]
+
+
+def _float_literal(v: float) -> str:
+    """A finite number as a C float literal that reads back as its float32 ('3.0f',
+    '0.1f', '1e+30f'): 9 significant digits round-trip a float32."""
+    text = f"{float(v):.9g}"
+    return (text if any(ch in text for ch in ".e") else text + ".0") + "f"
 
 
 def _kernel(group: GroupNode, out_name: str, out_port, names, flat: bool,

@@ -120,7 +120,9 @@ def py_literal(value) -> str:
     if isinstance(value, (bool, int, float, str)) or value is None:
         return repr(value)
     if isinstance(value, tuple) and all(type(v) is int for v in value):
-        return repr(value)  # a shape
+        return repr(value)  # a shape, or an int array parameter
+    if isinstance(value, tuple):  # an array parameter: nested tuples of numbers
+        return "(" + ", ".join(py_literal(v) for v in value) + ("," if len(value) == 1 else "") + ")"
     raise TypeError(f"no literal for {type(value).__name__}")
 
 
@@ -225,8 +227,8 @@ def size_names(t) -> set[str]:
     names |= {d.channels_param for d in (*t.inputs.values(), *t.outputs.values())
               if d.channels_param}
     decl = getattr(t, "fusable", None)
-    if decl is not None and decl.form == "stencil" and isinstance(decl.radius, str):
-        names.add(decl.radius)
+    if decl is not None:
+        names |= decl.radius_names()
     return names
 
 
@@ -237,8 +239,8 @@ def with_settable_params(system: System, plan: ProgramPlan) -> tuple[ProgramPlan
 
     def declare(key: str, t, pname: str, value) -> bool:
         decl = t.params.get(pname)
-        if decl is None or pname in size_names(t):
-            return False
+        if decl is None or pname in size_names(t) or decl.shape:
+            return False  # arrays are tables compiled into a generated kernel
         settable[key] = Settable(key, decl.type, value, decl.minimum, decl.maximum)
         return True
 

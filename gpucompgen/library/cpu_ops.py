@@ -1,0 +1,213 @@
+"""CPU forms of the operations of issue 26 (bitwise.yaml, convert.yaml, filters2.yaml,
+morphology.yaml, features.yaml): OpenCV's own functions.
+
+As in cpu_kernels.py, one function serves the three-channel and the one-channel ('Gray')
+type of an operation: the inputs as the ports declare them (height x width x channels; one
+channel height x width or height x width x 1), the type's parameters as keywords, ``out=``
+an array to write into (OpenCV's dst=), the output array returned.  Every function is the
+OpenCV call docs/library.md names beside its type, so the CPU form equals OpenCV by
+construction; tests/test_imgproc_ops.py compares each with the type's generated OpenCL
+kernel on photographs and random frames, and with hand-computed values.  CPU_OPS maps each
+type's name to its function (cpu_kernels.CPU_IMPLEMENTATIONS includes them).
+
+It shares cpu_kernels' helpers (imported at the end: cpu_kernels imports this module at
+its own end) and imports nothing of the generator.
+"""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+
+# OpenCV's border codes, as Blur's border_type takes them (cv2.BORDER_*)
+BORDER_CONSTANT, BORDER_REPLICATE, BORDER_REFLECT, BORDER_REFLECT_101 = 0, 1, 2, 4
+BORDERS = {BORDER_CONSTANT: "BORDER_CONSTANT (0 outside the frame)",
+           BORDER_REPLICATE: "BORDER_REPLICATE (aaa|abc|ccc)",
+           BORDER_REFLECT: "BORDER_REFLECT (cba|abc|cba)",
+           BORDER_REFLECT_101: "BORDER_REFLECT_101 (cb|abc|ba)"}
+MAX_KSIZE = 31  # Blur's and MorphologyEx's largest window side
+
+
+# -- conversions --------------------------------------------------------------------------
+def convert_scale_abs(src: np.ndarray, *, alpha: float, beta: float,
+                      out: np.ndarray | None = None) -> np.ndarray:
+    """ConvertScaleAbs / ConvertScaleAbsGray: cv2.convertScaleAbs(src, alpha=, beta=) of an
+    int16 frame (Sobel's, Laplacian's, Scharr's): |p * alpha + beta| in float32 (one fma),
+    rounded half to even and saturated to 0..255, as uint8."""
+    _image("ConvertScaleAbs", "src", src, np.int16)
+    return cv2.convertScaleAbs(src, dst=_output(out, src.shape, "ConvertScaleAbs", "dst"),
+                               alpha=float(np.float32(alpha)), beta=float(np.float32(beta)))
+
+
+def gray_to_rgb(src: np.ndarray, *, out: np.ndarray | None = None) -> np.ndarray:
+    """GrayToRgb: cv2.cvtColor(src, cv2.COLOR_GRAY2RGB): the value in all three channels."""
+    if _image("GrayToRgb", "src", src) != 1:
+        raise ValueError(f"GrayToRgb: 'src' must have one channel, not {src.shape}")
+    return cv2.cvtColor(src, cv2.COLOR_GRAY2RGB,
+                        dst=_output(out, src.shape[:2] + (3,), "GrayToRgb", "dst"))
+
+
+def swap_red_blue(src: np.ndarray, *, out: np.ndarray | None = None) -> np.ndarray:
+    """RgbToBgr and BgrToRgb: cv2.cvtColor(src, cv2.COLOR_RGB2BGR), channels 0 and 2
+    exchanged (the same operation both ways)."""
+    if _image("RgbToBgr", "src", src) != 3:
+        raise ValueError(f"RgbToBgr: 'src' must have three channels, not {src.shape}")
+    return cv2.cvtColor(src, cv2.COLOR_RGB2BGR, dst=_output(out, src.shape, "RgbToBgr", "dst"))
+
+
+def flip_vertical(src: np.ndarray, *, out: np.ndarray | None = None) -> np.ndarray:
+    """FlipVertical / FlipVerticalGray: cv2.flip(src, 0): row y is row height - 1 - y."""
+    _image("FlipVertical", "src", src)
+    return cv2.flip(src, 0, dst=_output(out, src.shape, "FlipVertical", "dst"))
+
+
+def lut(src: np.ndarray, *, lut, out: np.ndarray | None = None) -> np.ndarray:
+    """Lut / LutGray: cv2.LUT(src, lut): each element replaced by lut[element], the 256
+    values (0..255) of the array parameter, the same table for every channel."""
+    _image("Lut", "src", src)
+    table = np.asarray(lut, np.int64)
+    if table.shape != (256,) or table.min() < 0 or table.max() > 255:
+        raise ValueError(f"Lut: lut must be 256 values 0..255, not shape {table.shape}")
+    return cv2.LUT(src, table.astype(np.uint8), dst=_output(out, src.shape, "Lut", "dst"))
+
+
+# -- bitwise ------------------------------------------------------------------------------
+def bitwise_and(src1: np.ndarray, src2: np.ndarray, *,
+                out: np.ndarray | None = None) -> np.ndarray:
+    """BitwiseAnd / BitwiseAndGray: cv2.bitwise_and(src1, src2)."""
+    _pair("BitwiseAnd", src1, src2)
+    return cv2.bitwise_and(src1, src2, dst=_output(out, src1.shape, "BitwiseAnd", "dst"))
+
+
+def bitwise_or(src1: np.ndarray, src2: np.ndarray, *,
+               out: np.ndarray | None = None) -> np.ndarray:
+    """BitwiseOr / BitwiseOrGray: cv2.bitwise_or(src1, src2)."""
+    _pair("BitwiseOr", src1, src2)
+    return cv2.bitwise_or(src1, src2, dst=_output(out, src1.shape, "BitwiseOr", "dst"))
+
+
+def bitwise_xor(src1: np.ndarray, src2: np.ndarray, *,
+                out: np.ndarray | None = None) -> np.ndarray:
+    """BitwiseXor / BitwiseXorGray: cv2.bitwise_xor(src1, src2)."""
+    _pair("BitwiseXor", src1, src2)
+    return cv2.bitwise_xor(src1, src2, dst=_output(out, src1.shape, "BitwiseXor", "dst"))
+
+
+def bitwise_not(src: np.ndarray, *, out: np.ndarray | None = None) -> np.ndarray:
+    """BitwiseNot / BitwiseNotGray: cv2.bitwise_not(src): 255 - p."""
+    _image("BitwiseNot", "src", src)
+    return cv2.bitwise_not(src, dst=_output(out, src.shape, "BitwiseNot", "dst"))
+
+
+def bitwise_and_mask(src1: np.ndarray, src2: np.ndarray, mask: np.ndarray, *,
+                     out: np.ndarray | None = None) -> np.ndarray:
+    """BitwiseAndMask / BitwiseAndMaskGray: cv2.bitwise_and(src1, src2, mask=mask) into a
+    zeroed frame: src1 & src2 where the mask is not 0, else 0 (every channel)."""
+    _pair("BitwiseAndMask", src1, src2)
+    if _image("BitwiseAndMask", "mask", mask) != 1 or mask.shape[:2] != src1.shape[:2]:
+        raise ValueError(f"BitwiseAndMask: 'mask' must be one channel of the frames' size "
+                         f"{src1.shape[:2]}, not {mask.shape}")
+    dst = _output(out, src1.shape, "BitwiseAndMask", "dst")
+    dst[...] = 0  # OpenCV leaves dst as it was where the mask is 0
+    return cv2.bitwise_and(src1, src2, dst=dst, mask=mask.reshape(mask.shape[:2]))
+
+
+# -- filters -------------------------------------------------------------------------------
+def blur(src: np.ndarray, *, ksize: int, border_type: int,
+         out: np.ndarray | None = None) -> np.ndarray:
+    """Blur / BlurGray: cv2.blur(src, (ksize, ksize), borderType=border_type): the mean of
+    the ksize x ksize window (ksize odd, 1..31, so the mean is never a tie), rounded, with
+    OpenCV's border rule of that code: 0 CONSTANT (zeros), 1 REPLICATE, 2 REFLECT,
+    4 REFLECT_101."""
+    _image("Blur", "src", src)
+    ksize, border = _odd_ksize("Blur", ksize), int(border_type)
+    if border not in BORDERS:
+        raise ValueError(f"Blur: border_type must be one of {sorted(BORDERS)}, not {border}")
+    return cv2.blur(src, (ksize, ksize), dst=_output(out, src.shape, "Blur", "dst"),
+                    borderType=border)
+
+
+def laplacian(src: np.ndarray, *, ksize: int, out: np.ndarray | None = None) -> np.ndarray:
+    """Laplacian / LaplacianGray: cv2.Laplacian(src, cv2.CV_16S, ksize=ksize), borders
+    BORDER_REFLECT_101; ksize 1 ([0 1 0; 1 -4 1; 0 1 0]) or 3 ([2 0 2; 0 -8 0; 2 0 2])."""
+    _image("Laplacian", "src", src)
+    if int(ksize) not in (1, 3):
+        raise ValueError(f"Laplacian: ksize must be 1 or 3, not {ksize}")
+    return cv2.Laplacian(src, cv2.CV_16S, ksize=int(ksize),
+                         dst=_output(out, src.shape, "Laplacian", "dst", np.int16))
+
+
+def scharr(src: np.ndarray, *, dx: int, dy: int, out: np.ndarray | None = None) -> np.ndarray:
+    """Scharr / ScharrGray: cv2.Scharr(src, cv2.CV_16S, dx, dy): (-3 0 3; -10 0 10;
+    -3 0 3) for dx=1, its transpose for dy=1, borders BORDER_REFLECT_101; int16."""
+    _image("Scharr", "src", src)
+    if (int(dx), int(dy)) not in ((1, 0), (0, 1)):
+        raise ValueError(f"Scharr: give dx=1, dy=0 or dx=0, dy=1, not dx={dx}, dy={dy}")
+    return cv2.Scharr(src, cv2.CV_16S, int(dx), int(dy),
+                      dst=_output(out, src.shape, "Scharr", "dst", np.int16))
+
+
+# -- morphology ----------------------------------------------------------------------------
+MORPH_OPS = range(7)  # ERODE, DILATE, OPEN, CLOSE, GRADIENT, TOPHAT, BLACKHAT
+MORPH_SHAPES = range(3)  # RECT, CROSS, ELLIPSE
+MAX_MORPH_KSIZE, MAX_ITERATIONS = 15, 4
+
+
+def morphology_ex(src: np.ndarray, *, op: int, shape: int, ksize: int, iterations: int,
+                  out: np.ndarray | None = None) -> np.ndarray:
+    """MorphologyEx / MorphologyExGray: cv2.morphologyEx(src, op,
+    cv2.getStructuringElement(shape, (ksize, ksize)), iterations=iterations); op and shape
+    are OpenCV's codes (MORPH_ERODE 0 .. MORPH_BLACKHAT 6; MORPH_RECT 0, MORPH_CROSS 1,
+    MORPH_ELLIPSE 2), pixels outside the frame ignored (OpenCV's default)."""
+    _image("MorphologyEx", "src", src)
+    op, shape, iterations = int(op), int(shape), int(iterations)
+    ksize = int(ksize)
+    if ksize < 1 or ksize > MAX_MORPH_KSIZE or ksize % 2 == 0:
+        raise ValueError(f"MorphologyEx: ksize must be odd, 1..{MAX_MORPH_KSIZE}, not {ksize}")
+    if op not in MORPH_OPS or shape not in MORPH_SHAPES:
+        raise ValueError(f"MorphologyEx: op must be 0..6 and shape 0..2, not {op}, {shape}")
+    if not 1 <= iterations <= MAX_ITERATIONS or (iterations > 1 and shape != 0):
+        raise ValueError(f"MorphologyEx: iterations must be 1..{MAX_ITERATIONS}, above 1 "
+                         f"for shape 0 (MORPH_RECT) only, not {iterations} (shape {shape})")
+    element = cv2.getStructuringElement(shape, (ksize, ksize))
+    return cv2.morphologyEx(src, op, element, iterations=iterations,
+                            dst=_output(out, src.shape, "MorphologyEx", "dst"))
+
+
+# -- helpers -------------------------------------------------------------------------------
+def _image(type_name: str, port: str, array, dtype=np.uint8) -> int:
+    """The channels (1 or 3) of a frame of element type dtype; anything else raises."""
+    if not isinstance(array, np.ndarray) or array.dtype != dtype:
+        found = getattr(array, "dtype", type(array).__name__)
+        raise TypeError(f"{type_name}: '{port}' must be a {np.dtype(dtype).name} numpy "
+                        f"array, not {found}")
+    if 0 in array.shape or not (array.ndim == 2 or (array.ndim == 3
+                                                   and array.shape[2] in (1, 3))):
+        raise ValueError(f"{type_name}: '{port}' must be height x width (x 1 or x 3) with "
+                         f"height and width at least 1, not {array.shape}")
+    return 3 if array.ndim == 3 and array.shape[2] == 3 else 1
+
+
+def _odd_ksize(type_name: str, ksize) -> int:
+    ksize = int(ksize)
+    if ksize < 1 or ksize > MAX_KSIZE or ksize % 2 == 0:
+        raise ValueError(f"{type_name}: ksize must be odd, 1..{MAX_KSIZE}, not {ksize}")
+    return ksize
+
+
+CPU_OPS = {
+    "GrayToRgb": gray_to_rgb,
+    "RgbToBgr": swap_red_blue,
+    "BgrToRgb": swap_red_blue,
+    **{f"{name}{suffix}": function for suffix in ("", "Gray") for name, function in (
+        ("ConvertScaleAbs", convert_scale_abs), ("FlipVertical", flip_vertical),
+        ("BitwiseAnd", bitwise_and), ("BitwiseOr", bitwise_or), ("BitwiseXor", bitwise_xor),
+        ("BitwiseNot", bitwise_not), ("BitwiseAndMask", bitwise_and_mask),
+        ("Blur", blur), ("Laplacian", laplacian), ("Scharr", scharr), ("Lut", lut),
+        ("MorphologyEx", morphology_ex))},
+}
+
+# last, so that either module may be imported first: cpu_kernels imports CPU_OPS at its
+# end, and these helpers are defined before that import runs
+from .cpu_kernels import _output
+from .cpu_kernels import _same_shape as _pair
