@@ -101,6 +101,8 @@ for _name in ("Threshold", "ConvertScale", "AbsDiff", "AddWeighted", "Resize", "
               "FlipHorizontal", "Rotate180", "GaussianBlur", "Sobel", "Erode", "Dilate",
               "MedianBlur"):
     SPECS[_name + "Gray"] = SPECS[_name]
+# OpenCV's name for ConvertScale, and the int16-only types of before (deprecated names)
+SPECS["ConvertScaleAbs"] = SPECS["ConvertScaleAbsGray"] = SPECS["ConvertScale"]
 TYPES = sorted(SPECS)
 
 

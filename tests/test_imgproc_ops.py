@@ -4,10 +4,10 @@ Each type runs as OpenCV's function, as its CPU form (cpu_ops.py, which calls Op
 as an independent numpy reference written here from the operation's definition (so the
 CPU form is not checked only against itself), and as the OpenCL kernel the generator writes
 from its fusable form (conftest.run_generated: what a lone component runs), on PoCL. On
-the photographs (scikit-image's chelsea, coffee and astronaut, their gray versions for the
-one-channel types, their Sobel gradients for the int16 inputs, a threshold of them for
-masks) with every parameter set of OPS, which reaches every parameter's limits: all four
-equal, bit for bit. Hypothesis then draws small frames (odd sizes, one pixel high or wide,
+the photographs (scikit-image's chelsea, coffee and astronaut in RGB and gray: every type
+over each channel count it takes, a threshold of them for masks) with every parameter set
+of OPS, which reaches every parameter's limits: all four equal, bit for bit (ConvertScale,
+also named ConvertScaleAbs, is tested with imgproc.yaml's types in test_imgproc.py). Hypothesis then draws small frames (odd sizes, one pixel high or wide,
 where windows reach past two borders), parameters in their declared ranges and GPU
 settings. Last, one generated program chains every new type (test_generated_program_*):
 built on the GPU, on the CPU and alternating, each component's output equals the OpenCV
@@ -90,13 +90,6 @@ LAPLACE = {1: np.array([[0, 1, 0], [1, -4, 1], [0, 1, 0]]),
 SCHARR_X = np.array([[-3, 0, 3], [-10, 0, 10], [-3, 0, 3]])
 
 
-def _convert_scale_abs(src, alpha, beta):
-    # float32 fma: the product and sum exact in float64, rounded once to float32
-    value = np.abs((src.astype(np.float64) * np.float32(alpha) + np.float32(beta))
-                   .astype(np.float32))
-    return np.clip(np.rint(value), 0, 255).astype(np.uint8)
-
-
 def _element(shape: int, ksize: int) -> np.ndarray:
     """The structuring element from its definition: a rectangle; a cross (the middle row
     and column); an ellipse whose row dy spans round(sqrt(r^2 - dy^2)) each side."""
@@ -155,7 +148,7 @@ class Op:
     opencv: Callable  # (inputs..., **params) -> OpenCV's output
     numpy: Callable  # the same from the definition
     cases: list[dict] = field(default_factory=lambda: [{}])  # parameter sets on photos
-    inputs: str = "u"  # one letter an input: u uint8 frame, s int16 gradient, m mask
+    inputs: str = "u"  # one letter an input: u uint8 frame, m mask
     photos: int = 3  # how many photographs (each compiles the kernel anew)
     examples: int = 10  # Hypothesis examples
 
@@ -177,12 +170,6 @@ OPS: dict[str, Op] = {
     "BitwiseAndMask": Op(_masked_and,
                          lambda a, b, m: np.where((m != 0).reshape(m.shape[:2] + (1,) * (
                              a.ndim - 2)), a & b, 0).astype(np.uint8), inputs="uum"),
-    "ConvertScaleAbs": Op(
-        lambda s, alpha, beta: cv2.convertScaleAbs(s, alpha=alpha, beta=beta),
-        _convert_scale_abs,
-        [{"alpha": a, "beta": b} for a, b in ((1.7, -30.2), (0.25, 0.0), (-0.8, 10.5),
-                                              (0.37, 0.25), (1.0, 0.0), (3.3, -400.1))],
-        inputs="s"),
     "FlipVertical": Op(lambda a: cv2.flip(a, 0), lambda a: a[::-1]),
     "Blur": Op(
         lambda a, ksize, border_type: cv2.blur(a, (ksize, ksize), borderType=border_type),
@@ -207,7 +194,7 @@ OPS: dict[str, Op] = {
             a, op, cv2.getStructuringElement(shape, (ksize, ksize)), iterations=iterations),
         _morphology, MORPHOLOGY, photos=1, examples=4),
 }
-for _name in list(OPS):
+for _name in list(OPS):  # the deprecated one-channel names: the same operation
     OPS[_name + "Gray"] = OPS[_name]
 OPS.update({
     "GrayToRgb": Op(lambda a: cv2.cvtColor(a, cv2.COLOR_GRAY2RGB),
@@ -215,7 +202,6 @@ OPS.update({
     "RgbToBgr": Op(lambda a: cv2.cvtColor(a, cv2.COLOR_RGB2BGR), lambda a: a[..., ::-1]),
     "BgrToRgb": Op(lambda a: cv2.cvtColor(a, cv2.COLOR_BGR2RGB), lambda a: a[..., ::-1]),
 })
-TYPES = sorted(OPS)
 
 
 def new_types():
@@ -224,8 +210,20 @@ def new_types():
     return {n: t for n, t in library_types().items() if t.decl_file.name in NEW_FILES}
 
 
-def channels_of(type_name: str) -> int:
-    return next(iter(new_types()[type_name].inputs.values())).channels
+def channel_counts(type_name: str) -> tuple[int, ...]:
+    """The channel counts a type's first input takes: 1 and 3 for a generic one."""
+    port = next(iter(new_types()[type_name].inputs.values()))
+    return port.channel_counts or (port.channels,)
+
+
+# every type over each channel count it takes; the deprecated 'Gray' names are the same
+# operation with one channel, run under their old names in the generated programs below
+VARIANTS = [(name, c) for name in sorted(OPS) if not new_types()[name].alias_of
+            for c in channel_counts(name)]
+
+
+def variant_id(value) -> str:
+    return f"{value}ch" if isinstance(value, int) else str(value)
 
 
 def test_every_new_type_is_compared_flexible_and_fusable():
@@ -234,6 +232,11 @@ def test_every_new_type_is_compared_flexible_and_fusable():
     assert set(OPS) <= set(cpu_kernels.CPU_IMPLEMENTATIONS)
     for name, t in types.items():
         assert t.flexible and t.fusable is not None, name
+        assert t.family, name  # 'gpucompgen types' groups it with the library's others
+        if t.alias_of:  # a deprecated 'Gray' name: the generic type with one channel
+            assert (t.alias_of, t.alias_channels) == (name.removesuffix("Gray"), 1), name
+        elif name not in ("GrayToRgb", "RgbToBgr", "BgrToRgb"):  # fixed by the operation
+            assert channel_counts(name) == (1, 3), name
         # OpenCV's port names: src / dst, src1 and src2 for two frames, mask
         assert set(t.inputs) in ({"src"}, {"src1", "src2"}, {"src1", "src2", "mask"}), name
         assert set(t.outputs) == {"dst"}, name
@@ -241,18 +244,15 @@ def test_every_new_type_is_compared_flexible_and_fusable():
 
 def make_inputs(type_name: str, image: np.ndarray) -> list[np.ndarray]:
     """The inputs of a type from one frame of its channel count: a second frame unlike
-    the first, a mask (a threshold of the frame's first channel), or the frame's int16
-    Sobel gradient."""
+    the first, or a mask (a threshold of the frame's first channel)."""
     found = []
     for kind in OPS[type_name].inputs:
         if kind == "u":
             found.append(image if not found else
                          np.ascontiguousarray(image[::-1, ::-1] // 2 + image // 3))
-        elif kind == "m":
+        else:
             first = image if image.ndim == 2 else image[..., 0]
             found.append(np.ascontiguousarray(np.where(first > 100, 255, 0).astype(np.uint8)))
-        else:
-            found.append(cv2.Sobel(image, cv2.CV_16S, 1, 0, ksize=3))
     return found
 
 
@@ -289,9 +289,8 @@ def check_all(type_name: str, arrays: list[np.ndarray], params: dict, gpu, setti
     np.testing.assert_array_equal(found, reference, err_msg=f"GPU {what} {params}")
 
 
-@pytest.mark.parametrize("type_name", TYPES)
-def test_photographs_cpu_gpu_numpy_equal_opencv(type_name, photos, gpu):
-    channels = channels_of(type_name)
+@pytest.mark.parametrize(("type_name", "channels"), VARIANTS, ids=variant_id)
+def test_photographs_cpu_gpu_numpy_equal_opencv(type_name, channels, photos, gpu):
     for i, versions in enumerate(photos[:OPS[type_name].photos]):
         arrays = make_inputs(type_name, versions[channels])
         for params in OPS[type_name].cases:
@@ -310,15 +309,12 @@ SETTINGS = [(8, 1, 1, 1), (16, 16, 16, 1), (32, 8, 3, 1)]
 
 
 @st.composite
-def cases(draw, type_name: str):
+def cases(draw, type_name: str, channels: int):
     height, width = draw(sizes), draw(sizes)
-    channels = channels_of(type_name)
     shape = (height, width) if channels == 1 else (height, width, channels)
     rng = np.random.default_rng(draw(st.integers(0, 2 ** 32 - 1)))
     image = rng.integers(0, 256, shape, dtype=np.uint8)
     arrays = make_inputs(type_name, image)
-    if "s" in OPS[type_name].inputs:  # any int16 value, not only a gradient's
-        arrays = [rng.integers(-32768, 32768, shape, dtype=np.int16)]
     params = {}
     t = new_types()[type_name]
     for name, decl in t.params.items():
@@ -345,10 +341,10 @@ def cases(draw, type_name: str):
     return arrays, params, draw(st.sampled_from(SETTINGS))
 
 
-@pytest.mark.parametrize("type_name", TYPES)
-def test_random_frames_cpu_gpu_numpy_equal_opencv(type_name, gpu):
+@pytest.mark.parametrize(("type_name", "channels"), VARIANTS, ids=variant_id)
+def test_random_frames_cpu_gpu_numpy_equal_opencv(type_name, channels, gpu):
     @settings(PROPERTY, max_examples=OPS[type_name].examples)
-    @given(case=cases(type_name))
+    @given(case=cases(type_name, channels))
     def check(case):
         arrays, params, setting = case
         check_all(type_name, arrays, params, gpu, setting, what=str(arrays[0].shape))
@@ -359,8 +355,6 @@ def test_random_frames_cpu_gpu_numpy_equal_opencv(type_name, gpu):
 # -- the CPU forms' own checks ----------------------------------------------------------------
 def test_cpu_forms_reject_bad_inputs():
     image = np.zeros((4, 5, 3), np.uint8)
-    with pytest.raises(TypeError, match="int16"):
-        cpu_ops.convert_scale_abs(image, alpha=1.0, beta=0.0)
     with pytest.raises(ValueError, match="same size"):
         cpu_ops.bitwise_and(image, image[:3])
     with pytest.raises(ValueError, match="mask"):
@@ -392,10 +386,12 @@ def test_hand_computed_values():
     assert cpu_ops.bitwise_not(gray).tolist() == [[243, 245, 0, 255]]
     mask = np.array([[255, 0, 1, 0]], np.uint8)
     assert cpu_ops.bitwise_and_mask(gray, gray, mask).tolist() == [[12, 0, 255, 0]]
-    # |-3 * 0.5| = 1.5 -> 2, |5 * 0.5| = 2.5 -> 2 (half to even), -300 -> 255, 7 + 0.5 -> 8
+    # ConvertScale (also named ConvertScaleAbs) of int16: |-3 * 0.5| = 1.5 -> 2,
+    # |5 * 0.5| = 2.5 -> 2 (half to even), -300 -> 255, 7 + 0.5 -> 8
     s = np.array([[-3, 5, -300, 7]], np.int16)
-    assert cpu_ops.convert_scale_abs(s, alpha=0.5, beta=0.0).tolist() == [[2, 2, 150, 4]]
-    assert cpu_ops.convert_scale_abs(s, alpha=1.0, beta=0.5).tolist() == [[2, 6, 255, 8]]
+    convert = cpu_kernels.CPU_IMPLEMENTATIONS["ConvertScaleAbs"]
+    assert convert(s, alpha=0.5, beta=0.0).tolist() == [[2, 2, 150, 4]]
+    assert convert(s, alpha=1.0, beta=0.5).tolist() == [[2, 6, 255, 8]]
     rgb = np.array([[[1, 2, 3]]], np.uint8)
     assert cpu_ops.swap_red_blue(rgb).tolist() == [[[3, 2, 1]]]
     assert cpu_ops.gray_to_rgb(np.array([[9]], np.uint8)).tolist() == [[[9, 9, 9]]]
@@ -465,6 +461,21 @@ CHAIN: dict[str, tuple[str, dict, tuple[str, ...]]] = {
     "glut": ("LutGray", {"lut": GAMMA}, ("gsmooth",)),
     "gedge": ("MorphologyExGray", {"op": 4, "shape": 1, "ksize": 3, "iterations": 1},
               ("glut",)),
+    # the generic names over one channel, beside the deprecated 'Gray' names above
+    "g2blur": ("Blur", {"ksize": 3, "border_type": 4}, ("gray",)),
+    "g2lut": ("Lut", {"lut": GAMMA}, ("g2blur",)),
+    "g2open": ("MorphologyEx", {"op": 2, "shape": 2, "ksize": 5, "iterations": 1},
+               ("g2lut",)),
+    "gmask": ("BitwiseAndMask", {}, ("g2open", "gedge", "mask")),
+    "gdown": ("FlipVertical", {}, ("gmask",)),
+    "gsch": ("Scharr", {"dx": 1, "dy": 0}, ("gdown",)),
+    "glap2": ("Laplacian", {"ksize": 3}, ("gdown",)),
+    "gsabs": ("ConvertScaleAbs", {"alpha": 0.5, "beta": 0.0}, ("gsch",)),
+    "glabs": ("ConvertScale", {"alpha": 0.25, "beta": 1.0}, ("glap2",)),
+    "gbits": ("BitwiseXor", {}, ("gsabs", "glabs")),
+    "gnot2": ("BitwiseNot", {}, ("gbits",)),
+    "gor2": ("BitwiseOr", {}, ("gnot2", "gdown")),
+    "gand2": ("BitwiseAnd", {}, ("gor2", "gsmooth")),
 }
 
 
@@ -548,6 +559,7 @@ def fused_outputs(tmp_path_factory, cl_context):
     (launches made so dear that every legal group forms), unfused and on the CPU."""
     require_opencl()
     from gpucompgen.build import compile_model, write
+    from gpucompgen.passes.fuse import FUSION_COSTS
 
     folder = tmp_path_factory.mktemp("ops_fused")
     write_keep_types(folder)
@@ -558,7 +570,8 @@ def fused_outputs(tmp_path_factory, cl_context):
         model.write_text(chain_model("ops_fused", CHAIN, placement, keep=ENDS))
         out = folder / f"out_{variant}"
         with pytest.MonkeyPatch.context() as patch:
-            patch.setattr("gpucompgen.passes.fuse.LAUNCH", 10**15)
+            patch.setattr("gpucompgen.passes.fuse.FUSION_COSTS",
+                          {k: {**v, "launch_s": 1e6} for k, v in FUSION_COSTS.items()})
             built = compile_model(model, out, fusion=fusion)
         write(built, out)
         program = load_generated(out / "ops_fused.py", f"ops_fused_{variant}")
@@ -609,6 +622,10 @@ FEATURES = {  # name: (type, params, inputs); camera 301x200 RGB
                              "l2_gradient": False}, ("gray",)),
     "roi": ("RoiMaskGray", {"points": ROI}, ("gray",)),
     "roi3": ("RoiMask", {"points": [[0, 0], [300, 0], [150, 199]]}, ("camera",)),
+    # the generic names over one channel, beside the deprecated 'Gray' names above
+    "canny1": ("Canny", {"threshold1": 60.0, "threshold2": 120.0, "aperture_size": 3,
+                         "l2_gradient": False}, ("gray",)),
+    "roi1": ("RoiMask", {"points": ROI}, ("canny1",)),
     "regions": ("ConnectedComponentsWithStats",
                 {"connectivity": 8, "min_area": 5, "max_components": 16}, ("canny",)),
     "regions4": ("ConnectedComponentsWithStats",

@@ -336,7 +336,7 @@ CPU_IMPLEMENTATIONS = {
         ("Resize", resize), ("Crop", crop), ("FlipHorizontal", flip_horizontal),
         ("Rotate180", rotate180), ("GaussianBlur", gaussian_blur), ("Sobel", sobel),
         ("Erode", erode), ("Dilate", dilate), ("MedianBlur", median_blur),
-        ("AbsDiff", absdiff), ("AddWeighted", add_weighted))},
+        ("AbsDiff", absdiff), ("AddWeighted", add_weighted), ("ConvertScaleAbs", convert_scale))},
 }
 
 

@@ -1,8 +1,8 @@
 """CPU forms of the operations of issue 26 (bitwise.yaml, convert.yaml, filters2.yaml,
 morphology.yaml, features.yaml): OpenCV's own functions.
 
-As in cpu_kernels.py, one function serves the three-channel and the one-channel ('Gray')
-type of an operation: the inputs as the ports declare them (height x width x channels; one
+As in cpu_kernels.py, one function serves an operation over one or three channels (and its
+deprecated one-channel 'Gray' name): the inputs as the ports declare them (height x width x channels; one
 channel height x width or height x width x 1), the type's parameters as keywords, ``out=``
 an array to write into (OpenCV's dst=), the output array returned.  Every function is the
 OpenCV call docs/library.md names beside its type, so the CPU form equals OpenCV by
@@ -29,16 +29,6 @@ MAX_KSIZE = 31  # Blur's and MorphologyEx's largest window side
 
 
 # -- conversions --------------------------------------------------------------------------
-def convert_scale_abs(src: np.ndarray, *, alpha: float, beta: float,
-                      out: np.ndarray | None = None) -> np.ndarray:
-    """ConvertScaleAbs / ConvertScaleAbsGray: cv2.convertScaleAbs(src, alpha=, beta=) of an
-    int16 frame (Sobel's, Laplacian's, Scharr's): |p * alpha + beta| in float32 (one fma),
-    rounded half to even and saturated to 0..255, as uint8."""
-    _image("ConvertScaleAbs", "src", src, np.int16)
-    return cv2.convertScaleAbs(src, dst=_output(out, src.shape, "ConvertScaleAbs", "dst"),
-                               alpha=float(np.float32(alpha)), beta=float(np.float32(beta)))
-
-
 def gray_to_rgb(src: np.ndarray, *, out: np.ndarray | None = None) -> np.ndarray:
     """GrayToRgb: cv2.cvtColor(src, cv2.COLOR_GRAY2RGB): the value in all three channels."""
     if _image("GrayToRgb", "src", src) != 1:
@@ -200,7 +190,7 @@ CPU_OPS = {
     "RgbToBgr": swap_red_blue,
     "BgrToRgb": swap_red_blue,
     **{f"{name}{suffix}": function for suffix in ("", "Gray") for name, function in (
-        ("ConvertScaleAbs", convert_scale_abs), ("FlipVertical", flip_vertical),
+        ("FlipVertical", flip_vertical),
         ("BitwiseAnd", bitwise_and), ("BitwiseOr", bitwise_or), ("BitwiseXor", bitwise_xor),
         ("BitwiseNot", bitwise_not), ("BitwiseAndMask", bitwise_and_mask),
         ("Blur", blur), ("Laplacian", laplacian), ("Scharr", scharr), ("Lut", lut),
