@@ -191,12 +191,13 @@ CHAIN: dict[str, tuple[str, dict, tuple[str, ...]]] = {
     "ginv": ("ThresholdGray", {"thresh": 127, "maxval": 255, "thresh_type": 1}, ("gerode",)),
     "gsobel": ("SobelGray", {"dx": 0, "dy": 1}, ("ginv",)),
     # generic types under their own names over one channel, and int16 gradients made
-    # 8-bit (convertScaleAbs): Sobel -> ConvertScale recomputed by a median; the
+    # 8-bit (convertScaleAbs) by ConvertScale under OpenCV's name, ConvertScaleAbs, and its
+    # deprecated one-channel name: Sobel -> ConvertScaleAbsGray recomputed by a median; the
     # three-channel gradient (read by the CPU too, so not fused) under a dilate
     "s16": ("Sobel", {"dx": 1, "dy": 0}, ("gerode",)),
-    "sabs": ("ConvertScale", {"alpha": 0.5, "beta": 1.5}, ("s16",)),
+    "sabs": ("ConvertScaleAbsGray", {"alpha": 0.5, "beta": 1.5}, ("s16",)),
     "smedian": ("MedianBlur", {}, ("sabs",)),
-    "sabs3": ("ConvertScale", {"alpha": 0.25, "beta": 0.0}, ("sobel",)),
+    "sabs3": ("ConvertScaleAbs", {"alpha": 0.25, "beta": 0.0}, ("sobel",)),
     "sdilate": ("Dilate", {}, ("sabs3",)),
 }
 ENDS = ["blur", "median", "erode", "dilate", "sobel", "reddil", "gblur", "gmedian", "gerode",

@@ -73,6 +73,9 @@ CHAIN: dict[str, tuple[str, dict, tuple[str, ...]]] = {
     # made 8-bit again (convertScaleAbs), a fused stencil chain over one channel ---------
     "sabs": ("ConvertScale", {"alpha": 0.25, "beta": 0.0}, ("sobel",)),
     "gsabs": ("ConvertScale", {"alpha": 0.5, "beta": 3.0}, ("gsobel",)),
+    # ConvertScale under OpenCV's name, and the int16-only one-channel name of before
+    "sabs2": ("ConvertScaleAbs", {"alpha": 1.7, "beta": -30.2}, ("sobel",)),
+    "gsabs2": ("ConvertScaleAbsGray", {"alpha": 0.37, "beta": 0.25}, ("gsobel",)),
     "g1blur": ("GaussianBlur", {"ksize": 3}, ("gray",)),
     "g1erode": ("Erode", {}, ("g1blur",)),
     "g1median": ("MedianBlur", {}, ("g1erode",)),
