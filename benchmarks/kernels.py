@@ -41,6 +41,9 @@ sys.path.insert(0, str(ROOT))
 K3 = np.ones((3, 3), np.uint8)
 
 
+LUT = [min(255, round(255 * (i / 255) ** 0.5)) for i in range(256)]  # a gamma curve
+
+
 def _cases(cv2):
     """name -> (type, params, OpenCV call, inputs as 'rgb'/'gray', second input)."""
     inr = {"lowerb_0": 100, "lowerb_1": 0, "lowerb_2": 50, "upperb_0": 255,
@@ -111,8 +114,40 @@ def _cases(cv2):
         "ResizeGray linear": ("ResizeGray", {"width": 320, "height": 180, "interpolation": 1},
                               lambda a: cv2.resize(a, (320, 180),
                                                    interpolation=cv2.INTER_LINEAR)),
+        # the operations issue 26 added
+        "BitwiseAnd": ("BitwiseAnd", {}, lambda a, b: cv2.bitwise_and(a, b)),
+        "BitwiseAndGray": ("BitwiseAndGray", {}, lambda a, b: cv2.bitwise_and(a, b)),
+        "BitwiseNot": ("BitwiseNot", {}, lambda a: cv2.bitwise_not(a)),
+        "GrayToRgb": ("GrayToRgb", {}, lambda a: cv2.cvtColor(a, cv2.COLOR_GRAY2RGB)),
+        "RgbToBgr": ("RgbToBgr", {}, lambda a: cv2.cvtColor(a, cv2.COLOR_RGB2BGR)),
+        "FlipVertical": ("FlipVertical", {}, lambda a: cv2.flip(a, 0)),
+        "Lut": ("Lut", {"lut": LUT}, lambda a: cv2.LUT(a, np.array(LUT, np.uint8))),
+        "Blur k5": ("Blur", {"ksize": 5, "border_type": 4},
+                    lambda a: cv2.blur(a, (5, 5), borderType=4)),
+        "BlurGray k5": ("BlurGray", {"ksize": 5, "border_type": 4},
+                        lambda a: cv2.blur(a, (5, 5), borderType=4)),
+        "LaplacianGray k3": ("LaplacianGray", {"ksize": 3},
+                             lambda a: cv2.Laplacian(a, cv2.CV_16S, ksize=3)),
+        "ScharrGray dx": ("ScharrGray", {"dx": 1, "dy": 0},
+                          lambda a: cv2.Scharr(a, cv2.CV_16S, 1, 0)),
+        "MorphologyExGray open k3": (
+            "MorphologyExGray", {"op": 2, "shape": 0, "ksize": 3, "iterations": 1},
+            lambda a: cv2.morphologyEx(a, cv2.MORPH_OPEN, K3)),
+        "MorphologyExGray gradient k5": (
+            "MorphologyExGray", {"op": 4, "shape": 0, "ksize": 5, "iterations": 1},
+            lambda a: cv2.morphologyEx(a, cv2.MORPH_GRADIENT, np.ones((5, 5), np.uint8))),
     }
     return c
+
+
+def _instance(t):
+    """A case's type as a component of it gets it: a generic type over the most channels
+    it takes (the plain name is the RGB case; its 'Gray' alias the one-channel one)."""
+    port = next(iter(t.inputs.values()))
+    if not t.generic:
+        return t
+    return t.specialized((port.dtypes or (port.dtype,))[0],
+                         max(port.channel_counts or (port.channels,)))
 
 
 def _frames(cv2, h, w):
@@ -399,10 +434,8 @@ def main(argv=None) -> int:
         frames = _frames(cv2, h, w)
         runs = {}
         for name, (tname, params, ref) in cases.items():
-            t = types[tname]
-            n_in = len(t.inputs)
-            ch = next(iter(t.inputs.values())).channels
-            arrays = list(frames[ch][:n_in])
+            t = _instance(types[tname])
+            arrays = [frames[p.channels][k] for k, p in enumerate(t.inputs.values())]
             expected = ref(*arrays)
             variants = {}
             if not a.no_hand:

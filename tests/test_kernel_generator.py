@@ -261,7 +261,7 @@ def test_build_options_override_a_generated_kernels_model_values(cl_context, cl_
     frame = np.random.default_rng(3).integers(0, 256, (9, 13), np.uint8)
     params = {"thresh": 100, "maxval": 200, "thresh_type": 0}
     group = group_of_one(library_types()["ThresholdGray"], params,
-                         {"image": (9, 13), "thresholded": (9, 13)})
+                         {"src": (9, 13), "dst": (9, 13)})
     macro = next(p.name for p in group_constants(group) if p.param == "m.thresh_type")
     source = group_kernel(group, "test")
     mf = cl.mem_flags
@@ -271,7 +271,7 @@ def test_build_options_override_a_generated_kernels_model_values(cl_context, cl_
                           (define_options({macro: np.int32(1)}), cv2.THRESH_BINARY_INV)):
         program = cl.Program(cl_context, source).build(options=list(options))
         kernel = cl.Kernel(program, kernel_name(group))
-        kernel.set_args(*launch_arguments(group, {"image": src}, dst, 4))
+        kernel.set_args(*launch_arguments(group, {"src": src}, dst, 4))
         cl.enqueue_nd_range_kernel(cl_queue, kernel, (8, 3 * 8, 1), (8, 8, 1))
         got = np.empty_like(frame)
         cl.enqueue_copy(cl_queue, got, dst)
