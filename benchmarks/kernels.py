@@ -121,7 +121,7 @@ def _cases(cv2):
         "GrayToRgb": ("GrayToRgb", {}, lambda a: cv2.cvtColor(a, cv2.COLOR_GRAY2RGB)),
         "RgbToBgr": ("RgbToBgr", {}, lambda a: cv2.cvtColor(a, cv2.COLOR_RGB2BGR)),
         "FlipVertical": ("FlipVertical", {}, lambda a: cv2.flip(a, 0)),
-        "Lut": ("Lut", {"lut": LUT}, lambda a: cv2.LUT(a, np.array(LUT, np.uint8))),
+        "Lut": ("Lut", {"lut": tuple(LUT)}, lambda a: cv2.LUT(a, np.array(LUT, np.uint8))),
         "Blur k5": ("Blur", {"ksize": 5, "border_type": 4},
                     lambda a: cv2.blur(a, (5, 5), borderType=4)),
         "BlurGray k5": ("BlurGray", {"ksize": 5, "border_type": 4},
