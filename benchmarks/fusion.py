@@ -90,29 +90,6 @@ def halide_chains(image: np.ndarray, n: int) -> dict:
             f"Halide N={n}": (HalideChain(image, n), n)}
 
 
-class FusedZeroCopy:
-    """The fused chain built with zero-copy adapters (--zero-copy on), as `--device auto`
-    builds it for a device that shares host memory (PoCL, integrated GPUs): the kernel
-    reads the frame where the source left it and writes where the sink reads it."""
-
-    def __init__(self, folder: Path, n: int, size: tuple[int, int], context):
-        from gpucompgen.bench import chain_model
-        from gpucompgen.build import compile_model, write
-        from gpucompgen.runtime import load_module
-
-        model = folder / f"zc_chain_{n}.yaml"
-        model.write_text(chain_model(n, *size), encoding="utf-8")
-        out = folder / f"zero_copy_{n}"
-        write(compile_model(model, out, zero_copy="on", fusion="auto"), out)
-        self.module = load_module(out / f"mirror_chain_{n}.py", f"bench_fusion_zc_{n}")
-        self.context = context
-
-    def run(self, frames: int) -> tuple[list[float], np.ndarray]:
-        result = self.module.run(frames=frames + 1, context=self.context)
-        sink = result.components["sink"]
-        return list(sink.frame_times()), sink.last
-
-
 class Cv2Flip:
     """cv2.flip(image, 0) into a kept array: the library call, once per frame."""
 
@@ -204,8 +181,10 @@ def main(argv=None) -> int:
                   f"unfused N={n}": (Generated(folder, n, size, "gpu-aware", context), n),
                   f"fused N={n}": (Generated(folder, n, size, "fused", context), n),
                   "fused N=1": (Generated(folder, 1, size, "fused", context), 1),
-                  f"fused zero-copy N={n}": (FusedZeroCopy(folder, n, size, context), n),
-                  "fused zero-copy N=1": (FusedZeroCopy(folder, 1, size, context), 1),
+                  f"fused zero-copy N={n}": (
+                      Generated(folder, n, size, "fused-zero-copy", context), n),
+                  "fused zero-copy N=1": (
+                      Generated(folder, 1, size, "fused-zero-copy", context), 1),
                   "cv2.flip": (Cv2Flip(image), 1),
                   **halide_chains(image, n)}
         visions = {"vision unfused": Vision(folder, "off"), "vision fused": Vision(folder, "auto")}

@@ -144,9 +144,10 @@ class Generated:
         model.write_text(chain_model(n, *size), encoding="utf-8")
         out = folder / f"{variant}_{n}_{size[0]}x{size[1]}"
         mode = "standard" if variant == "standard" else "gpu-aware"
-        zero_copy = "on" if variant == "zero-copy" else "off"
-        # every variant but 'fused' runs one kernel per mirror, as in the paper
-        fusion = "auto" if variant == "fused" else "off"
+        # 'fused-zero-copy' is both: what --device auto builds on a device sharing host memory
+        zero_copy = "on" if "zero-copy" in variant else "off"
+        # every variant but the fused ones runs one kernel per mirror, as in the paper
+        fusion = "auto" if "fused" in variant else "off"
         write(compile_model(model, out, mode, zero_copy=zero_copy, fusion=fusion), out)
         name = f"gpucompgen_bench_{variant.replace('-', '_')}_{n}_{size[0]}x{size[1]}"
         self.module = load_module(out / f"mirror_chain_{n}.py", name)
