@@ -57,12 +57,13 @@ from .overrides import Param, param_values
 from .pipeline import FrameFailure, stream_in_flight
 from .profiling import Profile
 from .programs import clean_build_log, define_options, read_kernel_file
+from .session import Session
 from .sizes import Size
 
 __all__ = [
     "CpuFunctionComponent", "CpuToGpuAdapter", "FrameFailure", "GpuToCpuAdapter",
     "KernelComponent", "Monitor", "Param", "Parts", "PipelineError", "Profile", "Result",
-    "Size", "Stopped", "ZeroCopyCpuToGpuAdapter", "ZeroCopyGpuToCpuAdapter",
+    "Session", "Size", "Stopped", "ZeroCopyCpuToGpuAdapter", "ZeroCopyGpuToCpuAdapter",
     "add_program_options", "build_program", "check_device_memory", "check_frame",
     "component_failure", "create_context", "create_queue", "device_facts", "expect_size",
     "failing_component", "free_all", "load_class", "load_function", "load_module", "main",
