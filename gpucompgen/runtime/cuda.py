@@ -451,16 +451,20 @@ def compile_cubin(source: str, name: str, arch: str,
         opts = [f"--gpu-architecture={arch}".encode(), b"-std=c++17",
                 b"--diag-suppress=177,161", *(o.encode() for o in options)]
         err, = nv.nvrtcCompileProgram(prog, len(opts), opts)
+        # NVRTC writes into the buffer it is given: a bytearray, never bytes.  cuda-python's
+        # examples pass b" " * size, which for an empty log (size 1) IS the interpreter's
+        # shared one-byte b" ": NVRTC's NUL then turns every b" " of the process into
+        # b"\0" (on the H100 a .npz written afterwards by the same process was corrupt)
         size = _nvrtc_ok(nv.nvrtcGetProgramLogSize(prog), "log")
-        log = b" " * size
+        log = bytearray(size)
         nv.nvrtcGetProgramLog(prog, log)
-        log_text = log.rstrip(b"\0 ").decode("utf-8", "replace")
+        log_text = bytes(log).rstrip(b"\0 ").decode("utf-8", "replace")
         if int(err) != 0:
             return None, log_text
         size = _nvrtc_ok(nv.nvrtcGetCUBINSize(prog), "cubin size")
-        cubin = b" " * size
+        cubin = bytearray(size)
         nv.nvrtcGetCUBIN(prog, cubin)
-        return cubin, log_text
+        return bytes(cubin), log_text
     finally:
         nv.nvrtcDestroyProgram(prog)
 
