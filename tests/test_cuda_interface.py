@@ -287,6 +287,7 @@ class FakeDriver:
     def __init__(self, devices: int = 1, init: CUresult = OK, kernel_threads: int = 1024):
         self.devices, self.init, self.kernel_threads = devices, init, kernel_threads
         self.memory: dict[int, ctypes.Array] = {}  # live allocations by address
+        self.freed: list[ctypes.Array] = []  # kept: a stale view reads, but never crashes
         self.registered: set[int] = set()
         self.launches: list[tuple] = []  # (kernel, grid, block)
         self.null = _Stream()
@@ -343,7 +344,7 @@ class FakeDriver:
         return OK, pointer
 
     def cuMemFree(self, pointer):
-        del self.memory[pointer]
+        self.freed.append(self.memory.pop(pointer))
         return (OK,)
 
     cuMemFreeHost = cuMemFree
@@ -586,6 +587,7 @@ def test_a_kernel_component_between_adapters(fake, staging):
     assert fake.launches[-1] == ("add", (3, 2, 1), (2, 2, 1))
     for part in (down, add, up):
         part.free_memory()
+    del got  # the last frame, a view of the adapter's host memory: its last user
     assert not fake.memory
 
 
@@ -683,6 +685,31 @@ def test_host_and_pinned_buffers(fake):
     pinned = [cuda.pinned(context, queue, (2, 2), np.uint16)]
     assert pinned[0][1].shape == (2, 2) and pinned[0][1].dtype == np.uint16
     cuda.release_pinned(queue, pinned)
+
+
+def test_a_frame_kept_past_free_memory_keeps_its_pinned_memory(fake):
+    """FrameSink keeps the last frame, a view of the GPU-to-CPU adapter's pinned array,
+    and bench reads it after the program freed everything: the memory goes with the
+    last view, not before."""
+    context, queue = _context_queue()
+    buffer = cuda.filled_buffer(context, np.full((2, 4), 5, np.uint8))
+    down = cuda.GpuToCpuAdapter(context, queue, 8, staging="pinned")
+    down.initialize(Size(2, 4, 1), np.uint8)
+    kept = down.transfer(buffer)
+    address = kept.ctypes.data
+    down.free_memory()
+    cuda.release(buffer)
+    assert address in fake.memory  # still allocated: the kept frame is its last user
+    assert (kept == 5).all()
+    del kept
+    gc.collect()
+    assert address not in fake.memory and not fake.memory
+    mapped = cuda.device_buffer(context, 8, host_visible=True)
+    view = mapped.view((8,), np.uint8)
+    cuda.release(mapped)
+    assert view.ctypes.data in fake.memory
+    del view
+    assert not fake.memory
 
 
 def _kernel_file(fake) -> Path:

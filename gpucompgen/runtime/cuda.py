@@ -421,6 +421,33 @@ class _Events:
 
 # --- memory --------------------------------------------------------------------------
 
+class _HostMemory:
+    """Page-locked host memory (cuMemHostAlloc), freed once nothing uses it: neither its
+    owner (a DeviceBuffer, a PinnedArray, until released) nor a numpy array over it.  A
+    consumer may keep a frame past free_memory() (FrameSink.last: the adapter's pinned
+    array); freed at release, the array would read memory that is gone."""
+
+    def __init__(self, nbytes: int, mapped: bool, what: str):
+        cu = _driver()
+        # CU_MEMHOSTALLOC_PORTABLE, | CU_MEMHOSTALLOC_DEVICEMAP for the device to reach it
+        self.ptr = int(_ok(cu.cuMemHostAlloc(max(nbytes, 1), 1 | (2 if mapped else 0)),
+                           f"{what} of {nbytes:,} bytes"))
+
+    def array(self, shape, dtype):
+        """A numpy array over the memory; it keeps the memory alive."""
+        import numpy as np
+
+        dtype = np.dtype(dtype)
+        count = int(np.prod(shape))
+        raw = (ctypes.c_ubyte * (count * dtype.itemsize)).from_address(self.ptr)
+        raw.owner = self  # the array's base: the memory lives while the array does
+        return np.frombuffer(raw, dtype=dtype, count=count).reshape(shape)
+
+    def __del__(self):
+        with contextlib.suppress(Exception):  # at exit the driver may be gone
+            _driver().cuMemFreeHost(self.ptr)
+
+
 class DeviceBuffer:
     """Device memory of `size` bytes at device address `ptr` (cuMemAlloc), or mapped
     pinned host memory (host is then its numpy view, the same bytes)."""
@@ -430,10 +457,10 @@ class DeviceBuffer:
         self.size = size
         self.host = None
         self._host_ptr = 0
+        self._memory: _HostMemory | None = None
         if mapped:
-            # CU_MEMHOSTALLOC_PORTABLE | CU_MEMHOSTALLOC_DEVICEMAP
-            self._host_ptr = int(_ok(cu.cuMemHostAlloc(max(size, 1), 1 | 2),
-                                     f"mapped host allocation of {size:,} bytes"))
+            self._memory = _HostMemory(size, True, "mapped host allocation")
+            self._host_ptr = self._memory.ptr
             self.ptr = int(_ok(cu.cuMemHostGetDevicePointer(self._host_ptr, 0),
                                "device pointer of mapped memory"))
         else:
@@ -442,43 +469,31 @@ class DeviceBuffer:
 
     def view(self, shape, dtype):
         """The mapped host memory as a numpy array (mapped buffers only)."""
-        return _host_array(self._host_ptr, shape, dtype)
+        return self._memory.array(shape, dtype)
 
     def release(self) -> None:
-        cu = _driver()
-        if self._host_ptr:
-            cu.cuMemFreeHost(self._host_ptr)
-        elif self.ptr:
-            cu.cuMemFree(self.ptr)
+        if self._memory is None and self.ptr:
+            _driver().cuMemFree(self.ptr)
+        self._memory = self.host = None  # mapped: freed with the last view of it
         self.ptr = self._host_ptr = 0
 
 
-def _host_array(address: int, shape, dtype):
-    import numpy as np
-
-    dtype = np.dtype(dtype)
-    count = int(np.prod(shape))
-    raw = (ctypes.c_ubyte * (count * dtype.itemsize)).from_address(address)
-    return np.frombuffer(raw, dtype=dtype, count=count).reshape(shape)
-
-
 class PinnedArray:
-    """A page-locked host array (cuMemHostAlloc): copies from and to it run at DMA speed."""
+    """A page-locked host array (cuMemHostAlloc): copies from and to it run at DMA speed.
+    release() lets the memory go once no array over it is left."""
 
     def __init__(self, shape, dtype, mapped: bool = False):
         import numpy as np
 
         cu = _driver()
-        nbytes = max(int(np.prod(shape)) * np.dtype(dtype).itemsize, 1)
-        self.ptr = int(_ok(cu.cuMemHostAlloc(nbytes, 1 | (2 if mapped else 0)),
-                           f"pinned host allocation of {nbytes:,} bytes"))
-        self.array = _host_array(self.ptr, shape, dtype)
+        nbytes = int(np.prod(shape)) * np.dtype(dtype).itemsize
+        memory = _HostMemory(nbytes, mapped, "pinned host allocation")
+        self.ptr = memory.ptr
+        self.array = memory.array(shape, dtype)
         self.device_ptr = int(_ok(cu.cuMemHostGetDevicePointer(self.ptr, 0),
                                   "device pointer of mapped memory")) if mapped else 0
 
     def release(self) -> None:
-        if self.ptr:
-            _driver().cuMemFreeHost(self.ptr)
         self.ptr, self.array = 0, None
 
 
