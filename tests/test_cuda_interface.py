@@ -21,6 +21,7 @@ import inspect
 import os
 import subprocess
 import sys
+import threading
 import weakref
 from pathlib import Path
 from typing import ClassVar
@@ -247,6 +248,9 @@ class _Names:
         return name
 
 
+_RUN = threading.RLock()  # stages of frames in flight wait from their own threads
+
+
 class _Stream:
     """Commands in order; run only up to where the host waits (an event or the stream)."""
 
@@ -255,10 +259,11 @@ class _Stream:
         self.done = 0
 
     def run(self, upto: int) -> None:
-        while self.done < upto:
-            command = self.commands[self.done]
-            self.done += 1
-            command()
+        with _RUN:
+            while self.done < upto:
+                command = self.commands[self.done]
+                self.done += 1
+                command()
 
 
 class _Event:
@@ -710,6 +715,44 @@ def test_a_frame_kept_past_free_memory_keeps_its_pinned_memory(fake):
     assert view.ctypes.data in fake.memory
     del view
     assert not fake.memory
+
+
+def _flip(driver, src, dst, tile, rows=864, row_bytes=1152 * 3):
+    """VerticalMirror (and a chain of five: the same) on mirror_chain's frames."""
+    for address in (src, dst):
+        driver._live(address, rows * row_bytes)
+    a = np.ctypeslib.as_array((ctypes.c_uint8 * (rows * row_bytes)).from_address(src))
+    b = np.ctypeslib.as_array((ctypes.c_uint8 * (rows * row_bytes)).from_address(dst))
+    b.reshape(rows, row_bytes)[:] = a.reshape(rows, row_bytes)[::-1]
+
+
+@pytest.mark.parametrize("options", [
+    {}, {"fusion": "off"}, {"mode": "standard"}, {"zero_copy": "on"},
+    {"frames_in_flight": 2}, {"execution": "sequential"}, {"staging": "pageable"}],
+    ids=lambda o: ",".join(f"{k}={v}" for k, v in o.items()) or "default")
+def test_the_generated_cuda_program_runs_on_the_fake_driver(fake, options, tmp_path,
+                                                            monkeypatch):
+    """mirror_chain built with --backend cuda, run for 3 frames on the fake driver (its
+    kernels flip as VerticalMirror does): the sink's last frame is the photograph
+    flipped, and once the program's result is dropped every allocation is freed."""
+    from gpucompgen.build import compile_model, write
+    from gpucompgen.library.still_image import still_frame
+    from gpucompgen.runtime import Monitor, load_module
+
+    for name in ("mirror1_to_mirror5", *(f"mirror{i}" for i in range(1, 6))):
+        monkeypatch.setitem(KERNELS, name, (_flip, [ctypes.c_uint64, ctypes.c_uint64,
+                                                    ctypes.c_int32]))
+    out = tmp_path / "out"
+    write(compile_model(ROOT / "models" / "mirror_chain.yaml", out, backend="cuda",
+                        **options), out)
+    module = load_module(out / "mirror_chain.py", f"fake_cuda_{len(options)}")
+    result = module.run(frames=3, monitor=Monitor(progress=False))
+    sink = result.components["sink"]
+    assert result.frames == 3
+    np.testing.assert_array_equal(sink.last, still_frame(1152, 864)[::-1])
+    del result, sink
+    gc.collect()
+    assert not fake.memory and not fake.registered
 
 
 def _kernel_file(fake) -> Path:
