@@ -1,28 +1,31 @@
 """The CUDA device API: the runtime of programs built with ``--backend cuda``.
 
-It implements the device interface (runtime/device_api.py: ``device_api.get("cuda")``)
-that ``gpucompgen tune`` and ``gpucompgen bench`` and the neutral core call, and the
-program-facing classes (KernelComponent, the adapters) are built on the same functions
-(copy, map, launch, the events of a queue).  A CUDA program imports ``from gpucompgen.runtime import cuda as runtime`` and calls the
-names an OpenCL program calls (create_context, create_queue, check_device_memory,
-build_program, KernelComponent, the adapters, Profile...); what is not device-specific
-(sizes, parts, failures, the command line, frames in flight) is the neutral runtime's,
-re-exported here.  It uses NVIDIA's cuda-python (``cuda.bindings``: the driver API and
-NVRTC), installed with ``pip install gpucompgen[cuda]``.
+It implements the device interface (runtime/device_api.py, ``device_api.get("cuda")``)
+that ``gpucompgen tune``, ``gpucompgen bench`` and the neutral core call, and the
+program's classes are the neutral ones on it (KernelComponent, the copying adapters, the
+GPU-to-CPU zero-copy adapter).  A CUDA program imports ``from gpucompgen.runtime import
+cuda as runtime`` and calls the names an OpenCL program calls (create_context,
+create_queue, check_device_memory, build_program, KernelComponent, the adapters,
+Profile...); what is not device-specific (sizes, parts, failures, the command line,
+frames in flight) is the neutral runtime's, re-exported here.  It uses NVIDIA's
+cuda-python (``cuda.bindings``: the driver API and NVRTC), installed with
+``pip install gpucompgen[cuda]``.
 
 How the OpenCL model maps:
 - context: the device's primary CUDA context (CUDA_DEVICE selects the device, default 0);
-- queue (one per lane): a non-blocking CUDA stream; an event of another lane's command
-  is waited for with cuStreamWaitEvent, the host waits with cuEventSynchronize;
+- queue (one per lane): a non-blocking CUDA stream with a ring of events, one recorded
+  after each command; an event of another lane's command is waited for with
+  cuStreamWaitEvent, the host waits with cuEventSynchronize;
 - a kernel file: NVRTC compiles it to a cubin for the device's exact architecture
   (sm_XY), cached on disk under the source's digest, the architecture and NVRTC's
   version (``$XDG_CACHE_HOME/gpucompgen/cuda``); no PTX is left for the driver to JIT;
-- a launch: grid = global size / local size, block = local size (the plan's numbers);
-  arguments are packed once per buffer set, only changed input pointers are rewritten;
+- a kernel: its function and the arguments set_args packed (a buffer's device pointer,
+  a scalar's bytes); a launch: grid = global size / local size, block = local size;
 - buffers: cuMemAlloc once at initialize; pinned staging with cuMemHostAlloc;
   zero-copy (integrated GPUs, Jetson): mapped pinned host memory (cuMemHostAlloc with
-  DEVICEMAP) that the kernel reads or writes through its device pointer.  Managed memory
-  is not used (on Orin, host access while a kernel runs faults).
+  DEVICEMAP) that the kernel reads or writes through its device pointer; host memory is
+  freed with the last numpy array over it.  Managed memory is not used (on Orin, host
+  access while a kernel runs faults).
 """
 
 from __future__ import annotations
