@@ -306,16 +306,19 @@ def _kernel(context, queue, system, plan, node, inputs):
         "output_sizes": lambda self, *sizes: out_sizes, "api": api})
     program = _program(api, context, system, node)
     comp = cls(context, queue, program, **node.params)
+    buffers: list = []
     try:
         comp.initialize(*(p.data.size for p in node.inputs.values()))
         arguments = [a.port if a.kind == "buffer" else getattr(np, a.host_type)(a.value)
                      for a in la.arguments]
         comp.config_gpu(la.tile, la.local_size, la.global_size, arguments, la.settings_source)
-        buffers = [api.filled_buffer(context, x) for x in inputs.values()]
+        buffers += [api.filled_buffer(context, x) for x in inputs.values()]
         yield lambda frames: _median(frames, lambda: comp.execute(*buffers),
                                      lambda: api.finish(queue))
     finally:
         comp.free_memory()
+        for buffer in buffers:  # CUDA frees nothing a garbage collector drops
+            api.release(buffer)
 
 
 def _program(api, context, system, node):

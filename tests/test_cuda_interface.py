@@ -563,6 +563,17 @@ def test_a_non_blocking_upload_does_not_overwrite_its_pinned_array_too_early(fak
     up.free_memory()
 
 
+class _Add(cuda.KernelComponent):
+    """A component of the fake driver's 'add' kernel: dst = src + value."""
+
+    function = "add"
+    inputs = (("src", np.uint8),)
+    outputs = (("dst", np.uint8),)
+
+    def output_sizes(self, src):
+        return [Size(*src)]
+
+
 @pytest.mark.parametrize("staging", ["pageable", "pinned"])
 def test_a_kernel_component_between_adapters(fake, staging):
     """The neutral KernelComponent on the CUDA interface: arguments packed once per set,
@@ -570,16 +581,8 @@ def test_a_kernel_component_between_adapters(fake, staging):
     context, queue = _context_queue()
     program = cuda.build_program(context, _kernel_file(fake), "adder (Add)")
 
-    class Add(cuda.KernelComponent):
-        function = "add"
-        inputs = (("src", np.uint8),)
-        outputs = (("dst", np.uint8),)
-
-        def output_sizes(self, src):
-            return [Size(*src)]
-
     up = cuda.CpuToGpuAdapter(context, queue, 12, blocking=False, staging=staging)
-    add = Add(context, queue, program, buffer_sets=2)
+    add = _Add(context, queue, program, buffer_sets=2)
     down = cuda.GpuToCpuAdapter(context, queue, 12, staging=staging)
     size = up.initialize(Size(3, 4, 1), np.uint8)
     down.initialize(add.initialize(size), np.uint8)
@@ -600,15 +603,7 @@ def test_a_standard_kernel_component_copies_its_own_data(fake):
     context, queue = _context_queue(profile=True)
     program = cuda.build_program(context, _kernel_file(fake), "adder (Add)")
 
-    class Add(cuda.KernelComponent):
-        function = "add"
-        inputs = (("src", np.uint8),)
-        outputs = (("dst", np.uint8),)
-
-        def output_sizes(self, src):
-            return [Size(*src)]
-
-    add = Add(context, queue, program, copies_own_data=True)
+    add = _Add(context, queue, program, copies_own_data=True)
     add.initialize(Size(2, 3, 1))
     add.config_gpu(1, (1, 1, 1), (6, 1, 1), ["src", "dst", np.int32(6), np.int32(250)])
     host = np.arange(6, dtype=np.uint8).reshape(2, 3)
@@ -753,6 +748,28 @@ def test_the_generated_cuda_program_runs_on_the_fake_driver(fake, options, tmp_p
     del result, sink
     gc.collect()
     assert not fake.memory and not fake.registered
+
+
+def test_tune_measures_on_the_cuda_device_the_model_names(fake, tmp_path, monkeypatch):
+    """platform.backend: cuda and no --backend: tune times every mirror's kernel and the
+    group the fuse pass chose on the (fake) CUDA device, through the device interface."""
+    from gpucompgen.tune import tune
+
+    for name in ("mirror1_to_mirror5", *(f"mirror{i}" for i in range(1, 6))):
+        monkeypatch.setitem(KERNELS, name, (_flip, [ctypes.c_uint64, ctypes.c_uint64,
+                                                    ctypes.c_int32]))
+    model = tmp_path / "mirror_chain.yaml"
+    model.write_text((ROOT / "models" / "mirror_chain.yaml").read_text()
+                     + "platform:\n  backend: cuda\n")
+    groups: list = []
+    text, rows = tune(model, frames=2, groups_out=groups)
+    assert "on the CUDA device" in text and 'device: "Fake Orin"' in text
+    assert [r[0] for r in rows] == [f"mirror{i}" for i in range(1, 6)]
+    assert all(gpu_us > 0 for *_, gpu_us in rows)
+    assert [g[1] for g in groups] == [[f"mirror{i}" for i in range(1, 6)]]
+    assert any(launch[0] == "mirror1_to_mirror5" for launch in fake.launches)
+    gc.collect()
+    assert not fake.memory
 
 
 def _kernel_file(fake) -> Path:
