@@ -712,13 +712,23 @@ def test_a_frame_kept_past_free_memory_keeps_its_pinned_memory(fake):
     assert not fake.memory
 
 
-def _flip(driver, src, dst, tile, rows=864, row_bytes=1152 * 3):
-    """VerticalMirror (and a chain of five: the same) on mirror_chain's frames."""
+def _mirror_kernels(monkeypatch) -> None:
+    """mirror_chain's kernels on the fake driver: each mirror, and the five fused."""
+    import functools
+
+    for name, times in (("mirror1_to_mirror5", 5), *((f"mirror{i}", 1) for i in range(1, 6))):
+        monkeypatch.setitem(KERNELS, name, (functools.partial(_flip, times=times),
+                                            [ctypes.c_uint64, ctypes.c_uint64,
+                                             ctypes.c_int32]))
+
+
+def _flip(driver, src, dst, tile, rows=864, row_bytes=1152 * 3, times=1):
+    """VerticalMirror `times` over (a fused chain) on mirror_chain's frames."""
     for address in (src, dst):
         driver._live(address, rows * row_bytes)
     a = np.ctypeslib.as_array((ctypes.c_uint8 * (rows * row_bytes)).from_address(src))
     b = np.ctypeslib.as_array((ctypes.c_uint8 * (rows * row_bytes)).from_address(dst))
-    b.reshape(rows, row_bytes)[:] = a.reshape(rows, row_bytes)[::-1]
+    b.reshape(rows, row_bytes)[:] = a.reshape(rows, row_bytes)[::(-1) ** times]
 
 
 @pytest.mark.parametrize("options", [
@@ -734,9 +744,7 @@ def test_the_generated_cuda_program_runs_on_the_fake_driver(fake, options, tmp_p
     from gpucompgen.library.still_image import still_frame
     from gpucompgen.runtime import Monitor, load_module
 
-    for name in ("mirror1_to_mirror5", *(f"mirror{i}" for i in range(1, 6))):
-        monkeypatch.setitem(KERNELS, name, (_flip, [ctypes.c_uint64, ctypes.c_uint64,
-                                                    ctypes.c_int32]))
+    _mirror_kernels(monkeypatch)
     out = tmp_path / "out"
     write(compile_model(ROOT / "models" / "mirror_chain.yaml", out, backend="cuda",
                         **options), out)
@@ -755,9 +763,7 @@ def test_tune_measures_on_the_cuda_device_the_model_names(fake, tmp_path, monkey
     group the fuse pass chose on the (fake) CUDA device, through the device interface."""
     from gpucompgen.tune import tune
 
-    for name in ("mirror1_to_mirror5", *(f"mirror{i}" for i in range(1, 6))):
-        monkeypatch.setitem(KERNELS, name, (_flip, [ctypes.c_uint64, ctypes.c_uint64,
-                                                    ctypes.c_int32]))
+    _mirror_kernels(monkeypatch)
     model = tmp_path / "mirror_chain.yaml"
     model.write_text((ROOT / "models" / "mirror_chain.yaml").read_text()
                      + "platform:\n  backend: cuda\n")
@@ -770,6 +776,29 @@ def test_tune_measures_on_the_cuda_device_the_model_names(fake, tmp_path, monkey
     assert any(launch[0] == "mirror1_to_mirror5" for launch in fake.launches)
     gc.collect()
     assert not fake.memory
+
+
+def test_bench_runs_every_variant_on_the_cuda_device(fake, tmp_path, monkeypatch):
+    """gpucompgen bench --backend cuda on the (fake) CUDA device: the generated chains
+    (standard, GPU-aware, zero-copy, fused), the hand-written loop and the copy bound, each
+    output checked against the flipped image, the table naming the CUDA device."""
+    import functools
+
+    from gpucompgen.cli import main
+
+    for name, times in (("vertical_mirror", 1), ("mirror1", 1), ("mirror2", 1),
+                        ("mirror1_mirror2", 2)):  # a frame of 512x384
+        flip = functools.partial(_flip, rows=384, row_bytes=512 * 3, times=times)
+        monkeypatch.setitem(KERNELS, name, (flip, [ctypes.c_uint64, ctypes.c_uint64,
+                                                   ctypes.c_int32]))
+    monkeypatch.chdir(tmp_path)
+    # 512x384: the copy bound's ring of 64 MiB is 114 buffers (at 64x48 it is 7,282)
+    assert main(["bench", "--backend", "cuda", "--sizes", "512x384", "--lengths", "2",
+                 "--frames", "4", "--no-opencv", "-o", "out"]) == 0
+    table = (tmp_path / "out" / "bench.csv").read_text()
+    for variant in ("standard", "gpu-aware", "zero-copy", "fused", "hand-written", "bound"):
+        assert f",2,{variant}," in table
+    assert any(launch[0] == "mirror1_mirror2" for launch in fake.launches)
 
 
 def _kernel_file(fake) -> Path:
