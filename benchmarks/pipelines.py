@@ -256,7 +256,8 @@ def main(argv=None) -> int:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     print(machine())
-    print(f"{args.backend} device: {api.device_name(api.context_device(context))}; "
+    label = {"opencl": "OpenCL", "cuda": "CUDA"}[args.backend]
+    print(f"{label} device: {api.device_name(api.context_device(context))}; "
           f"cv2 {cv2.__version__}, {cv2.getNumThreads()} threads; {halide_note()}")
     print(f"load average before: {load()}")
     programs, frames_of, placed = {}, {}, []
