@@ -300,7 +300,7 @@ class CudaQueue:
     def wait_for(self, events) -> None:
         cu = _driver()
         for event in events or ():
-            if isinstance(event, CudaEvent) and event.end is not None:
+            if isinstance(event, CudaEvent):
                 _ok(cu.cuStreamWaitEvent(self.handle, event.end, 0), "stream wait")
 
     def command(self, wait_for=None) -> CudaEvent:
@@ -369,8 +369,6 @@ class CudaEvent:
         return self
 
     def wait(self) -> None:
-        if self.end is None:  # released: its command was waited for before
-            return
         self.queue.context.current()
         _ok(_driver().cuEventSynchronize(self.end), "event wait")
         self.keep = None
@@ -387,13 +385,6 @@ class CudaEvent:
         start = _ok(elapsed(origin, self.start), "event time")
         end = _ok(elapsed(origin, self.end), "event time")
         return _Times(int(start * 1e6), int(end * 1e6))
-
-    def release(self) -> None:
-        cu = _driver()
-        for e in (self.start, self.end):
-            if e is not None:
-                cu.cuEventDestroy(e)
-        self.start = self.end = None
 
 
 EVENT_RING = 256  # events a queue reuses in turn (a command's is reused 256 commands on)
@@ -458,7 +449,6 @@ class DeviceBuffer:
     def __init__(self, size: int, mapped: bool = False):
         cu = _driver()
         self.size = size
-        self.host = None
         self._host_ptr = 0
         self._memory: _HostMemory | None = None
         if mapped:
@@ -477,7 +467,7 @@ class DeviceBuffer:
     def release(self) -> None:
         if self._memory is None and self.ptr:
             _driver().cuMemFree(self.ptr)
-        self._memory = self.host = None  # mapped: freed with the last view of it
+        self._memory = None  # mapped: freed with the last view of it
         self.ptr = self._host_ptr = 0
 
 
@@ -844,7 +834,7 @@ def event_seconds(event: CudaEvent) -> float:
 def is_running(event: CudaEvent) -> bool:
     """Whether the command of this event is not done yet (CUDA does not tell queued from
     running: both are 'not ready')."""
-    if event is None or getattr(event, "end", None) is None:
+    if not isinstance(event, CudaEvent):
         return False
     with contextlib.suppress(Exception):  # no driver, a foreign event: nothing to say
         err = _driver().cuEventQuery(event.end)
