@@ -516,6 +516,8 @@ def test_copies_both_ways_and_between_buffers(fake):
         cuda.copy(queue, a, np.zeros((4, 8), np.uint8)[:, ::2])
     with pytest.raises(PipelineError, match="32 bytes into or out of a buffer of 16"):
         cuda.copy(queue, a, np.zeros(32, np.uint8))
+    with pytest.raises(PipelineError, match="two host arrays"):
+        cuda.copy(queue, out, host)
     for buffer in (a, b, filled):
         cuda.release(buffer)
     assert not fake.memory

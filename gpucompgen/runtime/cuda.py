@@ -581,23 +581,22 @@ def copy(queue: CudaQueue, dst, src, blocking: bool = True, wait_for=None) -> Cu
     host array alive (the event's keep) until the queue's ring reuses the event, which
     waits for it first.  The host array must be C-contiguous; its bytes are copied."""
     cu = _driver()
+    host = src if _is_host(src) else dst if _is_host(dst) else None
+    if host is not None:
+        if _is_host(src) and _is_host(dst):
+            raise PipelineError("copy between two host arrays: use numpy")
+        _check_copy(host, dst if host is src else src)
     event = queue.command(wait_for)
-    if _is_host(src) and not _is_host(dst):
-        _check_copy(src, dst)
-        _ok(cu.cuMemcpyHtoDAsync(dst.ptr, _address(src), src.nbytes, queue.handle),
-            "copy to the device")
-        host = src
-    elif _is_host(dst) and not _is_host(src):
-        _check_copy(dst, src)
-        _ok(cu.cuMemcpyDtoHAsync(_address(dst), src.ptr, dst.nbytes, queue.handle),
-            "copy to the host")
-        host = dst
-    elif not _is_host(src) and not _is_host(dst):
+    if host is None:
         _ok(cu.cuMemcpyDtoDAsync(dst.ptr, src.ptr, min(src.size, dst.size), queue.handle),
             "copy between device buffers")
-        host, blocking = None, False
+        blocking = False
+    elif host is src:
+        _ok(cu.cuMemcpyHtoDAsync(dst.ptr, _address(src), src.nbytes, queue.handle),
+            "copy to the device")
     else:
-        raise PipelineError("copy between two host arrays: use numpy")
+        _ok(cu.cuMemcpyDtoHAsync(_address(dst), src.ptr, dst.nbytes, queue.handle),
+            "copy to the host")
     event.after()
     if blocking:
         event.wait()
