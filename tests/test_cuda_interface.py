@@ -466,6 +466,7 @@ KERNELS = {"add": (_add, [ctypes.c_uint64, ctypes.c_uint64, ctypes.c_int32,
 def fake(monkeypatch, tmp_path):
     """The CUDA module on a FakeDriver (kernel files 'compile' to a fake cubin)."""
     driver = FakeDriver()
+    driver.folder = tmp_path  # where _kernel_file writes
     monkeypatch.setattr(cuda, "_driver", lambda: driver)
     monkeypatch.setattr(cuda, "_initialized", False)
     monkeypatch.setattr(cuda, "nvrtc_version", lambda: (12, 9))
@@ -805,9 +806,7 @@ def test_bench_runs_every_variant_on_the_cuda_device(fake, tmp_path, monkeypatch
 
 def _kernel_file(fake) -> Path:
     """A kernel file for build_program (the fake's compile_cubin does not read it)."""
-    import tempfile
-
-    path = Path(tempfile.mkdtemp(prefix="gpucompgen-fake-")) / "add.cu"
+    path = fake.folder / "add.cu"
     path.write_text('extern "C" __global__ void add() {}\n')
     return path
 
