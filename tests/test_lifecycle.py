@@ -17,8 +17,8 @@ from types import SimpleNamespace
 import pytest
 from conftest import ROOT, load_generated, require_opencl
 
-from gpucompgen.build import compile_model, write
 from gpucompgen import runtime
+from gpucompgen.build import compile_model, write
 from gpucompgen.runtime import Monitor, PipelineError, check_device_memory, free_all
 
 DATA = ROOT / "tests" / "data"
@@ -405,7 +405,7 @@ def _session_run(fail_b, frames_before=1):
                 session.frame_done()
             b.fail = fail_b
             b.execute()
-    except BaseException as exc:  # noqa: BLE001 - what run() lets out is the result
+    except BaseException as exc:
         return exc, freed, monitor
     return None, freed, monitor
 
