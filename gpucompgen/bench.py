@@ -148,7 +148,7 @@ class Generated:
         zero_copy = "on" if "zero-copy" in variant else "off"
         # every variant but the fused ones runs one kernel per mirror, as in the paper
         fusion = "auto" if "fused" in variant else "off"
-        write(compile_model(model, out, mode, zero_copy=zero_copy, fusion=fusion), out)
+        write(compile_model(model, out, mode=mode, zero_copy=zero_copy, fusion=fusion), out)
         name = f"gpucompgen_bench_{variant.replace('-', '_')}_{n}_{size[0]}x{size[1]}"
         self.module = load_module(out / f"mirror_chain_{n}.py", name)
         self.context, self.n = context, n
