@@ -152,7 +152,7 @@ class Generated:
         # every variant but the fused ones runs one kernel per mirror, as in the paper
         fusion = "auto" if "fused" in variant else "off"
         backend = device_api.name_of(device_api.of(context))  # the context's device API
-        write(compile_model(model, out, mode, zero_copy=zero_copy, fusion=fusion,
+        write(compile_model(model, out, mode=mode, zero_copy=zero_copy, fusion=fusion,
                             backend=backend), out)
         name = f"gpucompgen_bench_{variant.replace('-', '_')}_{n}_{size[0]}x{size[1]}"
         self.module = load_module(out / f"mirror_chain_{n}.py", name)

@@ -14,15 +14,16 @@ import shutil
 import stat
 import tempfile
 import time
-from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from . import device as device_mod
 from .backend import device_query, renderer
 from .errors import Diagnostic, OutputError, Reporter
 from .ir import MODES, System
 from .model import SystemModel, load_system
+from .options import BuildOptions, build_options
 from .output import HEADER_PREFIX, OutputFile, source_path
 from .passes import run_passes
 from .passes.lower import lib_dir_name
@@ -35,42 +36,29 @@ class BuildResult:
     warnings: list[Diagnostic]
 
 
-def compile_model(model_path: Path, out_dir: Path, mode: str = "gpu-aware",
-                  device: str | None = None, dump: Callable[[str], None] | None = None,
-                  display: str | None = None, execution: str | None = None,
-                  zero_copy: str | None = None, verify: bool | None = None,
-                  places: dict[str, str] | None = None, frames_in_flight: int | None = None,
-                  staging: str | None = None, fusion: str | None = None,
-                  compile_kernels: bool = False, backend: str | None = None) -> BuildResult:
+def compile_model(model_path: Path, out_dir: Path, options: BuildOptions | None = None,
+                  **overrides: Any) -> BuildResult:
     """Everything but writing: raises GpucompgenError with all problems found.
 
-    execution ("parallel" | "sequential") and zero_copy ("auto" | "on" | "off") override
-    the model's platform.execution and platform.zero_copy, fusion ("auto" | "off") its
-    platform.fusion, frames_in_flight (1 or more) and staging ("auto" | "pinned" |
-    "pageable") its platform.frames_in_flight and platform.staging; None keeps the model's.
-    places (--place COMPONENT=gpu|cpu|auto) overrides flexible components' placements.
-    compile_kernels (check, build, plan with --device auto): every kernel file of the user's
-    that the model names is built on that device, fused or not, and what its compiler says
-    is reported with the model's problems.
-    backend ("opencl" | "cuda") overrides platform.backend: the printer (gpucompgen.backend).
-    verify: check the IR's invariants after every pass (--debug; the test suite sets
-    GPUCOMPGEN_VERIFY=1 so that None verifies there too).
+    options (gpucompgen.options.BuildOptions: mode, device, backend, the platform settings
+    the command line overrides, placements, kernel compilation, verification, dumps), with
+    the fields given as keywords replaced: ``compile_model(path, out, fusion="off")``.
     """
-    if mode not in MODES:
-        raise ValueError(mode)
-    model = load_system(model_path, display)
-    backend = backend if backend is not None else model.backend
+    options = build_options(options, **overrides)
+    if options.mode not in MODES:
+        raise ValueError(options.mode)
+    model = load_system(model_path, options.display)
+    backend = options.backend if options.backend is not None else model.backend
     rep = Reporter()
-    spec = device if device is not None else model.device
+    spec = options.device if options.device is not None else model.device
     facts = device_mod.resolve(spec, model.device_pos, rep,
-                               model.device_positions if device is None else None,
+                               model.device_positions if options.device is None else None,
                                query=device_query(backend))
-    if compile_kernels and spec == "auto" and not rep.has_errors \
+    if options.compile_kernels and spec == "auto" and not rep.has_errors \
             and backend == "opencl":
         compile_on_device(model, rep)
     rep.raise_if_errors()
-    system, warnings = run_passes(model, facts, mode, dump, execution, zero_copy, verify,
-                                  places, frames_in_flight, staging, fusion)
+    system, warnings = run_passes(model, facts, options)
     model_dir = Path(os.path.relpath(model_path.resolve().parent, out_dir.resolve())).as_posix()
     files = renderer(backend)(system, source_path(model_path, out_dir), model_dir)
     _must_compile(files[0])

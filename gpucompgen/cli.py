@@ -336,20 +336,22 @@ def _counts(errors: int, warnings: int) -> str:
 
 def _compile(args, out_dir: Path):
     from .build import compile_model
+    from .options import BuildOptions
 
     dump = None
     if getattr(args, "print_between_passes", False):
         def dump(text):
             print(text, file=sys.stderr)
-    result = compile_model(args.model, out_dir, args.mode, args.device, dump,
-                           execution=args.execution, zero_copy=args.zero_copy,
-                           frames_in_flight=args.frames_in_flight, staging=args.staging,
-                           verify=True if args.debug else None, places=places(args),
-                           fusion=getattr(args, "fusion", None),
-                           # planned for the device at hand: its compiler checks every
-                           # kernel file (the programs run and replay start build them)
-                           compile_kernels=args.command in ("check", "build", "plan"),
-                           backend=getattr(args, "backend", None))
+    options = BuildOptions(
+        mode=args.mode, device=args.device, dump=dump, execution=args.execution,
+        zero_copy=args.zero_copy, frames_in_flight=args.frames_in_flight, staging=args.staging,
+        verify=True if args.debug else None, places=places(args),
+        fusion=getattr(args, "fusion", None),
+        # planned for the device at hand: its compiler checks every kernel file (the
+        # programs run and replay start build them)
+        compile_kernels=args.command in ("check", "build", "plan"),
+        backend=getattr(args, "backend", None))
+    result = compile_model(args.model, out_dir, options)
     for w in result.warnings:
         print(w.format(), file=sys.stderr)
     return result

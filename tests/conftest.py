@@ -83,7 +83,7 @@ def build(tmp_path):
 
     def _build(model: Path, mode: str = "gpu-aware", device: str | None = None):
         out = tmp_path / f"out-{mode}"
-        result = compile_model(Path(model), out, mode, device)
+        result = compile_model(Path(model), out, mode=mode, device=device)
         write(result, out)
         return result, out
 

@@ -353,12 +353,6 @@ MAX_FUNCTION_LINES = 80  # def line to last line, decorators and docstring inclu
 # Functions over the limit today, each with why it is still long.  Remove an entry when its
 # function is split; never add one for new code.
 KNOWN_LONG = {
-    ("model.py", "_load_type"):
-        "the component-type loader; being split into one loader per section (issue 26's "
-        "type-system work edits it now)",
-    ("model.py", "load_system"):
-        "the model loader; becomes model/ as a package with one loader per section (issue "
-        "23), after the concurrent type-system and array-parameter edits land",
     ("backend/opencl/fused.py", "_kernel"):
         "the fused-kernel printer; the kernel-generator work (issue 24) is rewriting it",
 }

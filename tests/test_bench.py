@@ -86,7 +86,7 @@ def test_chain_model_is_a_valid_system(tmp_path):
     assert result.system.order == ["source", "adapter1_cpu2gpu", "mirror1", "mirror2",
                                    "mirror3", "adapter2_gpu2cpu", "sink"]
     assert [a.direction for a in result.system.adapters] == ["cpu2gpu", "gpu2cpu"]
-    standard = compile_model(model, tmp_path / "out", "standard")
+    standard = compile_model(model, tmp_path / "out", mode="standard")
     assert standard.system.adapters == []
 
 

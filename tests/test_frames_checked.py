@@ -88,7 +88,7 @@ def test_standard_mode_checks_the_frame_a_gpu_component_copies_itself(tmp_path, 
 
     path.write_text(textwrap.dedent(model(fault, "gpu")), encoding="utf-8")
     out = tmp_path / "std"
-    write(compile_model(path, out, "standard"), out)
+    write(compile_model(path, out, mode="standard"), out)
     assert_reported(run_program(out / "frame_checks.py"), fault)
 
 
@@ -167,7 +167,7 @@ def test_one_channel_frames_as_height_width_1_run_through(tmp_path, variant):
         """), encoding="utf-8")
     out = tmp_path / "out"
     mode = "standard" if variant == "standard" else "gpu-aware"
-    write(compile_model(path, out, mode, fusion="off"), out)
+    write(compile_model(path, out, mode=mode, fusion="off"), out)
     proc = run_program(out / "deep_gray.py")
     assert proc.returncode == 0, proc.stderr
     got = np.load(record)

@@ -157,7 +157,7 @@ def test_plan_and_check_name_groups_and_why_edges_stay_unfused(tmp_path):
     assert "fusion: off, 0 groups" in out
     assert "not fused: m2.dst -> b1.src: fusion off (--fusion)" in out
     assert "not fused: op.out -> m4.src: placed on the CPU" in out
-    standard = compile_model(model, tmp_path / "std", "standard").system.plan
+    standard = compile_model(model, tmp_path / "std", mode="standard").system.plan
     assert dict(standard.unfused)["m2.dst -> b1.src"] == \
         "fusion off (standard mode: one kernel per component)"
 

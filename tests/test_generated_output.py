@@ -59,7 +59,7 @@ def test_build_writes_each_file_once(tmp_path):
 
 def _run(tmp_path: Path, model: str, mode: str, zero_copy: str, frames: int):
     out = tmp_path / f"{model}-{mode}-{zero_copy}"
-    result = compile_model(MULTI / f"{model}.yaml", out, mode, device="pocl-cpu",
+    result = compile_model(MULTI / f"{model}.yaml", out, mode=mode, device="pocl-cpu",
                            zero_copy=zero_copy)
     write(result, out)
     module = load_generated(out / f"{model}.py", f"{model}_{mode}_{zero_copy}")

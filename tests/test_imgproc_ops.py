@@ -537,7 +537,7 @@ def program_outputs(tmp_path_factory, cl_context):
         model = folder / f"ops_{variant}.yaml"
         model.write_text(chain_model("ops_all", CHAIN, placement))
         out = folder / f"out_{variant}"
-        built = compile_model(model, out, "gpu-aware", None, places=places, fusion=fusion)
+        built = compile_model(model, out, places=places, fusion=fusion)
         write(built, out)
         placed = {n: built.system.component(n).placement for n in CHAIN}
         assert placed == (places or dict.fromkeys(CHAIN, placement))
@@ -715,7 +715,7 @@ def test_cpu_side_types_in_a_generated_program_equal_opencv(tmp_path, cl_context
     write_keep_types(tmp_path)
     model = tmp_path / "features_all.yaml"
     model.write_text(chain_model("features_all", FEATURES))
-    built = compile_model(model, tmp_path / "out", "gpu-aware", None)
+    built = compile_model(model, tmp_path / "out")
     write(built, tmp_path / "out")
     program = load_generated(tmp_path / "out" / "features_all.py", "features_all")
     result = program.run(frames=FRAMES, context=cl_context)
@@ -741,7 +741,7 @@ def test_example_models_equal_opencv(tmp_path, cl_context, name):
     require_opencl()
     from gpucompgen.build import compile_model, write
 
-    built = compile_model(ROOT / "models" / f"{name}.yaml", tmp_path, "gpu-aware", None)
+    built = compile_model(ROOT / "models" / f"{name}.yaml", tmp_path)
     write(built, tmp_path)
     program = load_generated(tmp_path / f"{name}.py", f"example_{name}")
     result = program.run(frames=FRAMES, context=cl_context)

@@ -123,7 +123,7 @@ def outputs(tmp_path_factory, cl_context):
         model = folder / f"imgproc_{placement}.yaml"
         model.write_text(model_text("gpu" if places else placement))
         out = folder / f"out_{placement}"
-        built = compile_model(model, out, "gpu-aware", None, places=places)
+        built = compile_model(model, out, places=places)
         write(built, out)
         # a lone GPU component of a fusable type is a group of one: component() finds it
         placed[placement] = {n: built.system.component(n).placement for n in CHAIN}

@@ -20,6 +20,7 @@ from gpucompgen import model as model_mod
 from gpucompgen.build import compile_model
 from gpucompgen.errors import GpucompgenError
 from gpucompgen.loader import FileProblem, read_text, starts_with_key
+from gpucompgen.model import types as model_types
 from gpucompgen.names import fold
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -60,7 +61,7 @@ def grown_library(monkeypatch):
             if fold(name) not in folded:
                 folded.add(fold(name))
                 library[name] = dataclasses.replace(base, name=name)
-        monkeypatch.setattr(model_mod, "_LIBRARY_CACHE", library)
+        monkeypatch.setattr(model_types, "_LIBRARY_CACHE", library)
     return grow
 
 

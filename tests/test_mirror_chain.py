@@ -50,7 +50,7 @@ def chains(tmp_path_factory, cl_context):
     modules = {}
     for mode in ("gpu-aware", "standard"):
         out = tmp_path_factory.mktemp(mode)
-        write(compile_model(MODEL, out, mode, fusion="off"), out)
+        write(compile_model(MODEL, out, mode=mode, fusion="off"), out)
         modules[mode] = load_generated(out / "mirror_chain.py",
                                        f"mirror_chain_{mode.replace('-', '_')}")
     return modules

@@ -41,6 +41,18 @@ def _wheel_layout(target: Path) -> list[str]:
     return files
 
 
+def test_every_package_is_in_the_wheel():
+    """A package added under gpucompgen/ (model/ was a module once) is listed in
+    pyproject.toml's packages, or the installed tool cannot import it."""
+    tomllib = pytest.importorskip("tomllib")  # Python 3.11+
+    config = tomllib.loads((ROOT / "pyproject.toml").read_text(encoding="utf-8"))
+    listed = set(config["tool"]["setuptools"]["packages"])
+    found = {".".join(p.parent.relative_to(ROOT).parts)
+             for p in (ROOT / "gpucompgen").rglob("__init__.py")}
+    assert "gpucompgen.model" in found
+    assert sorted(found - listed) == []
+
+
 def test_every_template_is_package_data(tmp_path):
     files = _wheel_layout(tmp_path / "site")
     templates = sorted(p.relative_to(ROOT / "templates").as_posix()
@@ -60,7 +72,12 @@ def test_the_installed_layout_renders_the_checked_in_program(tmp_path):
             "import gpucompgen\n"
             f"assert gpucompgen.__file__.startswith({str(site)!r}), gpucompgen.__file__\n"
             "from gpucompgen.cli import main\n"
-            "sys.exit(main(['build', 'models/vision_system.yaml', '-o', 'generated']))\n")
+            "rc = main(['build', 'models/vision_system.yaml', '-o', 'generated'])\n"
+            # an editable install's finder would serve a module the layout lacks
+            "elsewhere = sorted(n for n, m in sys.modules.items() if n.startswith('gpucompgen')"
+            f" and not (getattr(m, '__file__', None) or {str(site)!r}).startswith({str(site)!r}))\n"
+            "assert not elsewhere, f'imported from outside the wheel: {elsewhere}'\n"
+            "sys.exit(rc)\n")
     # -I: neither PYTHONPATH nor the working directory puts the checkout on the path
     done = subprocess.run([sys.executable, "-I", "-c", code], cwd=work, capture_output=True,
                           text=True, timeout=300)

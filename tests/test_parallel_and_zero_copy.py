@@ -338,7 +338,7 @@ def test_memory_check_counts_what_the_plan_says_is_on_the_device(tmp_path, model
     from gpucompgen.build import compile_model
     from gpucompgen.plan import plan_lines
 
-    result = compile_model(model, tmp_path, mode, zero_copy=zero_copy, fusion="off")
+    result = compile_model(model, tmp_path, mode=mode, zero_copy=zero_copy, fusion="off")
     plan = result.system.plan
     text = "\n".join(plan_lines(plan))
     peak = int(re.search(r"peak device memory: ([\d,]+) bytes", text).group(1).replace(",", ""))

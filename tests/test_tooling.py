@@ -67,7 +67,7 @@ def test_generated_code_passes_ruff(tmp_path):
     for model in systems:
         for mode, zero_copy in (("gpu-aware", "off"), ("gpu-aware", "on"), ("standard", "off")):
             target = out / f"{model.stem}-{mode}-{zero_copy}"
-            write(compile_model(model, target, mode, zero_copy=zero_copy), target)
+            write(compile_model(model, target, mode=mode, zero_copy=zero_copy), target)
     assert len(list(out.glob("*/*.py"))) == 3 * len(systems)
     for target in (ROOT / "generated", out):
         # the project's ruff settings, plus pycodestyle warnings (trailing whitespace)
@@ -102,7 +102,7 @@ def test_graph_shows_the_three_generated_adapters_and_sizes():
     assert '"merger" [label="merger\\nImageMerger\\nGPU-aware", peripheries=2' in text
     assert text == dot_text(compile_model(VISION, ROOT / "generated").system)
 
-    standard = dot_text(compile_model(VISION, ROOT / "generated", "standard").system)
+    standard = dot_text(compile_model(VISION, ROOT / "generated", mode="standard").system)
     assert "adapter" not in standard and "[GPU]" not in standard
     assert '"camera1" -> "merger" [label="480x640x3 uint8"' in standard
 

@@ -9,10 +9,12 @@ from __future__ import annotations
 import fnmatch
 import os
 from collections.abc import Callable
+from typing import Any
 
 from ..errors import GpucompgenError, Reporter, UsageError, did_you_mean
 from ..ir import MODES, System, build_system
 from ..model import EXECUTIONS, FUSION, STAGING, ZERO_COPY, SystemModel
+from ..options import BuildOptions, build_options
 from ..runtime.facts import DeviceFacts
 from .allocate_gpu import AllocateGpu
 from .assign_queues import AssignQueues
@@ -34,31 +36,30 @@ PIPELINE: tuple[Pass, ...] = (CheckConnections(), ResolveTypes(), CheckPortTypes
                              NameVariables(), AssignQueues(), StageFrames(), Lower())
 
 
-def new_system(model: SystemModel, device: DeviceFacts, mode: str = "gpu-aware",
-               execution: str | None = None, zero_copy: str | None = None,
-               places: dict[str, str] | None = None, frames_in_flight: int | None = None,
-               staging: str | None = None, fusion: str | None = None) -> System:
+def new_system(model: SystemModel, device: DeviceFacts, options: BuildOptions | None = None,
+               **overrides: Any) -> System:
     """The IR of a model with its platform decisions (mode, execution, zero-copy, fusion,
     frames in flight, staging) taken.
 
-    execution ("parallel" | "sequential"), zero_copy ("auto" | "on" | "off"), fusion
-    ("auto" | "off"), frames_in_flight (1 or more) and staging ("auto" | "pinned" |
-    "pageable") override the model's platform settings (the command line's --execution,
-    --zero-copy, --fusion, --frames-in-flight and --staging); places (--place
-    COMPONENT=gpu|cpu) overrides flexible components' placements and raises UsageError for
-    an unknown component or one whose type cannot run on that side.
+    options (with the fields given as keywords replaced): execution, zero_copy, fusion,
+    frames_in_flight and staging override the model's platform settings (the command
+    line's --execution, --zero-copy, --fusion, --frames-in-flight and --staging); places
+    (--place COMPONENT=gpu|cpu) overrides flexible components' placements and raises
+    UsageError for an unknown component or one whose type cannot run on that side.
     """
-    execution = execution or model.execution
-    zero_copy = zero_copy or model.zero_copy
-    staging = staging or model.staging
-    frames_in_flight = frames_in_flight or model.frames_in_flight
+    options = build_options(options, **overrides)
+    mode, fusion = options.mode, options.fusion
+    execution = options.execution or model.execution
+    zero_copy = options.zero_copy or model.zero_copy
+    staging = options.staging or model.staging
+    frames_in_flight = options.frames_in_flight or model.frames_in_flight
     if (mode not in MODES or execution not in EXECUTIONS or zero_copy not in ZERO_COPY
             or staging not in STAGING or frames_in_flight < 1
             or (fusion or "auto") not in FUSION):
         raise ValueError(f"mode {mode!r}, execution {execution!r}, zero_copy {zero_copy!r}, "
                          f"staging {staging!r}, frames_in_flight {frames_in_flight!r}, "
                          f"fusion {fusion!r}")
-    places = check_places(model, places or {})
+    places = check_places(model, options.places or {})
     system = build_system(model, device, mode,
                           "sequential" if mode == "standard" else execution, places)
     if mode == "standard":
@@ -157,14 +158,13 @@ def run_pipeline(system: System, passes: tuple[Pass, ...] = PIPELINE,
     return system, sorted(rep.warnings + loaded)
 
 
-def run_passes(model: SystemModel, device: DeviceFacts, mode: str = "gpu-aware",
-               dump: Callable[[str], None] | None = None, execution: str | None = None,
-               zero_copy: str | None = None, verify: bool | None = None,
-               places: dict[str, str] | None = None, frames_in_flight: int | None = None,
-               staging: str | None = None, fusion: str | None = None) -> tuple[System, list]:
-    """Build the IR of a model and run every pass on it."""
-    return run_pipeline(new_system(model, device, mode, execution, zero_copy, places,
-                                   frames_in_flight, staging, fusion), PIPELINE, dump, verify)
+def run_passes(model: SystemModel, device: DeviceFacts, options: BuildOptions | None = None,
+               **overrides: Any) -> tuple[System, list]:
+    """Build the IR of a model and run every pass on it (options as for new_system; their
+    dump and verify go to run_pipeline)."""
+    options = build_options(options, **overrides)
+    return run_pipeline(new_system(model, device, options), PIPELINE, options.dump,
+                        options.verify)
 
 
 def passes_names() -> list[str]:

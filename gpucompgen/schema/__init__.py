@@ -1,6 +1,6 @@
 """JSON Schemas of gpucompgen's YAML files, for editors (yaml-language-server) and tools.
 
-The loader (model.py) is what decides; these schemas describe the same language so an
+The loader (model/) is what decides; these schemas describe the same language so an
 editor can flag problems while typing.  They are generated from the loader's own key
 tables and enums by generate.py (``python -m gpucompgen.schema.generate --write``), and
 tests/test_schema.py checks that the checked-in files are what it generates.

@@ -2,7 +2,7 @@
 
 The keys of every mapping, the enums (kinds, element types, memories, parameter types,
 device profiles, executions, ...), the name pattern, the device fact ranges and the size
-limits come from model.py, device.py, names.py and sizeexpr.py; this module only adds
+limits come from model/, device.py, names.py and sizeexpr.py; this module only adds
 the JSON type and a description per key.  Every mapping is built with :func:`_object`,
 which refuses a key table and a set of fragments that differ, so a key added to the
 loader cannot be forgotten here.
