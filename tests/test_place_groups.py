@@ -161,7 +161,7 @@ def test_an_explicit_placement_is_never_weighed(tmp_path, costs):
     assert not system.placement.chains
 
 
-def _profile(fused_us: float, apart_us: float, sizes: str) -> str:
+def _profile(fused_us: float, apart_us: float, sizes: str, thr_gpu_us: float = 80) -> str:
     # a group measured slower is refused, and tune measures the next groups the fuse pass
     # then chooses: thr+scale, then gray+thr (here slower too)
     smaller = ("\n          thr_scale: {members: [thr, scale], fused_us: 270, apart_us: 260}"
@@ -171,7 +171,7 @@ def _profile(fused_us: float, apart_us: float, sizes: str) -> str:
         transfer: {{latency_us: 10, bandwidth_mb_s: 5000}}
         components:
           gray: {{cpu_us: 300, gpu_us: 320}}
-          thr: {{cpu_us: 60, gpu_us: 80}}
+          thr: {{cpu_us: 60, gpu_us: {thr_gpu_us}}}
           scale: {{cpu_us: 160, gpu_us: 180}}
         groups:
           gray_thr_scale: {{members: [gray, thr, scale], sizes: "{sizes}", fused_us: {fused_us}, apart_us: {apart_us}}}{smaller}
@@ -200,6 +200,17 @@ def test_tunes_measurement_of_the_group_replaces_the_estimate(tmp_path, fused_us
         assert system.placement.estimate_s == pytest.approx(520e-6)
         assert system.groups == []
         assert "chain gray, thr, scale: on the CPU" in lines
+
+
+def test_a_measured_group_is_its_own_time_not_its_members_times_its_ratio(tmp_path):
+    """A burst of load caught thr's timing alone (3 ms); the group, timed with its
+    members apart in turn, took 0.3 ms: the chain's device figure is the group's time
+    (+ two crossings), not the ratio times its members' (3.5 ms x 300/580)."""
+    sizes = "720x1280x3 -> 720x1280x1"
+    system = _passes(_model(tmp_path, 1280, 720,
+                            profile=_profile(300, 580, sizes, thr_gpu_us=3000)))
+    assert _sides(system) == dict.fromkeys(CHAIN, "gpu")
+    assert system.placement.estimate_s == pytest.approx(320e-6)
 
 
 def test_a_group_alone_on_the_device_when_the_rest_of_its_chain_is_cheaper_on_the_cpu(

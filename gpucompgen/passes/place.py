@@ -306,9 +306,10 @@ class CostModel:
 
     def saving(self, members: list[str]) -> tuple[float, float, float, str]:
         """(seconds a frame the group's one kernel saves over its members' kernels apart,
-        fused_s, apart_s, where the figures come from).  The group takes fused_s / apart_s
-        of its members' GPU times (compute(): the profile's or this estimate's): the
-        ratio tune measured where the profile has the group, else the fusion cost
+        fused_s, apart_s, where the figures come from).  Where tune timed the group and its
+        members (the profile), the group's kernel is its measured time.  Else the group
+        takes fused_s / apart_s of its members' GPU times (compute()): the ratio tune
+        measured where the profile has the group, else the fusion cost
         model's (passes/fuse.py FUSION_COSTS: the intermediate frames neither stored nor
         loaded, launches saved, less what the group computes again) with its fused time
         taken at the model's median error more (its row's 'error'): a gain the estimate
@@ -325,6 +326,11 @@ class CostModel:
                       f"fused taken {1 + error:.2f}x")
         members_s = sum(self._compute[m].gpu_s if m in self._compute else 0.0
                         for m in members)
+        if measured is not None and all(
+                m in self._compute and self._compute[m].source == "profile" for m in members):
+            # the group's own time, timed with its members: not its ratio times theirs,
+            # which would carry a burst of load one member's timing caught
+            return members_s - fused, fused, apart, source
         ratio = min(1.0, fused * (1 + error) / apart) if apart > 0 else 1.0
         return members_s * (1 - ratio), fused, apart, source
 
