@@ -9,6 +9,7 @@ decision, this choice included, and demands the reference's frames.
 
 from __future__ import annotations
 
+import itertools
 import textwrap
 from pathlib import Path
 
@@ -39,7 +40,7 @@ def _model(tmp_path: Path, width: int, height: int, steps: dict[str, str] = CHAI
              "ErodeGray": ("image", "eroded"), "DilateGray": ("image", "dilated")}
     conns = [f"camera.image -> {names[0]}.{ports[steps[names[0]]][0]}"]
     conns += [f"{a}.{ports[steps[a]][1]} -> {b}.{ports[steps[b]][0]}"
-              for a, b in zip(names, names[1:])]
+              for a, b in itertools.pairwise(names)]
     conns.append(f"{names[-1]}.{ports[steps[names[-1]]][1]} -> sink.image")
     platform = ""
     if profile is not None:

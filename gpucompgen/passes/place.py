@@ -122,9 +122,9 @@ class Chain:
         """The chain's decision with its figures, and every group it weighed."""
         inside = {m for g in self.groups for m in g[0] if m in self.members}
         kernels = len(self.groups) + len(self.members) - len(inside)
-        out = [f"chain {', '.join(self.members)}: {self.where}; frame est. "
-               f"{_ms(self.chosen_s)} (with the chain on the CPU {_ms(self.cpu_s)}, on the "
-               f"device {_ms(self.gpu_s)} as {kernels} kernel{'s' * (kernels != 1)})"]
+        out = [(f"chain {', '.join(self.members)}: {self.where}; frame est. "
+                f"{_ms(self.chosen_s)} (with the chain on the CPU {_ms(self.cpu_s)}, on the "
+                f"device {_ms(self.gpu_s)} as {kernels} kernel{'s' * (kernels != 1)})")]
         for members, chosen, saved, fused, apart, source in self.groups:
             verdict = "chosen" if chosen else "refused"
             out.append(f"  group {'+'.join(members)} {verdict}: one kernel saves {_ms(saved)} "
