@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 from conftest import ROOT
-from hypothesis import HealthCheck, given, settings
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from gpucompgen.device import resolve
@@ -240,25 +240,25 @@ def test_a_group_alone_on_the_device_when_the_rest_of_its_chain_is_cheaper_on_th
 TYPES = ("ThresholdGray", "ConvertScaleGray", "ErodeGray", "DilateGray")
 
 
-@settings(max_examples=25, deadline=None, derandomize=True,
-          suppress_health_check=[HealthCheck.function_scoped_fixture])
+@settings(max_examples=25, deadline=None, derandomize=True)
 @given(steps=st.lists(st.sampled_from(TYPES), min_size=1, max_size=5),
        size=st.sampled_from([(16, 16), (320, 180), (1280, 720)]),
        row=st.sampled_from([None, (10e9, 10e9, 100e-6), (2e9, 20e9, 20e-6),
                             (10e9, 10e9, 2e-3)]),
        fusion=st.sampled_from(["auto", "off"]))
 def test_drawn_chains_are_placed_at_the_least_estimate_plan_reports(
-        tmp_path_factory, monkeypatch, steps, size, row, fusion):
+        tmp_path_factory, steps, size, row, fusion):
     """Random chains at random sizes under drawn cost rows: the placement is never
     estimated slower than its chain all on the CPU or all on the device (as its groups),
     the chain's figures are those, and every component's plan line names its chain's
     decision."""
     names = {"gray": "RgbToGray", **{f"s{i}": t for i, t in enumerate(steps)}}
-    if row is not None:
-        monkeypatch.setitem(place_mod.PLACEMENT_COSTS, "cpu", {
-            **place_mod.PLACEMENT_COSTS["cpu"], "cpu_bytes_per_s": row[0],
-            "gpu_bytes_per_s": row[1], "gpu_launch_s": row[2]})
-    system = _passes(_model(tmp_path_factory.mktemp("c"), *size, names), fusion=fusion)
+    with pytest.MonkeyPatch.context() as patch:  # one example's table, not the next's
+        if row is not None:
+            patch.setitem(place_mod.PLACEMENT_COSTS, "cpu", {
+                **place_mod.PLACEMENT_COSTS["cpu"], "cpu_bytes_per_s": row[0],
+                "gpu_bytes_per_s": row[1], "gpu_launch_s": row[2]})
+        system = _passes(_model(tmp_path_factory.mktemp("c"), *size, names), fusion=fusion)
     placement = system.placement
     sides = _sides(system, names)
     assert placement.estimate_s <= min(placement.all_cpu_s, placement.all_gpu_s) + 1e-12
