@@ -2,6 +2,7 @@
 
     python benchmarks/pipelines.py [--sizes 640x360,1280x720] [--rounds 5] [--frames 12]
                                    [--pipelines lanes,colour,edges,motion,pointwise]
+                                   [--backend opencl|cuda]
 
 Each pipeline is a model of library types (benchmarks/pipeline_types/ adds the frame
 source, the sink and the one step the library lacks) and the same steps written as plain
@@ -18,8 +19,9 @@ cv2 calls:
 
 The frames are a pan across a photograph (scikit-image's astronaut, resized; 2 pixels a
 frame, 16 frames replayed), not noise. Every variant is built for the device at hand
-(`--device auto`, as `gpucompgen run` builds: the OpenCL device PYOPENCL_CTX selects, its
-class deciding placement and the fusion cost model's constants). Variants: the default
+(`--device auto`, as `gpucompgen run` builds: the OpenCL device PYOPENCL_CTX selects, or
+with `--backend cuda` the CUDA device CUDA_DEVICE selects, its class deciding placement
+and the fusion cost model's constants). Variants: the default
 build (no placement, no fusion option: placed for the device's class, each chain of
 fusable components weighed whole as the groups it would make on the device; the chains'
 decisions are printed after the table), every component on
@@ -191,12 +193,12 @@ class Variant:
         return deltas, result.components["sink"].kept
 
 
-def tuned(model: Path, frames: int) -> None:
+def tuned(model: Path, frames: int, backend: str = "opencl") -> None:
     """What `gpucompgen tune MODEL` does: measure, write tune/<system>.yaml beside it."""
     from gpucompgen.model import load_system
     from gpucompgen.tune import default_profile_path, tune
 
-    text, _ = tune(model, frames=frames)
+    text, _ = tune(model, frames=frames, backend=backend)
     path = default_profile_path(model, load_system(model))
     path.parent.mkdir(exist_ok=True)
     path.write_text(text)
@@ -232,6 +234,7 @@ def main(argv=None) -> int:
 
     from gpucompgen import runtime
     from gpucompgen.build import compile_model, write
+    from gpucompgen.runtime import device_api
 
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--sizes", default="640x360,1280x720")
@@ -241,17 +244,23 @@ def main(argv=None) -> int:
     parser.add_argument("--variants", default=",".join(VARIANTS))
     parser.add_argument("--tune-frames", type=int, default=5,
                         help="frames tune times each component for 'auto after tune'")
+    parser.add_argument("--backend", choices=device_api.NAMES, default="opencl",
+                        help="build and run every variant for opencl or cuda (default: opencl)")
     args = parser.parse_args(argv)
     sizes = [tuple(int(v) for v in s.split("x")) for s in args.sizes.split(",")]
     names = args.pipelines.split(",")
     variants = args.variants.split(",")
     steps = opencv_steps(cv2, np)
-    context = runtime.create_context()
-    device = context.devices[0]
+    api = device_api.get(args.backend)
+    try:
+        context = api.create_context()
+    except runtime.PipelineError as exc:  # no driver, binding or device: say which
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
     print(machine())
-    print(f"OpenCL device: {device.name.strip()} ({device.platform.name.strip()} "
-          f"{device.platform.version.strip()}); cv2 {cv2.__version__}, "
-          f"{cv2.getNumThreads()} threads; {halide_note()}")
+    label = {"opencl": "OpenCL", "cuda": "CUDA"}[args.backend]
+    print(f"{label} device: {api.device_name(api.context_device(context))}; "
+          f"cv2 {cv2.__version__}, {cv2.getNumThreads()} threads; {halide_note()}")
     print(f"load average before: {load()}")
     programs, frames_of, placed = {}, {}, []
     with tempfile.TemporaryDirectory() as temporary:
@@ -268,9 +277,9 @@ def main(argv=None) -> int:
                     model = folder / "model.yaml"
                     model.write_text(model_text(name, width, height, path, line))
                     if variant.endswith("after tune"):  # the profile the build then reads
-                        tuned(model, args.tune_frames)
+                        tuned(model, args.tune_frames, args.backend)
                     result = compile_model(model, folder / "out", device="auto",
-                                           fusion=fusion)
+                                           fusion=fusion, backend=args.backend)
                     write(result, folder / "out")
                     groups = ["+".join(m.name for m in g.members) for g in result.system.groups]
                     if groups:

@@ -274,14 +274,27 @@ class FusedAbsxToMerged(runtime.KernelComponent):
 def run(frames=None, context=None, monitor=None, profile=False, params=None):
     """Build the system, stream up to `frames` frames (default: until a source ends).
 
-    A runtime.Monitor shows progress, times the components when asked and hands them
-    runtime options such as --decisions; main() makes one from the command line.
-    With profile=True, OpenCL profiling events time every kernel and copy (see
-    runtime.Profile); the result's profile holds them. params: {'component.param': value}
-    for entries of PARAMS, checked against their declarations.
+    monitor: a runtime.Monitor (progress, timings, options; main() makes one from the
+    command line). With profile=True, OpenCL profiling events time every kernel and copy.
+    params: {'component.param': value} for entries of PARAMS.
     """
-    monitor = monitor or runtime.Monitor(progress=False)
-    params = runtime.param_values(PARAMS, params)
+    # the monitor, the checked params, every part (filled in as it is constructed)
+    session = runtime.Session(PARAMS, params, monitor, profile, [
+        'camera',
+        'adapter1_cpu2gpu',
+        'gray',
+        'blur',
+        'adapter2_gpu2cpu',
+        'canny',
+        'dx',
+        'dy',
+        'laplace',
+        'adapter3_cpu2gpu',
+        'absx_to_merged',
+        'adapter4_gpu2cpu',
+        'sink',
+    ])
+    params = session.params
     context = context or runtime.create_context()
     # Parallel execution: 4 in-order queues (lanes). Commands are enqueued
     # without waiting; a command waits for another queue's event (wait_for=[...]) only
@@ -338,25 +351,10 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
             '_m3_beta': np.float32(params['abslap.beta']),
         })
 
-    # every component and adapter, filled in as it is constructed; those initialized are
-    # freed once each, in reverse order
-    parts = runtime.Parts([
-        'camera',
-        'adapter1_cpu2gpu',
-        'gray',
-        'blur',
-        'adapter2_gpu2cpu',
-        'canny',
-        'dx',
-        'dy',
-        'laplace',
-        'adapter3_cpu2gpu',
-        'absx_to_merged',
-        'adapter4_gpu2cpu',
-        'sink',
-    ])
-    frame = None  # while constructing and initializing
-    try:
+    # a failure names its component and frame; every part initialized is freed once, in
+    # reverse order
+    with session:
+        parts = session.parts
         camera = parts['camera'] = Camera(
             width=301, height=200, seed=params['camera.seed'], buoys=params['camera.buoys'],
             frames=params['camera.frames'], folder=params['camera.folder'],
@@ -384,31 +382,23 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
         adapter4_gpu2cpu = parts['adapter4_gpu2cpu'] = runtime.GpuToCpuAdapter(
             context, queue0, nbytes=541_800, staging='pinned')
         sink = parts['sink'] = FrameSink(output=params['sink.output'])
-        monitor.attach(parts)
-        profiler = runtime.Profile(parts) if profile else None
+        session.start()  # the monitor and the profiler see the parts
 
         camera_image_size = camera.initialize()
         camera_image_size = runtime.expect_size(
             'camera.image', camera_image_size, Size(200, 301, 3))
         camera_image_gpu_size = adapter1_cpu2gpu.initialize(camera_image_size, np.uint8)
         gray_dst_size = gray.initialize(camera_image_gpu_size)
-        gray_dst_size = runtime.expect_size('gray.dst', gray_dst_size, Size(200, 301, 1))
         blur_dst_size = blur.initialize(gray_dst_size)
-        blur_dst_size = runtime.expect_size('blur.dst', blur_dst_size, Size(200, 301, 1))
         blur_dst_cpu_size = adapter2_gpu2cpu.initialize(blur_dst_size, np.uint8)
         canny_dst_size = canny.initialize(blur_dst_cpu_size)
         canny_dst_size = runtime.expect_size('canny.dst', canny_dst_size, Size(200, 301, 1))
         dx_dst_size = dx.initialize(blur_dst_size)
-        dx_dst_size = runtime.expect_size('dx.dst', dx_dst_size, Size(200, 301, 1))
         dy_dst_size = dy.initialize(blur_dst_size)
-        dy_dst_size = runtime.expect_size('dy.dst', dy_dst_size, Size(200, 301, 1))
         laplace_dst_size = laplace.initialize(blur_dst_size)
-        laplace_dst_size = runtime.expect_size('laplace.dst', laplace_dst_size, Size(200, 301, 1))
         canny_dst_gpu_size = adapter3_cpu2gpu.initialize(canny_dst_size, np.uint8)
         absx_to_merged_merged_size = absx_to_merged.initialize(
             dx_dst_size, dy_dst_size, laplace_dst_size, canny_dst_gpu_size)
-        absx_to_merged_merged_size = runtime.expect_size(
-            'absx_to_merged.merged', absx_to_merged_merged_size, Size(200, 903, 3))
         merged_merged_cpu_size = adapter4_gpu2cpu.initialize(absx_to_merged_merged_size, np.uint8)
         sink.initialize(merged_merged_cpu_size)
 
@@ -467,8 +457,8 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
                 np.int32(32),  # tile
             ])
 
-        frame = 0
-        while frames is None or frame < frames:
+        session.frame = 0
+        while frames is None or session.frame < frames:
             camera_image = camera.execute()
             if camera_image is None:
                 break  # end of stream
@@ -489,18 +479,12 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
                 wait_for=[dy.event, laplace.event, adapter3_cpu2gpu.event])
             merged_merged_cpu = adapter4_gpu2cpu.transfer(absx_to_merged_merged)
             sink.execute(merged_merged_cpu)
-            frame += 1
-            monitor.frame_done(frame)
+            session.frame_done()
         queue0.finish()
         queue1.finish()
         queue2.finish()
         queue3.finish()
-    except Exception as exc:
-        raise runtime.component_failure(exc, frame, parts) from exc
-    finally:
-        runtime.free_all(parts)  # free_memory() on each, in reverse order
-        monitor.close()
-    return runtime.Result(frame, parts, profiler)
+    return session.result()
 
 
 def main(argv=None):

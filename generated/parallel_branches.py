@@ -164,14 +164,23 @@ class FusedMergerDetector(runtime.KernelComponent):
 def run(frames=None, context=None, monitor=None, profile=False, params=None):
     """Build the system, stream up to `frames` frames (default: until a source ends).
 
-    A runtime.Monitor shows progress, times the components when asked and hands them
-    runtime options such as --decisions; main() makes one from the command line.
-    With profile=True, OpenCL profiling events time every kernel and copy (see
-    runtime.Profile); the result's profile holds them. params: {'component.param': value}
-    for entries of PARAMS, checked against their declarations.
+    monitor: a runtime.Monitor (progress, timings, options; main() makes one from the
+    command line). With profile=True, OpenCL profiling events time every kernel and copy.
+    params: {'component.param': value} for entries of PARAMS.
     """
-    monitor = monitor or runtime.Monitor(progress=False)
-    params = runtime.param_values(PARAMS, params)
+    # the monitor, the checked params, every part (filled in as it is constructed)
+    session = runtime.Session(PARAMS, params, monitor, profile, [
+        'camera1',
+        'camera2',
+        'adapter1_cpu2gpu',
+        'blur1',
+        'adapter2_cpu2gpu',
+        'blur2',
+        'merger_detector',
+        'adapter3_gpu2cpu',
+        'manager',
+    ])
+    params = session.params
     context = context or runtime.create_context()
     # Parallel execution: 2 in-order queues (lanes). Commands are enqueued
     # without waiting; a command waits for another queue's event (wait_for=[...]) only
@@ -197,21 +206,10 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
             '_m1_margin': np.int32(params['detector.margin']),
         })
 
-    # every component and adapter, filled in as it is constructed; those initialized are
-    # freed once each, in reverse order
-    parts = runtime.Parts([
-        'camera1',
-        'camera2',
-        'adapter1_cpu2gpu',
-        'blur1',
-        'adapter2_cpu2gpu',
-        'blur2',
-        'merger_detector',
-        'adapter3_gpu2cpu',
-        'manager',
-    ])
-    frame = None  # while constructing and initializing
-    try:
+    # a failure names its component and frame; every part initialized is freed once, in
+    # reverse order
+    with session:
+        parts = session.parts
         camera1 = parts['camera1'] = Camera(
             width=640, height=480, seed=params['camera1.seed'], buoys=params['camera1.buoys'],
             frames=params['camera1.frames'], folder=params['camera1.folder'],
@@ -237,8 +235,7 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
             min_area=params['manager.min_area'], stop_radius=params['manager.stop_radius'],
             print_decisions=params['manager.print_decisions'],
             decisions_file=params['manager.decisions_file'])
-        monitor.attach(parts)
-        profiler = runtime.Profile(parts) if profile else None
+        session.start()  # the monitor and the profiler see the parts
 
         camera1_image_size = camera1.initialize()
         camera1_image_size = runtime.expect_size(
@@ -248,13 +245,9 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
             'camera2.image', camera2_image_size, Size(480, 640, 3))
         camera1_image_gpu_size = adapter1_cpu2gpu.initialize(camera1_image_size, np.uint8)
         blur1_dst_size = blur1.initialize(camera1_image_gpu_size)
-        blur1_dst_size = runtime.expect_size('blur1.dst', blur1_dst_size, Size(480, 640, 3))
         camera2_image_gpu_size = adapter2_cpu2gpu.initialize(camera2_image_size, np.uint8)
         blur2_dst_size = blur2.initialize(camera2_image_gpu_size)
-        blur2_dst_size = runtime.expect_size('blur2.dst', blur2_dst_size, Size(480, 640, 3))
         merger_detector_mask_size = merger_detector.initialize(blur1_dst_size, blur2_dst_size)
-        merger_detector_mask_size = runtime.expect_size(
-            'merger_detector.mask', merger_detector_mask_size, Size(480, 1280, 1))
         detector_mask_cpu_size = adapter3_gpu2cpu.initialize(merger_detector_mask_size, np.uint8)
         manager.initialize(detector_mask_cpu_size)
 
@@ -285,8 +278,8 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
                 np.int32(32),  # tile
             ])
 
-        frame = 0
-        while frames is None or frame < frames:
+        session.frame = 0
+        while frames is None or session.frame < frames:
             camera1_image = camera1.execute()
             camera2_image = camera2.execute()
             if camera1_image is None or camera2_image is None:
@@ -303,16 +296,10 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
                 blur1_dst, blur2_dst, wait_for=[blur2.event])
             detector_mask_cpu = adapter3_gpu2cpu.transfer(merger_detector_mask)
             manager.execute(detector_mask_cpu)
-            frame += 1
-            monitor.frame_done(frame)
+            session.frame_done()
         queue0.finish()
         queue1.finish()
-    except Exception as exc:
-        raise runtime.component_failure(exc, frame, parts) from exc
-    finally:
-        runtime.free_all(parts)  # free_memory() on each, in reverse order
-        monitor.close()
-    return runtime.Result(frame, parts, profiler)
+    return session.result()
 
 
 def main(argv=None):

@@ -1,8 +1,10 @@
 """``gpucompgen bench``: the paper's evaluation (Section V, Figures 9 and 10), reproduced.
 
 Chains of N VerticalMirror components (StillImage -> N mirrors -> FrameSink) are generated
-in both modes, built and run on the OpenCL device; the time per frame is the time between
-consecutive frames arriving at the sink.  The GPU-aware chain runs twice: with copying
+in both modes, built and run on the device of the backend asked for (``--backend opencl``,
+the default: the OpenCL device PYOPENCL_CTX selects; ``--backend cuda``: the CUDA device
+CUDA_DEVICE selects), through the device interface (runtime/device_api.py); the time per
+frame is the time between consecutive frames arriving at the sink.  The GPU-aware chain runs twice: with copying
 adapters (``gpu-aware``) and with zero-copy adapters forced on (``zero-copy``: the source's
 frame wrapped in a USE_HOST_PTR buffer, the last output mapped for the sink), so a user
 sees what zero-copy gains or loses on this device.  In the same run, the references a reader needs
@@ -41,6 +43,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .backend import kernel_text
 from .model import MAX_COMPONENTS
 from .runtime import device_api, load_module
 
@@ -148,7 +151,9 @@ class Generated:
         zero_copy = "on" if "zero-copy" in variant else "off"
         # every variant but the fused ones runs one kernel per mirror, as in the paper
         fusion = "auto" if "fused" in variant else "off"
-        write(compile_model(model, out, mode, zero_copy=zero_copy, fusion=fusion), out)
+        backend = device_api.name_of(device_api.of(context))  # the context's device API
+        write(compile_model(model, out, mode, zero_copy=zero_copy, fusion=fusion,
+                            backend=backend), out)
         name = f"gpucompgen_bench_{variant.replace('-', '_')}_{n}_{size[0]}x{size[1]}"
         self.module = load_module(out / f"mirror_chain_{n}.py", name)
         self.context, self.n = context, n
@@ -168,7 +173,7 @@ class HandWritten:
         from .model import library_types
         from .passes.fuse import GROUP_GPU
 
-        api = self.api = device_api.get()
+        api = self.api = device_api.of(context)
         self.n, self.image = n, image
         self.context = context
         self.queue = api.create_queue(context)
@@ -180,7 +185,8 @@ class HandWritten:
             "uint8", image.shape[2] if image.ndim == 3 else 1)
         group = group_of_one(mirror, {}, {"src": (h, w), "dst": (h, w)}, "m",
                              "vertical_mirror")
-        program = api.build_source(context, group_kernel(group, "bench"))
+        _, source = kernel_text(device_api.name_of(api), group_kernel(group, "bench"))
+        program = api.build_source(context, source)
         self.kernel = api.kernel(program, "vertical_mirror")
         tile, bx, by, _ = GROUP_GPU.prefer
         self.global_size, self.local_size = launch_geometry(group, tile, bx, by)
@@ -238,7 +244,7 @@ class CopyRing:
     """
 
     def __init__(self, context, nbytes: int):
-        api = self.api = device_api.get()
+        api = self.api = device_api.of(context)
         self.nbytes = nbytes
         self.queue = api.create_queue(context)
         count = max(8, -(-(64 << 20) // nbytes))
@@ -345,8 +351,9 @@ def _need_extras():
 
 
 def run_bench(sizes, lengths, frames: int, out_dir: Path, opencv: bool = True,
-              rounds: int = ROUNDS, stdout=None) -> dict:
-    """Run everything, write bench.csv and bench.png into out_dir, print the table."""
+              rounds: int = ROUNDS, stdout=None, backend: str = "opencl") -> dict:
+    """Run everything, write bench.csv and bench.png into out_dir, print the table;
+    backend ("opencl" | "cuda") picks the device API the chains are built for and run on."""
     _need_extras()
     stdout = stdout or sys.stdout
     if frames < 1:
@@ -355,7 +362,7 @@ def run_bench(sizes, lengths, frames: int, out_dir: Path, opencv: bool = True,
     from tqdm import tqdm
 
     from .library.still_image import still_frame
-    api = device_api.get()
+    api = device_api.get(backend)
     context = api.create_context()
     device = api.context_device(context)
     try:

@@ -189,8 +189,9 @@ def _add_tool_commands(sub) -> None:
     """tune, graph, bench and devices."""
     tu = _sub(sub, "tune", "time flexible components on the CPU and the device (profile)",
               "Run every flexible component of MODEL at the model's sizes, its CPU function\n"
-              "and its kernel on the OpenCL device (PYOPENCL_CTX), for a few frames each, and\n"
-              "time one copy between host and device. Writes the profile that\n"
+              "and its kernel on the device of the model's backend (--backend: the OpenCL\n"
+              "device PYOPENCL_CTX selects, or the CUDA device CUDA_DEVICE selects), for a few\n"
+              "frames each, and time one copy between host and device. Writes the profile that\n"
               "'placement: auto' reads: the model's platform.profile, else\n"
               "tune/<system>.yaml beside the model.")
     tu.add_argument("model", type=Path, metavar="MODEL", help="the system model (.yaml)")
@@ -199,6 +200,9 @@ def _add_tool_commands(sub) -> None:
                          "else tune/<system>.yaml beside the model)")
     tu.add_argument("--frames", type=int, default=20, metavar="N",
                     help="frames timed per component and side (default: 20)")
+    tu.add_argument("--backend", choices=BACKENDS,
+                    help="the device API the kernels are timed on: opencl or cuda "
+                         "(default: the model's platform.backend, else opencl)")
 
     g = _sub(sub, "graph", "draw the architecture (.dot, .svg, .png)",
              "Draw MODEL's architecture as in the paper's Figure 3: components (GPU-aware\n"
@@ -212,7 +216,8 @@ def _add_tool_commands(sub) -> None:
     be = sub.add_parser(
         "bench", help="standard vs GPU-aware chains of VerticalMirror (paper, Figures 9/10)",
         description="Generate chains of N VerticalMirror components in both modes, run them "
-                    "on the OpenCL device (PYOPENCL_CTX), and compare with a hand-written "
+                    "on the device of --backend (the OpenCL device PYOPENCL_CTX selects, or "
+                    "the CUDA device CUDA_DEVICE selects), and compare with a hand-written "
                     "loop of copies and launches, the device's copy-bandwidth bound and "
                     "OpenCV. Prints a "
                     "table; writes bench.csv and bench.png into the output folder.")
@@ -225,6 +230,8 @@ def _add_tool_commands(sub) -> None:
     be.add_argument("-o", "--output", type=Path, default=Path("bench-out"),
                     help="folder for bench.csv and bench.png (default: bench-out)")
     be.add_argument("--no-opencv", action="store_true", help="leave out the OpenCV references")
+    be.add_argument("--backend", choices=BACKENDS, default="opencl",
+                    help="build and run the chains for opencl or cuda (default: opencl)")
 
     dv = sub.add_parser(
         "devices", help="list the OpenCL devices and which one a program would use",
@@ -579,7 +586,7 @@ def cmd_tune(args) -> int:
     out = output_path(args.model, load_system(args.model), args.output)  # before measuring
     try:
         groups: list = []
-        text, rows = tune(args.model, args.frames, str(args.model), groups)
+        text, rows = tune(args.model, args.frames, str(args.model), groups, args.backend)
     except FunctionFailed as exc:  # the user's code failed, as in a failed run
         print(f"gpucompgen tune: error: {exc}", file=sys.stderr)
         return 1
@@ -622,7 +629,8 @@ def cmd_bench(args) -> int:
 
     try:
         bench.run_bench(bench.parse_sizes(args.sizes), bench.parse_lengths(args.lengths),
-                        args.frames, args.output, opencv=not args.no_opencv)
+                        args.frames, args.output, opencv=not args.no_opencv,
+                        backend=args.backend)
     except (bench.BenchError, PipelineError) as exc:
         print(f"gpucompgen bench: error: {exc}", file=sys.stderr)
         return 2

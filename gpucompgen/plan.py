@@ -9,12 +9,35 @@ check and ``--profile``'s byte counts read the same ones.
 
 from __future__ import annotations
 
+import posixpath
+import re
 import textwrap
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 from .dataflow import Data, Endpoint
 from .runtime.sizes import Size
+
+
+class ModelPath(str):
+    """A path parameter relative to the model's folder, as seen from the program's folder:
+    printed as a call that resolves it when the program runs, wherever it is started."""
+
+
+class ParamRef(str):
+    """A parameter --set may change: printed as its entry of run()'s `params`."""
+
+
+@dataclass(frozen=True)
+class Settable:
+    """A parameter the program's --set may change when it starts: one that no size or
+    requirement depends on (a generated kernel takes it as a build option)."""
+
+    key: str  # 'component.param'
+    type: str  # the declaration's type
+    value: object  # the model's value
+    minimum: float | None = None
+    maximum: float | None = None
 
 
 @dataclass(frozen=True)
@@ -246,6 +269,44 @@ class ProgramPlan:
     buffer_sets: tuple[tuple[str, str], ...] = ()  # (part, why)
     staging: str = "pageable"  # "pinned" | "pageable"
     staging_reason: str = ""
+    # what the program says of its model and lets its user change
+    description: str = ""
+    model_sha256: str = ""  # of the model file's text
+    model_inputs: tuple[tuple[str, str], ...] = ()  # (file relative to the model, sha256)
+    sources: tuple[str, ...] = ()  # the components, in run order
+    settable: tuple[Settable, ...] = ()  # by key
+    path_params: tuple[str, ...] = ()  # 'part.param' keys whose values are model paths
+
+    def for_program(self, model_dir: str) -> ProgramPlan:
+        """The plan as its program prints it: every settable parameter's value a ParamRef
+        (run()'s `params` entry), every relative path parameter a ModelPath from the
+        program's folder (model_dir: the model's folder as seen from there)."""
+        keys = {s.key for s in self.settable}
+        paths = set(self.path_params)
+
+        def value(key: str, v):
+            if key in keys:
+                return ParamRef(key)
+            if key in paths and isinstance(v, str) and v:
+                return relative_to_program(v, model_dir)
+            return v
+
+        def arguments(args: tuple[Argument, ...]) -> tuple[Argument, ...]:
+            return tuple(replace(a, value=value(a.param, a.value)) if a.param else a
+                         for a in args)
+
+        return replace(
+            self,
+            settable=tuple(replace(s, value=relative_to_program(s.value, model_dir))
+                           if s.key in paths and isinstance(s.value, str) and s.value else s
+                           for s in self.settable),
+            parts=tuple(replace(p, params=tuple((k, value(f"{p.name}.{k}", v))
+                                                for k, v in p.params))
+                        for p in self.parts),
+            launches=tuple(replace(la, arguments=arguments(la.arguments))
+                           for la in self.launches),
+            programs=tuple(replace(pr, defines=arguments(pr.defines))
+                           for pr in self.programs))
 
     # --- the facts everything reads --------------------------------------------------------
     def device_buffers(self) -> list[Buffer]:
@@ -462,3 +523,19 @@ def summary_lines(plan: ProgramPlan) -> list[str]:
     lines += fusion_lines(plan)
     lines.append("device: " + plan.device_name.encode("unicode_escape").decode("ascii"))
     return lines
+
+
+URI = re.compile(r"[A-Za-z][A-Za-z0-9+.-]*:")  # e.g. a camera's device:0, not a path
+FILE_URI = re.compile(r"(file|mcap|rosbag)://(?!/)")  # a file URI with a relative path
+
+
+def relative_to_program(value: str, model_dir: str):
+    """A path (or a file URI's path) relative to the model, as seen from the program."""
+    m = FILE_URI.match(value)
+    if m:
+        path, q, query = value[m.end():].partition("?")
+        return ModelPath(f"{m.group(0)}{posixpath.normpath(posixpath.join(model_dir, path))}"
+                         f"{q}{query}")
+    if posixpath.isabs(value) or URI.match(value):
+        return value
+    return ModelPath(posixpath.normpath(posixpath.join(model_dir, value)))

@@ -4,7 +4,9 @@ Every flexible component of the model runs its real implementations at the model
 (propagated as for a build): its CPU function on camera-like frames (the synthetic
 camera's water, noise and buoys, in each port's shape and element type: branchy code runs
 as fast on uniform noise as it never does on images), and its kernel with the
-launch settings a build would give it, on the OpenCL device programs use (PYOPENCL_CTX).
+launch settings a build would give it, on the device programs use (the model's
+platform.backend or --backend: the OpenCL device PYOPENCL_CTX selects, or the CUDA device
+CUDA_DEVICE selects), through the device interface (runtime/device_api.py).
 Each is timed for a few frames after one warm-up, and the median kept — a kernel from
 enqueue to finish, so the launch cost counts.  One copy each way between host and device
 gives the transfer latency (a 64-byte copy) and bandwidth (the largest port's bytes).
@@ -26,6 +28,7 @@ import time
 import traceback
 from pathlib import Path
 
+from .backend import device_query, kernel_text
 from .ir import GroupNode
 from .passes.place import default_profile, sizes_text
 from .runtime import device_api
@@ -99,10 +102,11 @@ def write_profile(out: Path, text: str) -> None:
 
 
 def tune(model_path: Path, frames: int = 20, display: str | None = None,
-         groups_out: list | None = None) -> tuple[str, list]:
+         groups_out: list | None = None, backend: str | None = None) -> tuple[str, list]:
     """Measure; return the profile's text and rows (name, type, sizes, cpu_us, gpu_us);
     groups_out, where given, gets a row (name, members, fused_us, apart_us) for every
-    group measured against its members apart."""
+    group measured against its members apart.  backend ("opencl" | "cuda"; None: the
+    model's platform.backend) picks the device API."""
     from . import device as device_mod
     from .errors import Reporter
     from .model import load_system
@@ -110,15 +114,18 @@ def tune(model_path: Path, frames: int = 20, display: str | None = None,
 
     model = load_system(model_path, display)
     flexible = [n for n, inst in model.components.items() if inst.type.flexible]
+    backend = backend or model.backend
+    api = device_api.get(backend)  # the device interface (runtime/device_api.py)
+    # first: no device API package, driver or device is a PipelineError saying so
+    context = api.create_context()
+    queue = api.create_queue(context)
     rep = Reporter()
-    facts = device_mod.resolve("auto", model.device_pos, rep, None)
+    facts = device_mod.resolve("auto", model.device_pos, rep, None,
+                               query=device_query(backend))
     rep.raise_if_errors()
     system, _ = run_passes(model, facts, places=dict.fromkeys(flexible, "gpu"),
                            zero_copy="off", fusion="off")  # each component's own kernel
     plan = system.plan
-    api = device_api.get()  # the device interface (runtime/device_api.py)
-    context = api.create_context()
-    queue = api.create_queue(context)
     rows = []
     for name in flexible:
         node = system.nodes[name]  # a fusable type's: a group of one, its generated kernel
@@ -136,7 +143,8 @@ def tune(model_path: Path, frames: int = 20, display: str | None = None,
     biggest = max((p.data.nbytes for n in flexible for p in system.nodes[n].ports), default=1)
     latency, bandwidth = _transfer(context, queue, biggest, frames)
     device = api.facts(api.device_of(queue)).name
-    lines = [f"# Written by 'gpucompgen tune {display or model_path}' on the OpenCL device",
+    label = {"opencl": "OpenCL", "cuda": "CUDA"}[backend]
+    lines = [f"# Written by 'gpucompgen tune {display or model_path}' on the {label} device",
              f"# '{device}': the median of {frames} frames of each flexible component at the",
              "# model's sizes, on the CPU (its function) and on the device (its kernel, enqueue",
              "# to finish), and the cost of one copy between host and device; each group the",
@@ -287,7 +295,7 @@ def _kernel(context, queue, system, plan, node, inputs):
 
     from . import runtime
 
-    api = device_api.get()
+    api = device_api.of(context)
     t = node.type
     la = plan.launch(node.name)
     out_sizes = [p.data.size for p in node.outputs.values()]
@@ -295,36 +303,50 @@ def _kernel(context, queue, system, plan, node, inputs):
         "function": t.kernel_function,
         "inputs": tuple((p, np.dtype(d.dtype).type) for p, d in t.inputs.items()),
         "outputs": tuple((p, np.dtype(d.dtype).type) for p, d in t.outputs.items()),
-        "output_sizes": lambda self, *sizes: out_sizes})
-    if isinstance(node, GroupNode):  # the kernel the build writes from the type's form
-        import tempfile
-
-        from .backend.opencl.fused import group_kernel
-
-        with tempfile.TemporaryDirectory() as folder:
-            path = Path(folder) / f"{node.name}.cl"
-            path.write_text(group_kernel(node, "tune", system.device), encoding="utf-8")
-            program = api.build_program(context, path, f"{node.name} ({t.name})")
-    else:
-        program = api.build_program(context, t.kernel_file, f"{node.name} ({t.name})")
+        "output_sizes": lambda self, *sizes: out_sizes, "api": api})
+    program = _program(api, context, system, node)
     comp = cls(context, queue, program, **node.params)
+    buffers: list = []
     try:
         comp.initialize(*(p.data.size for p in node.inputs.values()))
         arguments = [a.port if a.kind == "buffer" else getattr(np, a.host_type)(a.value)
                      for a in la.arguments]
         comp.config_gpu(la.tile, la.local_size, la.global_size, arguments, la.settings_source)
-        buffers = [api.filled_buffer(context, x) for x in inputs.values()]
+        buffers += [api.filled_buffer(context, x) for x in inputs.values()]
         yield lambda frames: _median(frames, lambda: comp.execute(*buffers),
                                      lambda: api.finish(queue))
     finally:
         comp.free_memory()
+        for buffer in buffers:  # CUDA frees nothing a garbage collector drops
+            api.release(buffer)
+
+
+def _program(api, context, system, node):
+    """The node's kernel as a build writes it for the device API's backend (a group's
+    from the type's form, else the type's kernel file), built."""
+    t = node.type
+    backend = device_api.name_of(api)
+    if isinstance(node, GroupNode):  # the kernel the build writes from the type's form
+        from .backend.opencl.fused import group_kernel
+
+        text = group_kernel(node, "tune", system.device)
+    elif backend == "opencl":  # the type's kernel file as it is
+        return api.build_program(context, t.kernel_file, f"{node.name} ({t.name})")
+    else:
+        text = t.kernel_file.read_text(encoding="utf-8")
+    suffix, text = kernel_text(backend, text)
+    with tempfile.TemporaryDirectory() as folder:
+        name = node.name if isinstance(node, GroupNode) else t.kernel_file.stem
+        path = Path(folder) / f"{name}{suffix}"
+        path.write_text(text, encoding="utf-8")
+        return api.build_program(context, path, f"{node.name} ({t.name})")
 
 
 def _transfer(context, queue, nbytes: int, frames: int) -> tuple[float, float]:
     """(seconds per copy, bytes per second): a tiny copy's time, and the largest port's."""
     import numpy as np
 
-    api = device_api.get()
+    api = device_api.of(context)
     small = np.zeros(TRANSFER_PROBE_BYTES, np.uint8)
     big = np.zeros(nbytes, np.uint8)
     dsmall = api.device_buffer(context, small.nbytes)

@@ -80,13 +80,6 @@ EXTERNAL = {
 # Edges that break the table today, each with why it is still there.  Remove an entry with
 # its edge; never add one for new code.
 KNOWN_DEBT = {
-    # The OpenCL printer still renders from the IR, not from the plan records alone: the
-    # program template reads the model (its digest, inputs, description), the system's
-    # order, the parameters' declarations (settable ones, model paths) and the fused
-    # groups, whose kernels it generates.  Moving those into the plan is issue 23's "plan
-    # in, files out" (the lib folder's sources already are: ProgramPlan.lib_sources).
-    ("gpucompgen.backend.opencl.render", "gpucompgen.ir"):
-        "render(system, ...) reads the IR (plan in, files out is not done)",
     # The CUDA backend prints the OpenCL program and rewrites it (a sibling's import);
     # it goes when both print the same neutral plan through their own templates.
     ("gpucompgen.backend.cuda.render", "gpucompgen.backend.opencl.render"):

@@ -17,6 +17,7 @@ from types import SimpleNamespace
 import pytest
 from conftest import ROOT, load_generated, require_opencl
 
+from gpucompgen import runtime
 from gpucompgen.build import compile_model, write
 from gpucompgen.runtime import Monitor, PipelineError, check_device_memory, free_all
 
@@ -363,3 +364,78 @@ def test_stats_json_to_a_fifo_with_a_reader_is_written(tmp_path):
     reader.join(30)
     assert proc.returncode == 0, proc.stderr
     assert json.loads(got[0])["frames"] == 2
+
+
+class _Part:
+    """A part of a hand-made session: records when it is freed, fails when told."""
+
+    def __init__(self, name, freed, fail=None):
+        self.name, self.freed, self.fail = name, freed, fail
+
+    def initialize(self):
+        return None
+
+    def execute(self):
+        if self.fail is not None:
+            raise self.fail
+
+    def free_memory(self):
+        self.freed.append(self.name)
+
+
+def _session_run(fail_b, frames_before=1):
+    """A run() as generated programs write it, around three parts; b fails at its
+    execute() after frames_before frames; (the exception run() raised, freed, monitor)."""
+    freed = []
+    monitor = runtime.Monitor(progress=False)
+    session = runtime.Session({}, None, monitor, False, ["a", "b", "c"])
+    try:
+        with session:
+            parts = session.parts
+            a = parts["a"] = _Part("a", freed)
+            b = parts["b"] = _Part("b", freed)
+            parts["c"] = _Part("c", freed)  # constructed, never initialized: not freed
+            session.start()
+            a.initialize()
+            b.initialize()
+            session.frame = 0
+            for _ in range(frames_before):
+                a.execute()
+                b.execute()
+                session.frame_done()
+            b.fail = fail_b
+            b.execute()
+    except BaseException as exc:
+        return exc, freed, monitor
+    return None, freed, monitor
+
+
+def test_a_session_names_the_failing_part_and_frame_and_frees_what_was_initialized():
+    exc, freed, monitor = _session_run(ValueError("bad pixel"), frames_before=2)
+    assert isinstance(exc, runtime.PipelineError)
+    assert str(exc) == "b failed at frame 2: ValueError: bad pixel"
+    assert isinstance(exc.__cause__, ValueError)
+    assert freed == ["b", "a"]  # reverse order, once each; c was never initialized
+    assert monitor._closed
+
+
+def test_a_session_lets_an_interrupt_through_after_freeing():
+    exc, freed, monitor = _session_run(KeyboardInterrupt())
+    assert type(exc) is KeyboardInterrupt
+    assert freed == ["b", "a"] and monitor._closed
+
+
+def test_a_session_that_ends_returns_its_frames_and_parts():
+    freed = []
+    session = runtime.Session({"a.k": runtime.Param("int", 3)}, {"a.k": 5}, None, False,
+                              ["a"])
+    with session:
+        a = session.parts["a"] = _Part("a", freed)
+        session.start()
+        a.initialize()
+        session.frame = 0
+        for _ in range(4):
+            session.frame_done()
+    result = session.result()
+    assert (result.frames, list(result.components), freed) == (4, ["a"], ["a"])
+    assert session.params == {"a.k": 5}

@@ -348,3 +348,58 @@ def test_memory_check_counts_what_the_plan_says_is_on_the_device(tmp_path, model
     listed = sum(int(n.replace("_", "")) for n in re.findall(r": ([\d_]+),", checked.group(1))) \
         if checked else 0
     assert sum(b.nbytes for b in plan.device_buffers()) == peak == listed
+
+
+class _DeferredCopies:
+    """A device API whose host-to-device copies read their source only when waited for
+    (as a device that has not run the copy yet): a host write into a staging array that
+    an earlier copy still has to read shows up as the wrong frame moved."""
+
+    class Event:
+        def __init__(self, src):
+            self.src, self.moved = src, None
+
+        def wait(self):
+            if self.moved is None:
+                self.moved = np.array(self.src)  # the device reads the source now
+
+    def device_buffer(self, context, nbytes, access="read_write"):
+        return object()
+
+    def pinned(self, context, queue, shape, dtype):
+        return object(), np.zeros(shape, dtype)
+
+    def copy(self, queue, dst, src, blocking=True, wait_for=None):
+        event = self.Event(src)
+        if blocking:
+            event.wait()
+        return event
+
+    def wait(self, events):
+        for event in events:
+            event.wait()
+
+    def release_pinned(self, queue, pinned):
+        pass
+
+    def release(self, buffer):
+        pass
+
+
+@pytest.mark.parametrize("sets", [1, 2, 3])
+def test_a_staged_copy_is_read_before_the_next_frame_is_staged_in_its_set(sets):
+    """CpuToGpuAdapter, not blocking, pinned staging: the next frame written into a set's
+    pinned array waits for that set's previous copy, so every copy moves its own frame."""
+    from gpucompgen.runtime import CpuToGpuAdapter
+
+    adapter = CpuToGpuAdapter(None, None, nbytes=12, blocking=False, buffer_sets=sets,
+                              staging="pinned")
+    adapter._api = _DeferredCopies()
+    adapter.initialize((2, 2, 3), np.uint8)
+    events = []
+    for frame in range(3 * sets + 1):
+        adapter.transfer(np.full((2, 2, 3), frame, np.uint8))
+        events.append(adapter.event)  # the device runs none of them until waited for
+    for frame, event in enumerate(events):
+        event.wait()
+        assert event.moved.min() == event.moved.max() == frame

@@ -178,10 +178,7 @@ def test_a_generic_type_file_reads_back(tmp_path):
 
 def test_a_channels_parameter_is_fixed_at_build_time(tmp_path):
     """'channels: n' sizes the buffers: --set cannot change n when the program starts."""
-    from gpucompgen.backend.opencl.render import with_settable_params
-
     resolved(tmp_path, {"gray": "{type: Source, params: {n: 1}}", "sink": "{type: Keep}"},
              ["gray.dst -> sink.src"])
     system, _ = run_passes(load_system(tmp_path / "m.yaml"), PROFILES["portable"])
-    _, settable = with_settable_params(system, system.plan)
-    assert "gray.n" not in {s.key for s in settable}
+    assert "gray.n" not in {s.key for s in system.plan.settable}

@@ -573,3 +573,17 @@ def test_a_stop_while_stats_are_written_to_a_stalled_reader_ends_the_run(tmp_pat
     assert exits == [128 + signal.SIGTERM]
     assert freed == ["b", "a"]  # once, by the run; not again by the stop
     assert "freed: nothing" in stream.text
+
+
+def test_a_stop_asks_the_device_api_the_parts_use():
+    """A CUDA program's parts hold the CUDA module: running_kernels asks it, not OpenCL."""
+    from types import SimpleNamespace
+
+    from gpucompgen.runtime.signals import _api_of, running_kernels
+
+    asked = []
+    api = SimpleNamespace(is_running=lambda event: asked.append(event) or event == "busy")
+    parts = {"source": object(), "blur": SimpleNamespace(_api=api, event="busy"),
+             "adapter": SimpleNamespace(_api=api, event="done")}
+    assert _api_of(parts) is api
+    assert running_kernels(parts) == ["blur"] and asked == ["busy", "done"]

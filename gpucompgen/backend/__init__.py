@@ -37,6 +37,16 @@ def runtime_module(name: str | None):
     return importlib.import_module(RUNTIMES[name or DEFAULT])
 
 
+def kernel_text(name: str | None, text: str) -> tuple[str, str]:
+    """(suffix, text) of the kernel file backend `name` writes for a kernel file's text
+    (OpenCL C in the portable subset): as it is for OpenCL, under the prelude for CUDA;
+    what `tune` and `bench` build through the device interface."""
+    if (name or DEFAULT) == "cuda":
+        module = importlib.import_module(f"{__name__}.cuda.render")
+        return module.KERNEL_SUFFIX, module.cuda_kernel_file(text)
+    return ".cl", text
+
+
 def device_query(name: str | None) -> Callable | None:
     """What ``--device auto`` asks for backend `name`: a function returning DeviceFacts
     (None: the OpenCL device, gpucompgen.device's default)."""

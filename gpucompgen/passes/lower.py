@@ -35,13 +35,14 @@ from ..plan import (
 )
 from .allocate_gpu import resident_threads
 from .base import Pass
+from .program_facts import with_program_facts
 
 
 class Lower(Pass):
     name = "lower"
 
     def apply(self, system, rep):
-        system.plan = lower(system)
+        system.plan = with_program_facts(system, lower(system))
         check_device_memory(system, rep)
         return system
 

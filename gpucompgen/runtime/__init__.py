@@ -17,6 +17,7 @@ The core, one module per concern:
     programs    kernel files and build logs made readable, the component named in errors
     frames      shape and element type of frames crossing components
     lifecycle   size checks, user modules, failures named by component, freeing
+    session     Session: what every run() does around its own lines (parts, failures, freeing)
     profiling   --profile: event times and bytes moved
     pipeline    frames in flight: the stages of a stream, one thread each
     monitor     progress, --stats-json, runtime options
@@ -81,6 +82,7 @@ from .opencl import (
 from .overrides import Param, param_values
 from .pipeline import FrameFailure, stream_in_flight
 from .profiling import Profile
+from .session import Session
 from .signals import _stop_on_signals
 from .sizes import Size
 
@@ -100,6 +102,7 @@ __all__ = [
     "PipelineError",
     "Profile",
     "Result",
+    "Session",
     "Size",
     "Stopped",
     "ZeroCopyCpuToGpuAdapter",

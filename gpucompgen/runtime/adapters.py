@@ -63,6 +63,9 @@ class CpuToGpuAdapter(_Adapter):
         self.pinned: list = []  # (buffer, mapped array) per set, with staging="pinned"
         self.buffer = None  # the buffer of the last frame
         self._turn = 0
+        # with staging="pinned" and not blocking: each set's last copy, which must have
+        # read the set's pinned array before the next frame is written into it
+        self._reading: list = []
 
     def initialize(self, size, dtype):
         api = self._api
@@ -82,18 +85,26 @@ class CpuToGpuAdapter(_Adapter):
         self._turn = (k + 1) % self.buffer_sets
         self.buffer = self.buffers[k]
         if self.pinned:
+            if not self.blocking:
+                self._reading += [None] * (self.buffer_sets - len(self._reading))
+                if self._reading[k] is not None:
+                    # the device may not have read the set's previous frame yet (nothing
+                    # else orders the host's write after it); done already, this is free
+                    self._api.wait([self._reading[k]])
             source = self.pinned[k][1]
             np.copyto(source, np.reshape(host, source.shape), casting="no")
         else:
             source = np.ascontiguousarray(host)
         self.event = self._api.copy(self.queue, self.buffer, source,
                                     blocking=self.blocking, wait_for=wait_for)
+        if self.pinned and not self.blocking:
+            self._reading[k] = self.event
         if self.profile is not None:
             self.profile.copy(self, "cpu2gpu", self.event, self.nbytes)
         return self.buffer
 
     def free_memory(self):
-        pinned, self.pinned = self.pinned, []
+        pinned, self.pinned, self._reading = self.pinned, [], []
         self._api.release_pinned(self.queue, pinned)
         for buffer in self.buffers:
             self._api.release(buffer)

@@ -1,25 +1,31 @@
-"""The runtime of programs built with ``--backend cuda``: the same names, driving CUDA.
+"""The CUDA device API: the runtime of programs built with ``--backend cuda``.
 
-A CUDA program imports ``from gpucompgen.runtime import cuda as runtime`` and calls the
-names an OpenCL program calls (create_context, create_queue, check_device_memory,
-build_program, KernelComponent, the adapters, Profile...); what is not device-specific
-(sizes, parts, failures, the command line, frames in flight) is the neutral runtime's,
-re-exported here.  It uses NVIDIA's cuda-python (``cuda.bindings``: the driver API and
-NVRTC), installed with ``pip install gpucompgen[cuda]``.
+It implements the device interface (runtime/device_api.py, ``device_api.get("cuda")``)
+that ``gpucompgen tune``, ``gpucompgen bench`` and the neutral core call, and the
+program's classes are the neutral ones on it (KernelComponent, the copying adapters, the
+GPU-to-CPU zero-copy adapter).  A CUDA program imports ``from gpucompgen.runtime import
+cuda as runtime`` and calls the names an OpenCL program calls (create_context,
+create_queue, check_device_memory, build_program, KernelComponent, the adapters,
+Profile...); what is not device-specific (sizes, parts, failures, the command line,
+frames in flight) is the neutral runtime's, re-exported here.  It uses NVIDIA's
+cuda-python (``cuda.bindings``: the driver API and NVRTC), installed with
+``pip install gpucompgen[cuda]``.
 
 How the OpenCL model maps:
 - context: the device's primary CUDA context (CUDA_DEVICE selects the device, default 0);
-- queue (one per lane): a non-blocking CUDA stream; an event of another lane's command
-  is waited for with cuStreamWaitEvent, the host waits with cuEventSynchronize;
+- queue (one per lane): a non-blocking CUDA stream with a ring of events, one recorded
+  after each command; an event of another lane's command is waited for with
+  cuStreamWaitEvent, the host waits with cuEventSynchronize;
 - a kernel file: NVRTC compiles it to a cubin for the device's exact architecture
   (sm_XY), cached on disk under the source's digest, the architecture and NVRTC's
   version (``$XDG_CACHE_HOME/gpucompgen/cuda``); no PTX is left for the driver to JIT;
-- a launch: grid = global size / local size, block = local size (the plan's numbers);
-  arguments are packed once per buffer set, only changed input pointers are rewritten;
+- a kernel: its function and the arguments set_args packed (a buffer's device pointer,
+  a scalar's bytes); a launch: grid = global size / local size, block = local size;
 - buffers: cuMemAlloc once at initialize; pinned staging with cuMemHostAlloc;
   zero-copy (integrated GPUs, Jetson): mapped pinned host memory (cuMemHostAlloc with
-  DEVICEMAP) that the kernel reads or writes through its device pointer.  Managed memory
-  is not used (on Orin, host access while a kernel runs faults).
+  DEVICEMAP) that the kernel reads or writes through its device pointer; host memory is
+  freed with the last numpy array over it.  Managed memory is not used (on Orin, host
+  access while a kernel runs faults).
 """
 
 from __future__ import annotations
@@ -28,15 +34,16 @@ import contextlib
 import ctypes
 import hashlib
 import os
+import sys
 import threading
 from collections import deque
 from pathlib import Path
 from typing import Any
 
-from . import adapters
+from . import adapters, components
 from .cli import add_program_options, main
 from .components import CpuFunctionComponent
-from .devices import check_device_memory
+from .devices import KernelLimits, check_device_memory, check_work_group_fits
 from .errors import PipelineError, Stopped
 from .facts import DeviceFacts
 from .frames import check_frame
@@ -57,12 +64,13 @@ from .overrides import Param, param_values
 from .pipeline import FrameFailure, stream_in_flight
 from .profiling import Profile
 from .programs import clean_build_log, define_options, read_kernel_file
+from .session import Session
 from .sizes import Size
 
 __all__ = [
     "CpuFunctionComponent", "CpuToGpuAdapter", "FrameFailure", "GpuToCpuAdapter",
     "KernelComponent", "Monitor", "Param", "Parts", "PipelineError", "Profile", "Result",
-    "Size", "Stopped", "ZeroCopyCpuToGpuAdapter", "ZeroCopyGpuToCpuAdapter",
+    "Session", "Size", "Stopped", "ZeroCopyCpuToGpuAdapter", "ZeroCopyGpuToCpuAdapter",
     "add_program_options", "build_program", "check_device_memory", "check_frame",
     "component_failure", "create_context", "create_queue", "device_facts", "expect_size",
     "failing_component", "free_all", "load_class", "load_function", "load_module", "main",
@@ -119,6 +127,13 @@ _INIT = threading.Lock()
 _initialized = False
 
 
+NO_DRIVER = ("no NVIDIA driver (libcuda) found: the CUDA backend needs an NVIDIA GPU and "
+             "its driver; 'gpucompgen devices' lists the devices there are")
+NO_DEVICE = ("no CUDA device found: the NVIDIA driver sees no GPU; 'gpucompgen devices' "
+             "lists the devices there are")
+_NO_DEVICE_ERROR = 100  # CUDA_ERROR_NO_DEVICE
+
+
 def _init():
     global _initialized
     cu = _driver()
@@ -126,10 +141,11 @@ def _init():
         if not _initialized:
             try:
                 result = cu.cuInit(0)
-            except Exception as exc:  # no libcuda: cuda-python raises its own error
-                raise PipelineError(f"no NVIDIA driver ({type(exc).__name__}: {exc}); the "
-                                    "CUDA backend needs an NVIDIA GPU and its driver") \
-                    from None
+            except Exception:  # no libcuda: cuda-python raises its own error
+                raise PipelineError(NO_DRIVER) from None
+            err = result[0] if isinstance(result, tuple) else result
+            if int(err) == _NO_DEVICE_ERROR:
+                raise PipelineError(NO_DEVICE)
             _ok(result, "initialization (is an NVIDIA driver installed?)")
             _initialized = True
     return cu
@@ -237,17 +253,36 @@ class CudaContext:
         _ok(_driver().cuCtxSetCurrent(self.handle), "context")
 
 
-def create_context() -> CudaContext:
-    """The context of the device CUDA_DEVICE selects (default 0)."""
+def select_device() -> CudaDevice:
+    """The device CUDA_DEVICE selects (default 0); a one-line PipelineError says what is
+    missing: cuda-python, the driver, a device."""
     cu = _init()
     count = int(_ok(cu.cuDeviceGetCount(), "device count"))
     ordinal = _ordinal()
     if count == 0:
-        raise PipelineError("no CUDA device found; " + MISSING)
+        raise PipelineError(NO_DEVICE)
     if not 0 <= ordinal < count:
         raise PipelineError(f"CUDA_DEVICE={ordinal} selects no device (there are {count}); "
                             "'gpucompgen devices' lists them")
-    return CudaContext(CudaDevice(ordinal))
+    return CudaDevice(ordinal)
+
+
+def create_context() -> CudaContext:
+    """The context of the device CUDA_DEVICE selects (default 0)."""
+    return CudaContext(select_device())
+
+
+def context_device(context: CudaContext) -> CudaDevice:
+    return context.device
+
+
+def device_name(device: CudaDevice) -> str:
+    """The device and its architecture, for reports."""
+    return f"{device.name} (CUDA, {device.arch})"
+
+
+def facts(device: CudaDevice) -> DeviceFacts:
+    return device.facts()
 
 
 class CudaQueue:
@@ -260,12 +295,23 @@ class CudaQueue:
         self.device = context.device
         self.profile = profile
         self.handle = _ok(cu.cuStreamCreate(1), "stream")  # CU_STREAM_NON_BLOCKING
+        self.events = _Events(self, EVENT_RING)
+        self.mapped: dict[int, tuple] = {}  # id(view) -> (buffer, mode, view) of map()
 
     def wait_for(self, events) -> None:
         cu = _driver()
         for event in events or ():
             if isinstance(event, CudaEvent):
                 _ok(cu.cuStreamWaitEvent(self.handle, event.end, 0), "stream wait")
+
+    def command(self, wait_for=None) -> CudaEvent:
+        """Before a command: the other lanes' events it waits for, and its event (from
+        this queue's ring), started; the caller enqueues, then calls .after()."""
+        self.context.current()  # in the calling thread (stages run in threads)
+        self.wait_for(wait_for)
+        event = self.events.next()
+        event.before()
+        return event
 
     def finish(self) -> None:
         self.context.current()
@@ -284,6 +330,19 @@ def create_queue(context: CudaContext, profile: bool = False) -> CudaQueue:
     return CudaQueue(context, profile)
 
 
+def side_queue(queue: CudaQueue) -> CudaQueue:
+    """Another stream on the same device."""
+    return CudaQueue(queue.context, queue.profile)
+
+
+def device_of(queue: CudaQueue) -> CudaDevice:
+    return queue.device
+
+
+def finish(queue: CudaQueue) -> None:
+    queue.finish()
+
+
 class _Times:
     def __init__(self, start: int, end: int):
         self.start, self.end = start, end
@@ -300,6 +359,7 @@ class CudaEvent:
         flags = 0 if queue.profile else 2  # CU_EVENT_DISABLE_TIMING: cheaper
         self.start = _ok(cu.cuEventCreate(flags), "event") if queue.profile else None
         self.end = _ok(cu.cuEventCreate(flags), "event")
+        self.keep = None  # a host array an asynchronous copy still reads or writes
 
     def before(self) -> None:
         if self.start is not None:
@@ -312,10 +372,14 @@ class CudaEvent:
     def wait(self) -> None:
         self.queue.context.current()
         _ok(_driver().cuEventSynchronize(self.end), "event wait")
+        self.keep = None
 
     @property
     def profile(self) -> _Times:
         cu = _driver()
+        if self.start is None:
+            raise PipelineError("a CUDA event of a queue made without profile=True has no "
+                                "times")
         self.wait()
         elapsed = getattr(cu, "cuEventElapsedTime", None) or cu.cuEventElapsedTime_v2
         origin = self.queue.context.origin
@@ -323,18 +387,16 @@ class CudaEvent:
         end = _ok(elapsed(origin, self.end), "event time")
         return _Times(int(start * 1e6), int(end * 1e6))
 
-    def release(self) -> None:
-        cu = _driver()
-        for e in (self.start, self.end):
-            if e is not None:
-                cu.cuEventDestroy(e)
-        self.start = self.end = None
+
+EVENT_RING = 256  # events a queue reuses in turn (a command's is reused 256 commands on)
 
 
 class _Events:
-    """A ring of events for one part on one queue: a command reuses the event of the
-    command `size` commands before it, long done (its waiters captured it when they
-    enqueued their waits)."""
+    """A queue's ring of events: a command reuses the event of the command `size`
+    commands before it on the same stream.  Reusing one is safe: a stream that waits for
+    it captured it when it enqueued its wait, and a host that waits for it later waits for
+    a later command of the same in-order stream, so also for the first.  An event whose
+    copy still needed its host array (keep) is waited for before it is reused."""
 
     def __init__(self, queue: CudaQueue, size: int):
         self.queue, self.size = queue, max(size, 2)
@@ -345,16 +407,41 @@ class _Events:
             event = CudaEvent(self.queue)  # profiled events are read later: not reused
         else:
             event = self.ring.popleft()
+            if event.keep is not None:
+                event.wait()
         if not self.queue.profile:
             self.ring.append(event)
         return event
 
-    def release(self) -> None:
-        while self.ring:
-            self.ring.popleft().release()
-
 
 # --- memory --------------------------------------------------------------------------
+
+class _HostMemory:
+    """Page-locked host memory (cuMemHostAlloc), freed once nothing uses it: neither its
+    owner (a DeviceBuffer, a PinnedArray, until released) nor a numpy array over it.  A
+    consumer may keep a frame past free_memory() (FrameSink.last: the adapter's pinned
+    array); freed at release, the array would read memory that is gone."""
+
+    def __init__(self, nbytes: int, mapped: bool, what: str):
+        cu = _driver()
+        # CU_MEMHOSTALLOC_PORTABLE, | CU_MEMHOSTALLOC_DEVICEMAP for the device to reach it
+        self.ptr = int(_ok(cu.cuMemHostAlloc(max(nbytes, 1), 1 | (2 if mapped else 0)),
+                           f"{what} of {nbytes:,} bytes"))
+
+    def array(self, shape, dtype):
+        """A numpy array over the memory; it keeps the memory alive."""
+        import numpy as np
+
+        dtype = np.dtype(dtype)
+        count = int(np.prod(shape))
+        raw = (ctypes.c_ubyte * (count * dtype.itemsize)).from_address(self.ptr)
+        raw.owner = self  # the array's base: the memory lives while the array does
+        return np.frombuffer(raw, dtype=dtype, count=count).reshape(shape)
+
+    def __del__(self):
+        with contextlib.suppress(Exception):  # at exit the driver may be gone
+            _driver().cuMemFreeHost(self.ptr)
+
 
 class DeviceBuffer:
     """Device memory of `size` bytes at device address `ptr` (cuMemAlloc), or mapped
@@ -363,12 +450,11 @@ class DeviceBuffer:
     def __init__(self, size: int, mapped: bool = False):
         cu = _driver()
         self.size = size
-        self.host = None
         self._host_ptr = 0
+        self._memory: _HostMemory | None = None
         if mapped:
-            # CU_MEMHOSTALLOC_PORTABLE | CU_MEMHOSTALLOC_DEVICEMAP
-            self._host_ptr = int(_ok(cu.cuMemHostAlloc(max(size, 1), 1 | 2),
-                                     f"mapped host allocation of {size:,} bytes"))
+            self._memory = _HostMemory(size, True, "mapped host allocation")
+            self._host_ptr = self._memory.ptr
             self.ptr = int(_ok(cu.cuMemHostGetDevicePointer(self._host_ptr, 0),
                                "device pointer of mapped memory"))
         else:
@@ -377,48 +463,189 @@ class DeviceBuffer:
 
     def view(self, shape, dtype):
         """The mapped host memory as a numpy array (mapped buffers only)."""
-        return _host_array(self._host_ptr, shape, dtype)
+        return self._memory.array(shape, dtype)
 
     def release(self) -> None:
-        cu = _driver()
-        if self._host_ptr:
-            cu.cuMemFreeHost(self._host_ptr)
-        elif self.ptr:
-            cu.cuMemFree(self.ptr)
+        if self._memory is None and self.ptr:
+            _driver().cuMemFree(self.ptr)
+        self._memory = None  # mapped: freed with the last view of it
         self.ptr = self._host_ptr = 0
 
 
-def _host_array(address: int, shape, dtype):
-    import numpy as np
-
-    dtype = np.dtype(dtype)
-    count = int(np.prod(shape))
-    raw = (ctypes.c_ubyte * (count * dtype.itemsize)).from_address(address)
-    return np.frombuffer(raw, dtype=dtype, count=count).reshape(shape)
-
-
 class PinnedArray:
-    """A page-locked host array (cuMemHostAlloc): copies from and to it run at DMA speed."""
+    """A page-locked host array (cuMemHostAlloc): copies from and to it run at DMA speed.
+    release() lets the memory go once no array over it is left."""
 
     def __init__(self, shape, dtype, mapped: bool = False):
         import numpy as np
 
         cu = _driver()
-        nbytes = max(int(np.prod(shape)) * np.dtype(dtype).itemsize, 1)
-        self.ptr = int(_ok(cu.cuMemHostAlloc(nbytes, 1 | (2 if mapped else 0)),
-                           f"pinned host allocation of {nbytes:,} bytes"))
-        self.array = _host_array(self.ptr, shape, dtype)
+        nbytes = int(np.prod(shape)) * np.dtype(dtype).itemsize
+        memory = _HostMemory(nbytes, mapped, "pinned host allocation")
+        self.ptr = memory.ptr
+        self.array = memory.array(shape, dtype)
         self.device_ptr = int(_ok(cu.cuMemHostGetDevicePointer(self.ptr, 0),
                                   "device pointer of mapped memory")) if mapped else 0
 
     def release(self) -> None:
-        if self.ptr:
-            _driver().cuMemFreeHost(self.ptr)
         self.ptr, self.array = 0, None
 
 
 def _address(array) -> int:
     return array.ctypes.data
+
+
+class HostBuffer:
+    """A host array the device reads and writes in place (cuMemHostRegister with
+    DEVICEMAP: page-locked where it is, reached through its device pointer); the array
+    must stay alive while it is registered (it is kept here)."""
+
+    def __init__(self, array):
+        import numpy as np
+
+        cu = _driver()
+        if not (isinstance(array, np.ndarray) and array.flags.c_contiguous):
+            raise PipelineError("a host buffer needs a C-contiguous numpy array")
+        self.host, self.size = array, array.nbytes
+        self._host_ptr = _address(array)
+        _ok(cu.cuMemHostRegister(self._host_ptr, max(self.size, 1), 1 | 2),
+            f"registering {self.size:,} bytes of host memory")
+        self.ptr = int(_ok(cu.cuMemHostGetDevicePointer(self._host_ptr, 0),
+                           "device pointer of registered memory"))
+
+    def view(self, shape, dtype):
+        import numpy as np
+
+        return self.host.view(np.dtype(dtype)).reshape(shape)
+
+    def release(self) -> None:
+        if self._host_ptr:
+            _driver().cuMemHostUnregister(self._host_ptr)
+        self.ptr = self._host_ptr = 0
+        self.host = None
+
+
+def device_buffer(context: CudaContext, nbytes: int, access: str = "read_write",
+                  host_visible: bool = False) -> DeviceBuffer:
+    """Device memory; host_visible: mapped pinned host memory (a zero-copy adapter reads
+    it in place).  CUDA has no access flags: access is the interface's, unused."""
+    context.current()
+    return DeviceBuffer(nbytes, mapped=host_visible)
+
+
+def host_buffer(context: CudaContext, array, access: str = "read") -> HostBuffer:
+    context.current()
+    return HostBuffer(array)
+
+
+def filled_buffer(context: CudaContext, array) -> DeviceBuffer:
+    """A device buffer holding a copy of a host array (copied before it returns)."""
+    import numpy as np
+
+    context.current()
+    array = np.ascontiguousarray(array)
+    buffer = DeviceBuffer(array.nbytes)
+    _ok(_driver().cuMemcpyHtoD(buffer.ptr, _address(array), array.nbytes),
+        "copy to the device")
+    return buffer
+
+
+def pinned(context: CudaContext, queue: CudaQueue, shape, dtype) -> tuple:
+    """A pinned host array: (its PinnedArray, the numpy array)."""
+    context.current()
+    array = PinnedArray(shape, dtype)
+    return array, array.array
+
+
+def release_pinned(queue: CudaQueue, pinned_arrays) -> None:
+    for array, _ in pinned_arrays:
+        array.release()
+
+
+def release(buffer) -> None:
+    buffer.release()
+
+
+def nbytes(buffer) -> int:
+    return buffer.size
+
+
+def _is_host(x) -> bool:
+    import numpy as np
+
+    return isinstance(x, np.ndarray)
+
+
+def copy(queue: CudaQueue, dst, src, blocking: bool = True, wait_for=None) -> CudaEvent:
+    """Host array to buffer, buffer to host array (blocking: done on return), or buffer to
+    buffer (never blocking); returns its event.  A copy that is not waited for keeps its
+    host array alive (the event's keep) until the queue's ring reuses the event, which
+    waits for it first.  The host array must be C-contiguous; its bytes are copied."""
+    cu = _driver()
+    host = src if _is_host(src) else dst if _is_host(dst) else None
+    if host is not None:
+        if _is_host(src) and _is_host(dst):
+            raise PipelineError("copy between two host arrays: use numpy")
+        _check_copy(host, dst if host is src else src)
+    event = queue.command(wait_for)
+    if host is None:
+        _ok(cu.cuMemcpyDtoDAsync(dst.ptr, src.ptr, min(src.size, dst.size), queue.handle),
+            "copy between device buffers")
+        blocking = False
+    elif host is src:
+        _ok(cu.cuMemcpyHtoDAsync(dst.ptr, _address(src), src.nbytes, queue.handle),
+            "copy to the device")
+    else:
+        _ok(cu.cuMemcpyDtoHAsync(_address(dst), src.ptr, dst.nbytes, queue.handle),
+            "copy to the host")
+    event.after()
+    if blocking:
+        event.wait()
+    else:
+        event.keep = host
+    return event
+
+
+def _check_copy(host, buffer) -> None:
+    if not host.flags.c_contiguous:
+        raise PipelineError("a copy between host and device needs a C-contiguous array")
+    if host.nbytes > buffer.size:
+        raise PipelineError(f"a copy of {host.nbytes:,} bytes into or out of a buffer of "
+                            f"{buffer.size:,}")
+
+
+def fill(queue: CudaQueue, buffer, byte: int, nbytes: int) -> CudaEvent:
+    event = queue.command()
+    _ok(_driver().cuMemsetD8Async(buffer.ptr, byte, nbytes, queue.handle), "fill")
+    return event.after()
+
+
+def map(queue: CudaQueue, buffer, shape, dtype, mode: str = "read", wait_for=None) -> tuple:
+    """The buffer for the host, once the queue's commands so far and wait_for are done:
+    (view, event).  Host-visible memory (mapped pinned, registered) is the view itself;
+    device memory is copied into a host array (not for mode "write", which discards the
+    contents) and copied back at unmap()."""
+    import numpy as np
+
+    event = queue.command(wait_for).after()
+    event.wait()  # a stream's commands run in order: everything before the map is done
+    if getattr(buffer, "_host_ptr", 0):
+        view = buffer.view(shape, dtype)
+    else:
+        view = np.empty(shape, dtype)
+        if mode != "write":
+            copy(queue, view, buffer)
+    queue.mapped[id(view)] = (buffer, mode, view)
+    return view, event
+
+
+def unmap(queue: CudaQueue, view) -> CudaEvent:
+    """Give a mapped view back: a copied one is copied back to the device unless it was
+    mapped for reading only; returns the event after which the device sees it."""
+    buffer, mode, _ = queue.mapped.pop(id(view), (None, "read", view))
+    if buffer is not None and not getattr(buffer, "_host_ptr", 0) and mode != "read":
+        return copy(queue, buffer, view, blocking=False)
+    return queue.command().after()
 
 
 # --- programs ------------------------------------------------------------------------
@@ -451,16 +678,20 @@ def compile_cubin(source: str, name: str, arch: str,
         opts = [f"--gpu-architecture={arch}".encode(), b"-std=c++17",
                 b"--diag-suppress=177,161", *(o.encode() for o in options)]
         err, = nv.nvrtcCompileProgram(prog, len(opts), opts)
+        # NVRTC writes into the buffer it is given: a bytearray, never bytes.  cuda-python's
+        # examples pass b" " * size, which for an empty log (size 1) IS the interpreter's
+        # shared one-byte b" ": NVRTC's NUL then turns every b" " of the process into
+        # b"\0" (on the H100 a .npz written afterwards by the same process was corrupt)
         size = _nvrtc_ok(nv.nvrtcGetProgramLogSize(prog), "log")
-        log = b" " * size
+        log = bytearray(size)
         nv.nvrtcGetProgramLog(prog, log)
-        log_text = log.rstrip(b"\0 ").decode("utf-8", "replace")
+        log_text = bytes(log).rstrip(b"\0 ").decode("utf-8", "replace")
         if int(err) != 0:
             return None, log_text
         size = _nvrtc_ok(nv.nvrtcGetCUBINSize(prog), "cubin size")
-        cubin = b" " * size
+        cubin = bytearray(size)
         nv.nvrtcGetCUBIN(prog, cubin)
-        return cubin, log_text
+        return bytes(cubin), log_text
     finally:
         nv.nvrtcDestroyProgram(prog)
 
@@ -486,9 +717,19 @@ def build_program(context: CudaContext, path: Path, component: str,
     """Compile one .cu file for the device's architecture (cached on disk) and load it;
     a failure names the component and file and gives NVRTC's messages.  defines: the
     kernel's constants as -D options, as for OpenCL (programs.define_options)."""
-    options = (*options, *define_options(defines))
     path = Path(path)
     source = read_kernel_file(path, component)
+    return _program(context, source, path, component, (*options, *define_options(defines)))
+
+
+def build_source(context: CudaContext, source: str, options: tuple[str, ...] = ()) \
+        -> CudaProgram:
+    """Compile and load CUDA C++ source text (a .cu file's text, prelude included)."""
+    return _program(context, source, Path("source.cu"), "kernel source", tuple(options))
+
+
+def _program(context: CudaContext, source: str, path: Path, component: str,
+             options: tuple[str, ...]) -> CudaProgram:
     arch = context.device.arch
     version = nvrtc_version()
     key = hashlib.sha256("\0".join([source, arch, f"{version[0]}.{version[1]}",
@@ -516,6 +757,108 @@ def build_program(context: CudaContext, path: Path, component: str,
                  f"loading {path.name} for {arch} (a driver older than NVRTC "
                  f"{version[0]}.{version[1]}? install the NVRTC of the driver's CUDA version)")
     return CudaProgram(context, module, path)
+
+
+class CudaKernel:
+    """One kernel function of a loaded program and the arguments set_args packed for it
+    (cuLaunchKernel copies them at each launch, so they may change between launches)."""
+
+    def __init__(self, program: CudaProgram, name: str):
+        self.program, self.name = program, name
+        self.function = program.function(name)
+        self.arguments: _Launch | None = None
+
+
+def kernel(program: CudaProgram, function: str) -> CudaKernel:
+    return CudaKernel(program, function)
+
+
+def set_args(kernel: CudaKernel, *args) -> None:
+    """Buffers (anything with .ptr; None: a null pointer, filled in later) and numpy
+    scalars, in the kernel's parameter order."""
+    kernel.arguments = _Launch([_pointer(0 if a is None else a.ptr)
+                                if a is None or hasattr(a, "ptr") else _scalar(a)
+                                for a in args])
+
+
+def launch(queue: CudaQueue, kernel: CudaKernel, global_size, local_size,
+           wait_for=None) -> CudaEvent:
+    """The kernel over global_size threads in blocks of local_size (grid = global size /
+    local size, rounded up); returns its event."""
+    if kernel.arguments is None:
+        raise PipelineError(f"kernel {kernel.name}() launched before set_args()")
+    block = (*local_size, 1, 1, 1)[:3]
+    grid = tuple(-(-g // b) for g, b in zip((*global_size, 1, 1, 1)[:3], block))
+    event = queue.command(wait_for)
+    _ok(_driver().cuLaunchKernel(kernel.function, *grid, *block, 0, queue.handle,
+                                 kernel.arguments.address, 0),
+        f"launch of {kernel.name}()")
+    return event.after()
+
+
+def launcher():
+    """launch() itself, looked up once: a kernel component calls it every frame."""
+    return launch
+
+
+def kernel_limits(kernel: CudaKernel, device: CudaDevice) -> KernelLimits:
+    """The kernel's thread limit on the device (registers and shared memory decide it),
+    and the warp size as its preferred multiple."""
+    cu = _driver()
+    limit = int(_ok(cu.cuFuncGetAttribute(
+        cu.CUfunction_attribute.CU_FUNC_ATTRIBUTE_MAX_THREADS_PER_BLOCK, kernel.function),
+        "kernel attribute"))
+    return KernelLimits(limit, 32)
+
+
+def check_work_group(kernel: CudaKernel, device: CudaDevice, local_size, component: str,
+                     settings_source: str = "") -> KernelLimits:
+    """The plan's block checked against the kernel's and the device's limits (the neutral
+    check and message, devices.check_work_group_fits)."""
+    return check_work_group_fits(kernel_limits(kernel, device), device.facts(),
+                                 tuple(local_size), component, settings_source)
+
+
+# --- events and the rest of the device interface ---------------------------------------
+
+def wait(events) -> None:
+    wait_for_events(events)
+
+
+def event_seconds(event: CudaEvent) -> float:
+    """A finished command's device time (its queue made with profiling)."""
+    times = event.profile
+    return (times.end - times.start) * 1e-9
+
+
+def is_running(event: CudaEvent) -> bool:
+    """Whether the command of this event is not done yet (CUDA does not tell queued from
+    running: both are 'not ready')."""
+    if not isinstance(event, CudaEvent):
+        return False
+    with contextlib.suppress(Exception):  # no driver, a foreign event: nothing to say
+        err = _driver().cuEventQuery(event.end)
+        err = err[0] if isinstance(err, tuple) else err
+        return int(err) == 600  # CUDA_ERROR_NOT_READY
+    return False
+
+
+def api_frames(module: str) -> bool:
+    """Whether a Python module is this API's binding (signals: where a thread waits)."""
+    return module.split(".")[0] == "cuda"
+
+
+def load():
+    """Import cuda-python's driver API (a PipelineError saying what to install without)."""
+    return _driver()
+
+
+def loader_library() -> str | None:
+    """No OpenCL loader comes with CUDA (OpenCV's OpenCL finds its own)."""
+    return None
+
+
+NAME = "cuda-python"  # the binding's name, in messages
 
 
 # --- components ----------------------------------------------------------------------
@@ -547,255 +890,58 @@ def _pointer(ptr: int):
     return np.array(ptr, dtype=np.uint64)
 
 
-class KernelComponent:
-    """The base class of generated GPU-aware component classes (see components.py for
-    the OpenCL one it mirrors): allocates once, launches with the plan's settings."""
+class KernelComponent(components.KernelComponent):
+    """The base class of generated GPU-aware component classes: the neutral one
+    (components.py: allocates once, launches with the plan's settings, the standard
+    form's copies) on this module's device interface."""
 
-    function = ""
-    inputs: tuple = ()
-    outputs: tuple = ()
-
-    def __init__(self, context: CudaContext, queue: CudaQueue, program: CudaProgram, *,
-                 copies_own_data: bool = False, host_visible: bool = False,
-                 buffer_sets: int = 1, **params: Any):
-        self.context, self.queue, self.program = context, queue, program
-        self.kernel = program.function(self.function)
-        self.copies_own_data, self.host_visible = copies_own_data, host_visible
-        self.buffer_sets = buffer_sets
-        self.profile = None
-        self.event = None
-        for name, value in params.items():
-            setattr(self, name, value)
-        self._inputs, self._outputs = dict(self.inputs), dict(self.outputs)
-        self.sizes: dict[str, Size] = {}
-        self.sets: list[dict[str, Any]] = []
-        self.host_sets: list[dict[str, Any]] = []
-        self._results: list = []
-        self._turn = 0
-        self._events = _Events(queue, 2 * buffer_sets + 2)
-
-    @property
-    def buffers(self) -> dict[str, Any]:
-        return self.sets[0] if self.sets else {}
-
-    def output_sizes(self, *inputs: Size) -> list[Size]:
-        raise NotImplementedError
-
-    def initialize(self, *inputs: Size):
-
-        self.context.current()
-        for port, size in zip(self._inputs, inputs):
-            self.sizes[port] = Size(*size)
-        out_sizes = list(self.output_sizes(*inputs))
-        for port, size in zip(self._outputs, out_sizes):
-            self.sizes[port] = size
-        for _ in range(self.buffer_sets):
-            buffers, hosts = {}, {}
-            if self.copies_own_data:
-                for port, dtype in self._inputs.items():
-                    buffers[port] = DeviceBuffer(self.sizes[port].nbytes(dtype))
-                for port, dtype in self._outputs.items():
-                    buffers[port] = DeviceBuffer(self.sizes[port].nbytes(dtype))
-                    hosts[port] = PinnedArray(self.sizes[port].shape, dtype)
-            else:
-                for port, dtype in self._outputs.items():
-                    buffers[port] = DeviceBuffer(self.sizes[port].nbytes(dtype),
-                                                 mapped=self.host_visible)
-            self.sets.append(buffers)
-            self.host_sets.append(hosts)
-            given = [(hosts[port].array if self.copies_own_data else buffers[port])
-                     for port in self._outputs]
-            self._results.append(given[0] if len(given) == 1 else tuple(given))
-        return out_sizes[0] if len(out_sizes) == 1 else tuple(out_sizes)
-
-    def config_gpu(self, tile: int, local_size, global_size, arguments,
-                   settings_source: str = ""):
-        """The plan's settings: block = local size, grid = global size / local size."""
-        cu = _driver()
-        self.tile, self.local_size, self.global_size = tile, tuple(local_size), \
-            tuple(global_size)
-        limit = int(_ok(cu.cuFuncGetAttribute(
-            cu.CUfunction_attribute.CU_FUNC_ATTRIBUTE_MAX_THREADS_PER_BLOCK, self.kernel),
-            "kernel attribute"))
-        threads = self.local_size[0] * self.local_size[1] * self.local_size[2]
-        dims = self.context.device.max_block
-        if threads > limit or any(b > d for b, d in zip(self.local_size, dims)):
-            where = (f"change platform.gpu_settings.{type(self).__name__} in the model"
-                     if settings_source == "model" else
-                     "rebuild for this device with 'gpucompgen build --backend cuda "
-                     "--device auto'")
-            raise PipelineError(
-                f"{type(self).__name__}: a block of {self.local_size} ({threads:,} threads) "
-                f"does not fit device '{self.context.device.name}' (kernel limit "
-                f"{limit:,} threads, per dimension {list(dims)}); {where}")
-        self.grid = tuple(-(-g // b) for g, b in zip(self.global_size, self.local_size))
-        inputs = [port for port, _ in self.inputs]
-        self._slots = [(i, inputs.index(arg)) for i, arg in enumerate(arguments)
-                       if isinstance(arg, str) and arg not in self.buffers]
-        self._launches = []
-        for buffers in self.sets:
-            values = []
-            for arg in arguments:
-                if isinstance(arg, str):
-                    buffer = buffers.get(arg)
-                    values.append(_pointer(buffer.ptr if buffer is not None else 0))
-                else:
-                    values.append(_scalar(arg))
-            self._launches.append(_Launch(values))
-
-    def _launch(self, k: int, inputs, wait_for) -> CudaEvent:
-        cu = _driver()
-        launch = self._launches[k]
-        for i, j in self._slots:
-            launch.values[i][()] = inputs[j].ptr
-        self.queue.wait_for(wait_for)
-        event = self._events.next()
-        event.before()
-        g, b = self.grid, self.local_size
-        _ok(cu.cuLaunchKernel(self.kernel, g[0], g[1], g[2], b[0], b[1], b[2], 0,
-                              self.queue.handle, launch.address, 0),
-            f"launch of {self.function}()")
-        return event.after()
-
-    def execute(self, *inputs, wait_for=None):
-        self.context.current()
-        k = self._turn
-        if self.buffer_sets > 1:
-            self._turn = (k + 1) % self.buffer_sets
-        if self.copies_own_data:
-            self._copy_and_run(k, inputs)
-        else:
-            self.event = self._launch(k, inputs, wait_for)
-            if self.profile is not None:
-                self.profile.kernel(self, self.event)
-        return self._results[k]
-
-    def _copy_and_run(self, k: int, inputs) -> None:
-        import numpy as np
-
-        cu = _driver()
-        buffers, hosts = self.sets[k], self.host_sets[k]
-        stream = self.queue.handle
-        copied_in = []
-        kept = []
-        for port, given in zip(self._inputs, inputs):
-            x = np.ascontiguousarray(given)
-            kept.append(x)
-            event = self._events.next()
-            event.before()
-            _ok(cu.cuMemcpyHtoDAsync(buffers[port].ptr, _address(x), buffers[port].size,
-                                     stream), "copy to the device")
-            copied_in.append(event.after())
-        ran = self._launch(k, [], None)
-        copied_out = []
-        for port in self._outputs:
-            event = self._events.next()
-            event.before()
-            _ok(cu.cuMemcpyDtoHAsync(hosts[port].ptr, buffers[port].ptr, buffers[port].size,
-                                     stream), "copy to the host")
-            copied_out.append(event.after())
-        copied_out[-1].wait()
-        self.event = copied_out[-1]
-        if self.profile is not None:
-            for port, event in zip(self._inputs, copied_in):
-                self.profile.copy(self, "cpu2gpu", event, buffers[port].size)
-            self.profile.kernel(self, ran)
-            for port, event in zip(self._outputs, copied_out):
-                self.profile.copy(self, "gpu2cpu", event, buffers[port].size)
-
-    def free_memory(self):
-        for hosts in self.host_sets:
-            for pinned in hosts.values():
-                pinned.release()
-        for buffers in self.sets:
-            for buffer in buffers.values():
-                buffer.release()
-        self.sets, self.host_sets, self._results, self._launches = [], [], [], []
-        self._events.release()
+    api = sys.modules[__name__]
 
 
 # --- adapters ------------------------------------------------------------------------
+# The neutral adapters (adapters.py) on this module's device interface, but for the
+# zero-copy CPU-to-GPU one: CUDA reads a frame in place from mapped pinned memory, which
+# a frame is copied into on the host (registering each frame's memory would cost more).
 
-class _Adapter(adapters._Adapter):
-    """The OpenCL adapters' checks of frame sizes, on the CUDA context."""
-
-    def initialize(self, size, dtype):
-        size = super().initialize(size, dtype)
-        self.context.current()
-        return size
+_THIS = sys.modules[__name__]
 
 
-class CpuToGpuAdapter(_Adapter):
+class CpuToGpuAdapter(adapters.CpuToGpuAdapter):
     """One device buffer per buffer set, one copy a frame (cuMemcpyHtoDAsync); with
     staging="pinned" the frame is put in a pinned array first (a host copy), so the copy
-    runs at DMA speed and does not wait for the driver to stage pageable memory."""
+    runs at DMA speed.  A copy that is not waited for (blocking=False) reads its source
+    after transfer() returns: a set's pinned array is written again only once the set's
+    last copy is done, and a pageable frame is kept alive by the copy's event."""
 
-    def __init__(self, context, queue, nbytes: int, blocking: bool = True,
-                 buffer_sets: int = 1, staging: str = "pageable"):
-        super().__init__(context, queue, nbytes)
-        self.blocking, self.buffer_sets, self.staging = blocking, buffer_sets, staging
-        self.buffers: list[DeviceBuffer] = []
-        self.pinned: list[PinnedArray] = []
-        self.copied: list[CudaEvent | None] = []
-        self.buffer = None
-        self._turn = 0
-        self._events = _Events(queue, 2 * buffer_sets + 2)
-        self._kept: list = []
+    api = _THIS
 
     def initialize(self, size, dtype):
-        size = super().initialize(size, dtype)
-        for _ in range(self.buffer_sets):
-            self.buffers.append(DeviceBuffer(self.nbytes))
-            if self.staging == "pinned":
-                self.pinned.append(PinnedArray(size.shape, dtype))
-            self.copied.append(None)
-            self._kept.append(None)
-        self.buffer = self.buffers[0]
-        return size
+        self.copied: list[CudaEvent | None] = [None] * self.buffer_sets
+        return super().initialize(size, dtype)
 
     def transfer(self, host, wait_for=None):
-        import numpy as np
-
-        cu = _driver()
-        self.context.current()
-        self._check(host)
         k = self._turn
-        self._turn = (k + 1) % self.buffer_sets
-        self.buffer = self.buffers[k]
         if self.copied[k] is not None:
-            self.copied[k].wait()  # set k's last copy has read its source
-        if self.pinned:
-            source = self.pinned[k].array
-            np.copyto(source, np.reshape(host, source.shape), casting="no")
-        else:
-            source = np.ascontiguousarray(host)
-            self._kept[k] = source  # alive until the copy has read it
-        self.queue.wait_for(wait_for)
-        event = self._events.next()
-        event.before()
-        _ok(cu.cuMemcpyHtoDAsync(self.buffer.ptr, _address(source), self.nbytes,
-                                 self.queue.handle), "copy to the device")
-        self.event = self.copied[k] = event.after()
-        if self.blocking:
-            self.event.wait()
-        if self.profile is not None:
-            self.profile.copy(self, "cpu2gpu", self.event, self.nbytes)
-        return self.buffer
+            self.copied[k].wait()  # set k's last copy has read its pinned array
+        buffer = super().transfer(host, wait_for)
+        self.copied[k] = self.event
+        return buffer
 
     def free_memory(self):
-        for p in self.pinned:
-            p.release()
-        for b in self.buffers:
-            b.release()
-        self.pinned, self.buffers, self.buffer, self._kept = [], [], None, []
-        self._events.release()
+        for event in getattr(self, "copied", ()):
+            if event is not None:
+                event.wait()  # no copy still reads a pinned array being freed
+        self.copied = [None] * self.buffer_sets
+        super().free_memory()
 
 
-class ZeroCopyCpuToGpuAdapter(_Adapter):
+class ZeroCopyCpuToGpuAdapter(adapters._Adapter):
     """The kernel reads the frame from mapped pinned host memory through its device
     pointer (integrated GPUs share the memory: no copy by the device).  The frame is put
     in the set's mapped array (a host copy); before a set is written again, the commands
     queued on this lane so far are waited for, so the device no longer reads it."""
+
+    api = _THIS
 
     def __init__(self, context, queue, nbytes: int, buffer_sets: int = 1):
         super().__init__(context, queue, nbytes)
@@ -804,127 +950,47 @@ class ZeroCopyCpuToGpuAdapter(_Adapter):
         self.buffer = None
         self.host = None
         self._turn = 0
-        self._written: list[CudaEvent | None] = []
-        self._events = _Events(queue, 2 * buffer_sets + 2)
+        self._written: list[bool] = []
 
     def initialize(self, size, dtype):
         size = super().initialize(size, dtype)
         for _ in range(self.buffer_sets):
-            self.mapped.append(DeviceBuffer(self.nbytes, mapped=True))
-            self._written.append(None)
+            self.mapped.append(device_buffer(self.context, self.nbytes, "read",
+                                             host_visible=True))
+            self._written.append(False)
         return size
 
     def transfer(self, host, wait_for=None):
         import numpy as np
 
-        self.context.current()
         self._check(host)
         k = self._turn
         self._turn = (k + 1) % self.buffer_sets
-        if self._written[k] is not None:
-            self.queue.finish()  # the kernels that read set k are done
+        if self._written[k]:
+            finish(self.queue)  # the kernels that read set k are done
         self.buffer = self.mapped[k]
         self.host = self.buffer.view(self.shape, self.dtype)
         np.copyto(self.host, np.reshape(host, self.host.shape), casting="no")
-        self._written[k] = self._events.next().after()
+        self._written[k] = True
         return self.buffer
 
     def free_memory(self):
         for b in self.mapped:
-            b.release()
+            release(b)
         self.mapped, self.buffer, self.host = [], None, None
-        self._events.release()
 
 
-class GpuToCpuAdapter(_Adapter):
+class GpuToCpuAdapter(adapters.GpuToCpuAdapter):
     """One host array per buffer set (pinned with staging="pinned"), one copy a frame,
     waited for: the host reads the frame next."""
 
-    def __init__(self, context, queue, nbytes: int, buffer_sets: int = 1,
-                 staging: str = "pageable"):
-        super().__init__(context, queue, nbytes)
-        self.buffer_sets, self.staging = buffer_sets, staging
-        self.hosts: list = []
-        self.pinned: list[PinnedArray] = []
-        self.host = None
-        self._turn = 0
-        self._events = _Events(queue, 2 * buffer_sets + 2)
-
-    def initialize(self, size, dtype):
-        import numpy as np
-
-        size = super().initialize(size, dtype)
-        for _ in range(self.buffer_sets):
-            if self.staging == "pinned":
-                self.pinned.append(PinnedArray(size.shape, dtype))
-                self.hosts.append(self.pinned[-1].array)
-            else:
-                self.hosts.append(np.empty(size.shape, dtype))
-        self.host = self.hosts[0]
-        return size
-
-    def transfer(self, buffer, wait_for=None):
-        cu = _driver()
-        self.context.current()
-        k = self._turn
-        self._turn = (k + 1) % self.buffer_sets
-        self.host = self.hosts[k]
-        self.queue.wait_for(wait_for)
-        event = self._events.next()
-        event.before()
-        _ok(cu.cuMemcpyDtoHAsync(_address(self.host), buffer.ptr, self.nbytes,
-                                 self.queue.handle), "copy to the host")
-        self.event = event.after()
-        self.event.wait()
-        if self.profile is not None:
-            self.profile.copy(self, "gpu2cpu", self.event, self.nbytes)
-        return self.host
-
-    def free_memory(self):
-        for p in self.pinned:
-            p.release()
-        self.hosts, self.pinned, self.host = [], [], None
-        self._events.release()
+    api = _THIS
 
 
-class ZeroCopyGpuToCpuAdapter(_Adapter):
-    """The consumer reads the producer's mapped pinned output in place, once the kernel
-    that wrote it is done (its event, or this lane's commands so far); unmap() is
-    bookkeeping only: CUDA needs no unmap before the device writes again, but the
-    program's order (a consumer done before the producer's next frame) is kept."""
+class ZeroCopyGpuToCpuAdapter(adapters.ZeroCopyGpuToCpuAdapter):
+    """The consumer reads the producer's output in place, mapped (map(): once the
+    queue's commands so far and the events it is given are done): host-visible memory
+    (mapped pinned, the producer made with host_visible) is read where it is, with no
+    copy; unmap() only records where the device may write it again."""
 
-    def __init__(self, context, queue, nbytes: int, buffer_sets: int = 1,
-                 wait_unmap: bool = True):
-        super().__init__(context, queue, nbytes)
-        self.buffer_sets, self.wait_unmap = buffer_sets, wait_unmap
-        self.views: deque = deque()
-
-    @property
-    def view(self):
-        return self.views[-1] if self.views else None
-
-    def transfer(self, buffer, wait_for=None):
-        self.context.current()
-        if len(self.views) >= self.buffer_sets:
-            raise PipelineError("buffer mapped twice: unmap() was not called")
-        waited = False
-        for event in wait_for or ():
-            if isinstance(event, CudaEvent):
-                event.wait()
-                waited = True
-        if not waited:
-            self.queue.finish()
-        if buffer.host is None and buffer._host_ptr:
-            buffer.host = buffer.view(self.shape, self.dtype)
-        if buffer.host is None:
-            raise PipelineError("zero-copy adapter given a buffer that is not host-visible "
-                                "(rebuild with --zero-copy off)")
-        self.views.append(buffer.host)
-        return buffer.host
-
-    def unmap(self):
-        if self.views:
-            self.views.popleft()
-
-    def free_memory(self):
-        self.views.clear()
+    api = _THIS

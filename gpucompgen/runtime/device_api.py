@@ -1,12 +1,15 @@
 """The device interface: what the runtime's neutral core asks of a device API.
 
-One module per API implements it (``runtime/opencl.py`` for OpenCL; the CUDA runtime,
-``runtime/cuda.py``, has the same names for generated programs and may implement this
-interface later).  The adapters, kernel components, ``gpucompgen tune`` and
-``gpucompgen bench`` call only these functions, so they never import a device API's
-package (tests/test_architecture.py checks it).  A module is picked by name, as backends
-are (``get``); contexts, queues, buffers, programs, kernels and events are the API's own
-objects, which the core only passes back.
+One module per API implements it: ``runtime/opencl.py`` (OpenCL) and
+``runtime/cuda.py`` (cuda-python; its generated programs' classes are built on the same
+functions).  The adapters, kernel components, ``gpucompgen tune`` and ``gpucompgen
+bench`` call only these functions, so they never import a device API's package
+(tests/test_architecture.py checks it; tests/test_cuda_interface.py that both modules
+declare every function with compatible parameters).  A module is picked by name, as
+backends are (``get``), or by one of its contexts (``of``); contexts, queues, buffers,
+programs, kernels and events are the API's own objects, which the core only passes back.
+Kernel text handed to ``build_source`` is in the API's own language (CUDA C++ for CUDA:
+gpucompgen.backend.kernel_text writes it from the portable subset).
 
 Events: any object with ``wait()`` and ``profile.start`` / ``profile.end`` (nanoseconds,
 on a queue made with profiling), which is what runtime.Profile and --trace read.
@@ -18,6 +21,7 @@ import importlib
 from typing import Any, Protocol
 
 DEFAULT = "opencl"
+NAMES = ("opencl", "cuda")  # the device API modules, named as the backends that use them
 
 
 class DeviceAPI(Protocol):
@@ -40,7 +44,7 @@ class DeviceAPI(Protocol):
                       host_visible: bool = False) -> Any: ...
     def host_buffer(self, context: Any, array: Any, access: str = "read") -> Any: ...
     def pinned(self, context: Any, queue: Any, shape: Any, dtype: Any) -> tuple: ...
-    def release_pinned(self, queue: Any, pinned: list) -> None: ...
+    def release_pinned(self, queue: Any, pinned_arrays: list) -> None: ...
     def release(self, buffer: Any) -> None: ...
     def nbytes(self, buffer: Any) -> int: ...
     def filled_buffer(self, context: Any, array: Any) -> Any: ...  # a copy of the array
@@ -74,6 +78,24 @@ class DeviceAPI(Protocol):
 
 def get(name: str | None = None) -> Any:
     """The device API module `name` (default: OpenCL, what ``from gpucompgen import
-    runtime`` programs use).  ImportError when its package is not installed is raised by
+    runtime`` programs use).  A missing binding (OpenCL's or cuda-python) is reported by
     its functions, not here: importing the module needs nothing but the core."""
-    return importlib.import_module(f"{__package__}.{name or DEFAULT}")
+    name = name or DEFAULT
+    if name not in NAMES:
+        raise ValueError(f"unknown device API {name!r} (one of {', '.join(NAMES)})")
+    return importlib.import_module(f"{__package__}.{name}")
+
+
+def of(context: Any) -> Any:
+    """The device API module that made `context` (a CUDA context is the CUDA module's own
+    class; anything else is the default API's)."""
+    module = type(context).__module__
+    for name in NAMES:
+        if module == f"{__package__}.{name}":
+            return get(name)
+    return get()
+
+
+def name_of(api: Any) -> str:
+    """The name of a device API module ("opencl", "cuda")."""
+    return api.__name__.rsplit(".", 1)[-1]

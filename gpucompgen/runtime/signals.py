@@ -253,7 +253,7 @@ def blocked_at(worker: threading.Thread, parts: dict[str, Any]) -> str:
     if frame is None:
         return "outside Python"
     by_id = {id(obj): name for name, obj in parts.items() if obj is not None}
-    api = device_api.get()
+    api = _api_of(parts)
     innermost = frame
     component = opencl = None
     program_line = None
@@ -288,14 +288,24 @@ def blocked_at(worker: threading.Thread, parts: dict[str, Any]) -> str:
     return text
 
 
+def _api_of(parts: dict[str, Any]) -> Any:
+    """The device API the run's parts use (a CUDA program's adapters and kernel components
+    hold the CUDA module), else the default one."""
+    for part in parts.values():
+        api = getattr(part, "_api", None)
+        if api is not None:
+            return api
+    return device_api.get()
+
+
 def _looks_like_opencl(source: str) -> bool:
     return any(word in source for word in ("finish()", "wait()", "wait_for_events",
                                            "enqueue_", "cl."))
 
 
 def running_kernels(parts: dict[str, Any]) -> list[str]:
-    """Parts whose last OpenCL command (their .event) is running on the device now."""
-    api = device_api.get()
+    """Parts whose last device command (their .event) is running on the device now."""
+    api = _api_of(parts)
     found = []
     for name, part in parts.items():
         event = getattr(part, "event", None)

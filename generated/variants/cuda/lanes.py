@@ -180,14 +180,25 @@ class FusedSobelToCut(runtime.KernelComponent):
 def run(frames=None, context=None, monitor=None, profile=False, params=None):
     """Build the system, stream up to `frames` frames (default: until a source ends).
 
-    A runtime.Monitor shows progress, times the components when asked and hands them
-    runtime options such as --decisions; main() makes one from the command line.
-    With profile=True, CUDA events time every kernel and copy (see
-    runtime.Profile); the result's profile holds them. params: {'component.param': value}
-    for entries of PARAMS, checked against their declarations.
+    monitor: a runtime.Monitor (progress, timings, options; main() makes one from the
+    command line). With profile=True, CUDA events time every kernel and copy.
+    params: {'component.param': value} for entries of PARAMS.
     """
-    monitor = monitor or runtime.Monitor(progress=False)
-    params = runtime.param_values(PARAMS, params)
+    # the monitor, the checked params, every part (filled in as it is constructed)
+    session = runtime.Session(PARAMS, params, monitor, profile, [
+        'camera',
+        'adapter1_cpu2gpu',
+        'gray',
+        'blur',
+        'roi',
+        'adapter2_cpu2gpu',
+        'sobel_to_cut',
+        'adapter3_gpu2cpu',
+        'segments',
+        'draw',
+        'sink',
+    ])
+    params = session.params
     context = context or runtime.create_context()
     # Parallel execution: 2 in-order queues (lanes). Commands are enqueued
     # without waiting; a command waits for another queue's event (wait_for=[...]) only
@@ -220,23 +231,10 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
             '_m2_thresh_type': np.int32(params['strong.thresh_type']),
         })
 
-    # every component and adapter, filled in as it is constructed; those initialized are
-    # freed once each, in reverse order
-    parts = runtime.Parts([
-        'camera',
-        'adapter1_cpu2gpu',
-        'gray',
-        'blur',
-        'roi',
-        'adapter2_cpu2gpu',
-        'sobel_to_cut',
-        'adapter3_gpu2cpu',
-        'segments',
-        'draw',
-        'sink',
-    ])
-    frame = None  # while constructing and initializing
-    try:
+    # a failure names its component and frame; every part initialized is freed once, in
+    # reverse order
+    with session:
+        parts = session.parts
         camera = parts['camera'] = Camera(
             width=301, height=200, seed=params['camera.seed'], buoys=params['camera.buoys'],
             frames=params['camera.frames'], folder=params['camera.folder'],
@@ -264,23 +262,18 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
             red=params['draw.red'], green=params['draw.green'], blue=params['draw.blue'],
             thickness=params['draw.thickness'])
         sink = parts['sink'] = FrameSink(output=params['sink.output'])
-        monitor.attach(parts)
-        profiler = runtime.Profile(parts) if profile else None
+        session.start()  # the monitor and the profiler see the parts
 
         camera_image_size = camera.initialize()
         camera_image_size = runtime.expect_size(
             'camera.image', camera_image_size, Size(200, 301, 3))
         camera_image_gpu_size = adapter1_cpu2gpu.initialize(camera_image_size, np.uint8)
         gray_dst_size = gray.initialize(camera_image_gpu_size)
-        gray_dst_size = runtime.expect_size('gray.dst', gray_dst_size, Size(200, 301, 1))
         blur_dst_size = blur.initialize(gray_dst_size)
-        blur_dst_size = runtime.expect_size('blur.dst', blur_dst_size, Size(200, 301, 1))
         roi_dst_size = roi.initialize(camera_image_size)
         roi_dst_size = runtime.expect_size('roi.dst', roi_dst_size, Size(200, 301, 1))
         roi_dst_gpu_size = adapter2_cpu2gpu.initialize(roi_dst_size, np.uint8)
         sobel_to_cut_dst_size = sobel_to_cut.initialize(blur_dst_size, roi_dst_gpu_size)
-        sobel_to_cut_dst_size = runtime.expect_size(
-            'sobel_to_cut.dst', sobel_to_cut_dst_size, Size(200, 301, 1))
         cut_dst_cpu_size = adapter3_gpu2cpu.initialize(sobel_to_cut_dst_size, np.uint8)
         segments_lines_size = segments.initialize(cut_dst_cpu_size)
         segments_lines_size = runtime.expect_size(
@@ -316,8 +309,8 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
                 np.int32(32),  # tile
             ])
 
-        frame = 0
-        while frames is None or frame < frames:
+        session.frame = 0
+        while frames is None or session.frame < frames:
             camera_image = camera.execute()
             if camera_image is None:
                 break  # end of stream
@@ -338,16 +331,10 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
             draw_dst = draw.execute(camera_image, segments_lines)
             draw_dst = runtime.check_frame('draw.dst', draw_dst, (200, 301, 3), np.uint8)
             sink.execute(draw_dst)
-            frame += 1
-            monitor.frame_done(frame)
+            session.frame_done()
         queue0.finish()
         queue1.finish()
-    except Exception as exc:
-        raise runtime.component_failure(exc, frame, parts) from exc
-    finally:
-        runtime.free_all(parts)  # free_memory() on each, in reverse order
-        monitor.close()
-    return runtime.Result(frame, parts, profiler)
+    return session.result()
 
 
 def main(argv=None):

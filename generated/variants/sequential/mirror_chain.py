@@ -99,14 +99,19 @@ class FusedMirror1ToMirror5(runtime.KernelComponent):
 def run(frames=None, context=None, monitor=None, profile=False, params=None):
     """Build the system, stream up to `frames` frames (default: until a source ends).
 
-    A runtime.Monitor shows progress, times the components when asked and hands them
-    runtime options such as --decisions; main() makes one from the command line.
-    With profile=True, OpenCL profiling events time every kernel and copy (see
-    runtime.Profile); the result's profile holds them. params: {'component.param': value}
-    for entries of PARAMS, checked against their declarations.
+    monitor: a runtime.Monitor (progress, timings, options; main() makes one from the
+    command line). With profile=True, OpenCL profiling events time every kernel and copy.
+    params: {'component.param': value} for entries of PARAMS.
     """
-    monitor = monitor or runtime.Monitor(progress=False)
-    params = runtime.param_values(PARAMS, params)
+    # the monitor, the checked params, every part (filled in as it is constructed)
+    session = runtime.Session(PARAMS, params, monitor, profile, [
+        'source',
+        'adapter1_cpu2gpu',
+        'mirror1_to_mirror5',
+        'adapter2_gpu2cpu',
+        'sink',
+    ])
+    params = session.params
     context = context or runtime.create_context()
     # Sequential execution: one in-order queue; copies to the GPU block.
     queue = runtime.create_queue(context, profile)
@@ -119,17 +124,10 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
         context, LIB_DIR / 'group_mirror1_to_mirror5.cl',
         'mirror1_to_mirror5 (FusedMirror1ToMirror5)')
 
-    # every component and adapter, filled in as it is constructed; those initialized are
-    # freed once each, in reverse order
-    parts = runtime.Parts([
-        'source',
-        'adapter1_cpu2gpu',
-        'mirror1_to_mirror5',
-        'adapter2_gpu2cpu',
-        'sink',
-    ])
-    frame = None  # while constructing and initializing
-    try:
+    # a failure names its component and frame; every part initialized is freed once, in
+    # reverse order
+    with session:
+        parts = session.parts
         source = parts['source'] = StillImage(
             width=1152, height=864, seed=params['source.seed'], frames=params['source.frames'])
         # source.image -> mirror1_to_mirror5.mirror1_src
@@ -141,16 +139,13 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
         adapter2_gpu2cpu = parts['adapter2_gpu2cpu'] = runtime.GpuToCpuAdapter(
             context, queue, nbytes=2_985_984, staging='pinned')
         sink = parts['sink'] = FrameSink(output=params['sink.output'])
-        monitor.attach(parts)
-        profiler = runtime.Profile(parts) if profile else None
+        session.start()  # the monitor and the profiler see the parts
 
         source_image_size = source.initialize()
         source_image_size = runtime.expect_size(
             'source.image', source_image_size, Size(864, 1152, 3))
         source_image_gpu_size = adapter1_cpu2gpu.initialize(source_image_size, np.uint8)
         mirror1_to_mirror5_dst_size = mirror1_to_mirror5.initialize(source_image_gpu_size)
-        mirror1_to_mirror5_dst_size = runtime.expect_size(
-            'mirror1_to_mirror5.dst', mirror1_to_mirror5_dst_size, Size(864, 1152, 3))
         mirror5_dst_cpu_size = adapter2_gpu2cpu.initialize(mirror1_to_mirror5_dst_size, np.uint8)
         sink.initialize(mirror5_dst_cpu_size)
 
@@ -163,8 +158,8 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
                 np.int32(32),  # tile
             ])
 
-        frame = 0
-        while frames is None or frame < frames:
+        session.frame = 0
+        while frames is None or session.frame < frames:
             source_image = source.execute()
             if source_image is None:
                 break  # end of stream
@@ -174,15 +169,9 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
             mirror1_to_mirror5_dst = mirror1_to_mirror5.execute(source_image_gpu)
             mirror5_dst_cpu = adapter2_gpu2cpu.transfer(mirror1_to_mirror5_dst)
             sink.execute(mirror5_dst_cpu)
-            frame += 1
-            monitor.frame_done(frame)
+            session.frame_done()
         queue.finish()
-    except Exception as exc:
-        raise runtime.component_failure(exc, frame, parts) from exc
-    finally:
-        runtime.free_all(parts)  # free_memory() on each, in reverse order
-        monitor.close()
-    return runtime.Result(frame, parts, profiler)
+    return session.result()
 
 
 def main(argv=None):

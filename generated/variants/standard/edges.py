@@ -474,14 +474,31 @@ class ImageMergerMerged(runtime.KernelComponent):
 def run(frames=None, context=None, monitor=None, profile=False, params=None):
     """Build the system, stream up to `frames` frames (default: until a source ends).
 
-    A runtime.Monitor shows progress, times the components when asked and hands them
-    runtime options such as --decisions; main() makes one from the command line.
-    With profile=True, OpenCL profiling events time every kernel and copy (see
-    runtime.Profile); the result's profile holds them. params: {'component.param': value}
-    for entries of PARAMS, checked against their declarations.
+    monitor: a runtime.Monitor (progress, timings, options; main() makes one from the
+    command line). With profile=True, OpenCL profiling events time every kernel and copy.
+    params: {'component.param': value} for entries of PARAMS.
     """
-    monitor = monitor or runtime.Monitor(progress=False)
-    params = runtime.param_values(PARAMS, params)
+    # the monitor, the checked params, every part (filled in as it is constructed)
+    session = runtime.Session(PARAMS, params, monitor, profile, [
+        'camera',
+        'gray',
+        'blur',
+        'canny',
+        'dx',
+        'dy',
+        'absx',
+        'absy',
+        'sobel',
+        'laplace',
+        'abslap',
+        'canny_rgb',
+        'sobel_rgb',
+        'laplace_rgb',
+        'left',
+        'merged',
+        'sink',
+    ])
+    params = session.params
     context = context or runtime.create_context()
     # Sequential execution: one in-order queue; copies to the GPU block.
     queue = runtime.create_queue(context, profile)
@@ -578,29 +595,10 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
     image_merger_merged_program = runtime.build_program(
         context, LIB_DIR / 'merged.cl', 'merged (ImageMergerMerged)')
 
-    # every component and adapter, filled in as it is constructed; those initialized are
-    # freed once each, in reverse order
-    parts = runtime.Parts([
-        'camera',
-        'gray',
-        'blur',
-        'canny',
-        'dx',
-        'dy',
-        'absx',
-        'absy',
-        'sobel',
-        'laplace',
-        'abslap',
-        'canny_rgb',
-        'sobel_rgb',
-        'laplace_rgb',
-        'left',
-        'merged',
-        'sink',
-    ])
-    frame = None  # while constructing and initializing
-    try:
+    # a failure names its component and frame; every part initialized is freed once, in
+    # reverse order
+    with session:
+        parts = session.parts
         camera = parts['camera'] = Camera(
             width=301, height=200, seed=params['camera.seed'], buoys=params['camera.buoys'],
             frames=params['camera.frames'], folder=params['camera.folder'],
@@ -634,46 +632,27 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
         merged = parts['merged'] = ImageMergerMerged(
             context, queue, image_merger_merged_program, copies_own_data=True)
         sink = parts['sink'] = FrameSink(output=params['sink.output'])
-        monitor.attach(parts)
-        profiler = runtime.Profile(parts) if profile else None
+        session.start()  # the monitor and the profiler see the parts
 
         camera_image_size = camera.initialize()
         camera_image_size = runtime.expect_size(
             'camera.image', camera_image_size, Size(200, 301, 3))
         gray_dst_size = gray.initialize(camera_image_size)
-        gray_dst_size = runtime.expect_size('gray.dst', gray_dst_size, Size(200, 301, 1))
         blur_dst_size = blur.initialize(gray_dst_size)
-        blur_dst_size = runtime.expect_size('blur.dst', blur_dst_size, Size(200, 301, 1))
         canny_dst_size = canny.initialize(blur_dst_size)
         canny_dst_size = runtime.expect_size('canny.dst', canny_dst_size, Size(200, 301, 1))
         dx_dst_size = dx.initialize(blur_dst_size)
-        dx_dst_size = runtime.expect_size('dx.dst', dx_dst_size, Size(200, 301, 1))
         dy_dst_size = dy.initialize(blur_dst_size)
-        dy_dst_size = runtime.expect_size('dy.dst', dy_dst_size, Size(200, 301, 1))
         absx_dst_size = absx.initialize(dx_dst_size)
-        absx_dst_size = runtime.expect_size('absx.dst', absx_dst_size, Size(200, 301, 1))
         absy_dst_size = absy.initialize(dy_dst_size)
-        absy_dst_size = runtime.expect_size('absy.dst', absy_dst_size, Size(200, 301, 1))
         sobel_dst_size = sobel.initialize(absx_dst_size, absy_dst_size)
-        sobel_dst_size = runtime.expect_size('sobel.dst', sobel_dst_size, Size(200, 301, 1))
         laplace_dst_size = laplace.initialize(blur_dst_size)
-        laplace_dst_size = runtime.expect_size('laplace.dst', laplace_dst_size, Size(200, 301, 1))
         abslap_dst_size = abslap.initialize(laplace_dst_size)
-        abslap_dst_size = runtime.expect_size('abslap.dst', abslap_dst_size, Size(200, 301, 1))
         canny_rgb_dst_size = canny_rgb.initialize(canny_dst_size)
-        canny_rgb_dst_size = runtime.expect_size(
-            'canny_rgb.dst', canny_rgb_dst_size, Size(200, 301, 3))
         sobel_rgb_dst_size = sobel_rgb.initialize(sobel_dst_size)
-        sobel_rgb_dst_size = runtime.expect_size(
-            'sobel_rgb.dst', sobel_rgb_dst_size, Size(200, 301, 3))
         laplace_rgb_dst_size = laplace_rgb.initialize(abslap_dst_size)
-        laplace_rgb_dst_size = runtime.expect_size(
-            'laplace_rgb.dst', laplace_rgb_dst_size, Size(200, 301, 3))
         left_merged_size = left.initialize(canny_rgb_dst_size, sobel_rgb_dst_size)
-        left_merged_size = runtime.expect_size('left.merged', left_merged_size, Size(200, 602, 3))
         merged_merged_size = merged.initialize(left_merged_size, laplace_rgb_dst_size)
-        merged_merged_size = runtime.expect_size(
-            'merged.merged', merged_merged_size, Size(200, 903, 3))
         sink.initialize(merged_merged_size)
 
         # gray: settings component's own, 448 resident threads; kernel arguments in the calling
@@ -802,8 +781,8 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
                 np.int32(32),  # tile
             ])
 
-        frame = 0
-        while frames is None or frame < frames:
+        session.frame = 0
+        while frames is None or session.frame < frames:
             camera_image = camera.execute()
             if camera_image is None:
                 break  # end of stream
@@ -826,15 +805,9 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
             left_merged = left.execute(canny_rgb_dst, sobel_rgb_dst)
             merged_merged = merged.execute(left_merged, laplace_rgb_dst)
             sink.execute(merged_merged)
-            frame += 1
-            monitor.frame_done(frame)
+            session.frame_done()
         queue.finish()
-    except Exception as exc:
-        raise runtime.component_failure(exc, frame, parts) from exc
-    finally:
-        runtime.free_all(parts)  # free_memory() on each, in reverse order
-        monitor.close()
-    return runtime.Result(frame, parts, profiler)
+    return session.result()
 
 
 def main(argv=None):

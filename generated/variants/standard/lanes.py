@@ -249,14 +249,25 @@ class BitwiseAndMaskGray(runtime.KernelComponent):
 def run(frames=None, context=None, monitor=None, profile=False, params=None):
     """Build the system, stream up to `frames` frames (default: until a source ends).
 
-    A runtime.Monitor shows progress, times the components when asked and hands them
-    runtime options such as --decisions; main() makes one from the command line.
-    With profile=True, OpenCL profiling events time every kernel and copy (see
-    runtime.Profile); the result's profile holds them. params: {'component.param': value}
-    for entries of PARAMS, checked against their declarations.
+    monitor: a runtime.Monitor (progress, timings, options; main() makes one from the
+    command line). With profile=True, OpenCL profiling events time every kernel and copy.
+    params: {'component.param': value} for entries of PARAMS.
     """
-    monitor = monitor or runtime.Monitor(progress=False)
-    params = runtime.param_values(PARAMS, params)
+    # the monitor, the checked params, every part (filled in as it is constructed)
+    session = runtime.Session(PARAMS, params, monitor, profile, [
+        'camera',
+        'gray',
+        'blur',
+        'sobel',
+        'magnitude',
+        'strong',
+        'roi',
+        'cut',
+        'segments',
+        'draw',
+        'sink',
+    ])
+    params = session.params
     context = context or runtime.create_context()
     # Sequential execution: one in-order queue; copies to the GPU block.
     queue = runtime.create_queue(context, profile)
@@ -305,23 +316,10 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
     bitwise_and_mask_gray_program = runtime.build_program(
         context, LIB_DIR / 'cut.cl', 'cut (BitwiseAndMaskGray)')
 
-    # every component and adapter, filled in as it is constructed; those initialized are
-    # freed once each, in reverse order
-    parts = runtime.Parts([
-        'camera',
-        'gray',
-        'blur',
-        'sobel',
-        'magnitude',
-        'strong',
-        'roi',
-        'cut',
-        'segments',
-        'draw',
-        'sink',
-    ])
-    frame = None  # while constructing and initializing
-    try:
+    # a failure names its component and frame; every part initialized is freed once, in
+    # reverse order
+    with session:
+        parts = session.parts
         camera = parts['camera'] = Camera(
             width=301, height=200, seed=params['camera.seed'], buoys=params['camera.buoys'],
             frames=params['camera.frames'], folder=params['camera.folder'],
@@ -346,27 +344,19 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
             red=params['draw.red'], green=params['draw.green'], blue=params['draw.blue'],
             thickness=params['draw.thickness'])
         sink = parts['sink'] = FrameSink(output=params['sink.output'])
-        monitor.attach(parts)
-        profiler = runtime.Profile(parts) if profile else None
+        session.start()  # the monitor and the profiler see the parts
 
         camera_image_size = camera.initialize()
         camera_image_size = runtime.expect_size(
             'camera.image', camera_image_size, Size(200, 301, 3))
         gray_dst_size = gray.initialize(camera_image_size)
-        gray_dst_size = runtime.expect_size('gray.dst', gray_dst_size, Size(200, 301, 1))
         blur_dst_size = blur.initialize(gray_dst_size)
-        blur_dst_size = runtime.expect_size('blur.dst', blur_dst_size, Size(200, 301, 1))
         sobel_dst_size = sobel.initialize(blur_dst_size)
-        sobel_dst_size = runtime.expect_size('sobel.dst', sobel_dst_size, Size(200, 301, 1))
         magnitude_dst_size = magnitude.initialize(sobel_dst_size)
-        magnitude_dst_size = runtime.expect_size(
-            'magnitude.dst', magnitude_dst_size, Size(200, 301, 1))
         strong_dst_size = strong.initialize(magnitude_dst_size)
-        strong_dst_size = runtime.expect_size('strong.dst', strong_dst_size, Size(200, 301, 1))
         roi_dst_size = roi.initialize(camera_image_size)
         roi_dst_size = runtime.expect_size('roi.dst', roi_dst_size, Size(200, 301, 1))
         cut_dst_size = cut.initialize(strong_dst_size, strong_dst_size, roi_dst_size)
-        cut_dst_size = runtime.expect_size('cut.dst', cut_dst_size, Size(200, 301, 1))
         segments_lines_size = segments.initialize(cut_dst_size)
         segments_lines_size = runtime.expect_size(
             'segments.lines', segments_lines_size, Size(32, 1, 4))
@@ -428,8 +418,8 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
                 np.int32(32),  # tile
             ])
 
-        frame = 0
-        while frames is None or frame < frames:
+        session.frame = 0
+        while frames is None or session.frame < frames:
             camera_image = camera.execute()
             if camera_image is None:
                 break  # end of stream
@@ -449,15 +439,9 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
             draw_dst = draw.execute(camera_image, segments_lines)
             draw_dst = runtime.check_frame('draw.dst', draw_dst, (200, 301, 3), np.uint8)
             sink.execute(draw_dst)
-            frame += 1
-            monitor.frame_done(frame)
+            session.frame_done()
         queue.finish()
-    except Exception as exc:
-        raise runtime.component_failure(exc, frame, parts) from exc
-    finally:
-        runtime.free_all(parts)  # free_memory() on each, in reverse order
-        monitor.close()
-    return runtime.Result(frame, parts, profiler)
+    return session.result()
 
 
 def main(argv=None):

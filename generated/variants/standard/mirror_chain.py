@@ -193,14 +193,21 @@ class VerticalMirrorMirror5(runtime.KernelComponent):
 def run(frames=None, context=None, monitor=None, profile=False, params=None):
     """Build the system, stream up to `frames` frames (default: until a source ends).
 
-    A runtime.Monitor shows progress, times the components when asked and hands them
-    runtime options such as --decisions; main() makes one from the command line.
-    With profile=True, OpenCL profiling events time every kernel and copy (see
-    runtime.Profile); the result's profile holds them. params: {'component.param': value}
-    for entries of PARAMS, checked against their declarations.
+    monitor: a runtime.Monitor (progress, timings, options; main() makes one from the
+    command line). With profile=True, OpenCL profiling events time every kernel and copy.
+    params: {'component.param': value} for entries of PARAMS.
     """
-    monitor = monitor or runtime.Monitor(progress=False)
-    params = runtime.param_values(PARAMS, params)
+    # the monitor, the checked params, every part (filled in as it is constructed)
+    session = runtime.Session(PARAMS, params, monitor, profile, [
+        'source',
+        'mirror1',
+        'mirror2',
+        'mirror3',
+        'mirror4',
+        'mirror5',
+        'sink',
+    ])
+    params = session.params
     context = context or runtime.create_context()
     # Sequential execution: one in-order queue; copies to the GPU block.
     queue = runtime.create_queue(context, profile)
@@ -228,19 +235,10 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
     vertical_mirror_mirror5_program = runtime.build_program(
         context, LIB_DIR / 'mirror5.cl', 'mirror5 (VerticalMirrorMirror5)')
 
-    # every component and adapter, filled in as it is constructed; those initialized are
-    # freed once each, in reverse order
-    parts = runtime.Parts([
-        'source',
-        'mirror1',
-        'mirror2',
-        'mirror3',
-        'mirror4',
-        'mirror5',
-        'sink',
-    ])
-    frame = None  # while constructing and initializing
-    try:
+    # a failure names its component and frame; every part initialized is freed once, in
+    # reverse order
+    with session:
+        parts = session.parts
         source = parts['source'] = StillImage(
             width=1152, height=864, seed=params['source.seed'], frames=params['source.frames'])
         mirror1 = parts['mirror1'] = VerticalMirrorMirror1(
@@ -254,22 +252,16 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
         mirror5 = parts['mirror5'] = VerticalMirrorMirror5(
             context, queue, vertical_mirror_mirror5_program, copies_own_data=True)
         sink = parts['sink'] = FrameSink(output=params['sink.output'])
-        monitor.attach(parts)
-        profiler = runtime.Profile(parts) if profile else None
+        session.start()  # the monitor and the profiler see the parts
 
         source_image_size = source.initialize()
         source_image_size = runtime.expect_size(
             'source.image', source_image_size, Size(864, 1152, 3))
         mirror1_dst_size = mirror1.initialize(source_image_size)
-        mirror1_dst_size = runtime.expect_size('mirror1.dst', mirror1_dst_size, Size(864, 1152, 3))
         mirror2_dst_size = mirror2.initialize(mirror1_dst_size)
-        mirror2_dst_size = runtime.expect_size('mirror2.dst', mirror2_dst_size, Size(864, 1152, 3))
         mirror3_dst_size = mirror3.initialize(mirror2_dst_size)
-        mirror3_dst_size = runtime.expect_size('mirror3.dst', mirror3_dst_size, Size(864, 1152, 3))
         mirror4_dst_size = mirror4.initialize(mirror3_dst_size)
-        mirror4_dst_size = runtime.expect_size('mirror4.dst', mirror4_dst_size, Size(864, 1152, 3))
         mirror5_dst_size = mirror5.initialize(mirror4_dst_size)
-        mirror5_dst_size = runtime.expect_size('mirror5.dst', mirror5_dst_size, Size(864, 1152, 3))
         sink.initialize(mirror5_dst_size)
 
         # mirror1: settings component's own, 1,728 resident threads; kernel arguments in the calling
@@ -317,8 +309,8 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
                 np.int32(32),  # tile
             ])
 
-        frame = 0
-        while frames is None or frame < frames:
+        session.frame = 0
+        while frames is None or session.frame < frames:
             source_image = source.execute()
             if source_image is None:
                 break  # end of stream
@@ -330,15 +322,9 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
             mirror4_dst = mirror4.execute(mirror3_dst)
             mirror5_dst = mirror5.execute(mirror4_dst)
             sink.execute(mirror5_dst)
-            frame += 1
-            monitor.frame_done(frame)
+            session.frame_done()
         queue.finish()
-    except Exception as exc:
-        raise runtime.component_failure(exc, frame, parts) from exc
-    finally:
-        runtime.free_all(parts)  # free_memory() on each, in reverse order
-        monitor.close()
-    return runtime.Result(frame, parts, profiler)
+    return session.result()
 
 
 def main(argv=None):

@@ -178,14 +178,20 @@ class DilateGray(runtime.KernelComponent):
 def run(frames=None, context=None, monitor=None, profile=False, params=None):
     """Build the system, stream up to `frames` frames (default: until a source ends).
 
-    A runtime.Monitor shows progress, times the components when asked and hands them
-    runtime options such as --decisions; main() makes one from the command line.
-    With profile=True, OpenCL profiling events time every kernel and copy (see
-    runtime.Profile); the result's profile holds them. params: {'component.param': value}
-    for entries of PARAMS, checked against their declarations.
+    monitor: a runtime.Monitor (progress, timings, options; main() makes one from the
+    command line). With profile=True, OpenCL profiling events time every kernel and copy.
+    params: {'component.param': value} for entries of PARAMS.
     """
-    monitor = monitor or runtime.Monitor(progress=False)
-    params = runtime.param_values(PARAMS, params)
+    # the monitor, the checked params, every part (filled in as it is constructed)
+    session = runtime.Session(PARAMS, params, monitor, profile, [
+        'camera',
+        'hsv',
+        'red',
+        'erode',
+        'dilate',
+        'writer',
+    ])
+    params = session.params
     context = context or runtime.create_context()
     # Sequential execution: one in-order queue; copies to the GPU block.
     queue = runtime.create_queue(context, profile)
@@ -215,18 +221,10 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
     dilate_gray_program = runtime.build_program(
         context, LIB_DIR / 'dilate.cl', 'dilate (DilateGray)')
 
-    # every component and adapter, filled in as it is constructed; those initialized are
-    # freed once each, in reverse order
-    parts = runtime.Parts([
-        'camera',
-        'hsv',
-        'red',
-        'erode',
-        'dilate',
-        'writer',
-    ])
-    frame = None  # while constructing and initializing
-    try:
+    # a failure names its component and frame; every part initialized is freed once, in
+    # reverse order
+    with session:
+        parts = session.parts
         camera = parts['camera'] = Camera(
             width=301, height=200, seed=params['camera.seed'], buoys=params['camera.buoys'],
             frames=params['camera.frames'], folder=params['camera.folder'],
@@ -239,20 +237,15 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
         writer = parts['writer'] = MaskWriter(
             min_area=params['writer.min_area'], folder=params['writer.folder'],
             print_objects=params['writer.print_objects'], output=params['writer.output'])
-        monitor.attach(parts)
-        profiler = runtime.Profile(parts) if profile else None
+        session.start()  # the monitor and the profiler see the parts
 
         camera_image_size = camera.initialize()
         camera_image_size = runtime.expect_size(
             'camera.image', camera_image_size, Size(200, 301, 3))
         hsv_dst_size = hsv.initialize(camera_image_size)
-        hsv_dst_size = runtime.expect_size('hsv.dst', hsv_dst_size, Size(200, 301, 3))
         red_dst_size = red.initialize(hsv_dst_size)
-        red_dst_size = runtime.expect_size('red.dst', red_dst_size, Size(200, 301, 1))
         erode_dst_size = erode.initialize(red_dst_size)
-        erode_dst_size = runtime.expect_size('erode.dst', erode_dst_size, Size(200, 301, 1))
         dilate_dst_size = dilate.initialize(erode_dst_size)
-        dilate_dst_size = runtime.expect_size('dilate.dst', dilate_dst_size, Size(200, 301, 1))
         writer.initialize(camera_image_size, dilate_dst_size)
 
         # hsv: settings component's own, 448 resident threads; kernel arguments in the calling
@@ -291,8 +284,8 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
                 np.int32(32),  # tile
             ])
 
-        frame = 0
-        while frames is None or frame < frames:
+        session.frame = 0
+        while frames is None or session.frame < frames:
             camera_image = camera.execute()
             if camera_image is None:
                 break  # end of stream
@@ -303,15 +296,9 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
             erode_dst = erode.execute(red_dst)
             dilate_dst = dilate.execute(erode_dst)
             writer.execute(camera_image, dilate_dst)
-            frame += 1
-            monitor.frame_done(frame)
+            session.frame_done()
         queue.finish()
-    except Exception as exc:
-        raise runtime.component_failure(exc, frame, parts) from exc
-    finally:
-        runtime.free_all(parts)  # free_memory() on each, in reverse order
-        monitor.close()
-    return runtime.Result(frame, parts, profiler)
+    return session.result()
 
 
 def main(argv=None):

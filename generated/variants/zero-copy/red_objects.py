@@ -158,14 +158,21 @@ class DilateGray(runtime.KernelComponent):
 def run(frames=None, context=None, monitor=None, profile=False, params=None):
     """Build the system, stream up to `frames` frames (default: until a source ends).
 
-    A runtime.Monitor shows progress, times the components when asked and hands them
-    runtime options such as --decisions; main() makes one from the command line.
-    With profile=True, OpenCL profiling events time every kernel and copy (see
-    runtime.Profile); the result's profile holds them. params: {'component.param': value}
-    for entries of PARAMS, checked against their declarations.
+    monitor: a runtime.Monitor (progress, timings, options; main() makes one from the
+    command line). With profile=True, OpenCL profiling events time every kernel and copy.
+    params: {'component.param': value} for entries of PARAMS.
     """
-    monitor = monitor or runtime.Monitor(progress=False)
-    params = runtime.param_values(PARAMS, params)
+    # the monitor, the checked params, every part (filled in as it is constructed)
+    session = runtime.Session(PARAMS, params, monitor, profile, [
+        'camera',
+        'adapter1_cpu2gpu',
+        'hsv_red',
+        'erode',
+        'dilate',
+        'adapter2_gpu2cpu',
+        'writer',
+    ])
+    params = session.params
     context = context or runtime.create_context()
     # Parallel execution: 1 in-order queue (lanes). Commands are enqueued
     # without waiting; a command waits for another queue's event (wait_for=[...]) only
@@ -191,19 +198,10 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
     dilate_gray_program = runtime.build_program(
         context, LIB_DIR / 'dilate.cl', 'dilate (DilateGray)')
 
-    # every component and adapter, filled in as it is constructed; those initialized are
-    # freed once each, in reverse order
-    parts = runtime.Parts([
-        'camera',
-        'adapter1_cpu2gpu',
-        'hsv_red',
-        'erode',
-        'dilate',
-        'adapter2_gpu2cpu',
-        'writer',
-    ])
-    frame = None  # while constructing and initializing
-    try:
+    # a failure names its component and frame; every part initialized is freed once, in
+    # reverse order
+    with session:
+        parts = session.parts
         camera = parts['camera'] = Camera(
             width=301, height=200, seed=params['camera.seed'], buoys=params['camera.buoys'],
             frames=params['camera.frames'], folder=params['camera.folder'],
@@ -222,19 +220,15 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
         writer = parts['writer'] = MaskWriter(
             min_area=params['writer.min_area'], folder=params['writer.folder'],
             print_objects=params['writer.print_objects'], output=params['writer.output'])
-        monitor.attach(parts)
-        profiler = runtime.Profile(parts) if profile else None
+        session.start()  # the monitor and the profiler see the parts
 
         camera_image_size = camera.initialize()
         camera_image_size = runtime.expect_size(
             'camera.image', camera_image_size, Size(200, 301, 3))
         camera_image_gpu_size = adapter1_cpu2gpu.initialize(camera_image_size, np.uint8)
         hsv_red_dst_size = hsv_red.initialize(camera_image_gpu_size)
-        hsv_red_dst_size = runtime.expect_size('hsv_red.dst', hsv_red_dst_size, Size(200, 301, 1))
         erode_dst_size = erode.initialize(hsv_red_dst_size)
-        erode_dst_size = runtime.expect_size('erode.dst', erode_dst_size, Size(200, 301, 1))
         dilate_dst_size = dilate.initialize(erode_dst_size)
-        dilate_dst_size = runtime.expect_size('dilate.dst', dilate_dst_size, Size(200, 301, 1))
         dilate_dst_cpu_size = adapter2_gpu2cpu.initialize(dilate_dst_size, np.uint8)
         writer.initialize(camera_image_size, dilate_dst_cpu_size)
 
@@ -265,8 +259,8 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
                 np.int32(32),  # tile
             ])
 
-        frame = 0
-        while frames is None or frame < frames:
+        session.frame = 0
+        while frames is None or session.frame < frames:
             camera_image = camera.execute()
             if camera_image is None:
                 break  # end of stream
@@ -279,15 +273,9 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
             dilate_dst_cpu = adapter2_gpu2cpu.transfer(dilate_dst)
             writer.execute(camera_image, dilate_dst_cpu)
             adapter2_gpu2cpu.unmap()  # the device may write dilate.dst again
-            frame += 1
-            monitor.frame_done(frame)
+            session.frame_done()
         queue.finish()
-    except Exception as exc:
-        raise runtime.component_failure(exc, frame, parts) from exc
-    finally:
-        runtime.free_all(parts)  # free_memory() on each, in reverse order
-        monitor.close()
-    return runtime.Result(frame, parts, profiler)
+    return session.result()
 
 
 def main(argv=None):

@@ -8,20 +8,22 @@ only between its tokens, never inside a literal.
 
 from __future__ import annotations
 
-import dataclasses
-import os
-import posixpath
-import re
 import textwrap
-from dataclasses import dataclass
 from pathlib import Path, PurePosixPath
 
 import jinja2
 
 from ... import output
-from ...ir import ComponentNode, System
 from ...output import HEADER, OutputFile
-from ...plan import Argument, LibSource, ProgramPlan
+from ...plan import (
+    Argument,
+    LibSource,
+    ModelPath,
+    ParamRef,
+    ProgramPlan,
+    Settable,
+    plan_lines,
+)
 from .fused import group_kernel
 
 # the OpenCL program's import of its binding (the CUDA backend drops it: backend/cuda)
@@ -47,6 +49,7 @@ def environment() -> jinja2.Environment:
     env.globals["fit"] = fit
     env.globals["comment_lines"] = comment_lines
     env.globals["argument_groups"] = argument_groups
+    env.globals["settable_arguments"] = settable_arguments
     return env
 
 
@@ -102,15 +105,6 @@ def comment_lines(text: str, indent: int) -> list[str]:
                                                    break_on_hyphens=False)] or ["#"]
 
 
-class ModelPath(str):
-    """A path parameter relative to the model's folder, as seen from the program's folder:
-    printed as a call that resolves it when the program runs, wherever it is started."""
-
-
-class ParamRef(str):
-    """A parameter --set may change: printed as its entry of run()'s `params`."""
-
-
 def py_literal(value) -> str:
     """A Python literal for a model value (escaped: no model text becomes code)."""
     if isinstance(value, ParamRef):
@@ -163,122 +157,11 @@ def argument_groups(arguments: tuple[Argument, ...]) -> list[tuple[list[Argument
     return groups
 
 
-URI = re.compile(r"[A-Za-z][A-Za-z0-9+.-]*:")  # e.g. a camera's device:0, not a path
-
-
-FILE_URI = re.compile(r"(file|mcap|rosbag)://(?!/)")  # a file URI with a relative path
-
-
-def relative_to_program(value: str, model_dir: str):
-    """A path (or a file URI's path) relative to the model, as seen from the program."""
-    m = FILE_URI.match(value)
-    if m:
-        path, q, query = value[m.end():].partition("?")
-        return ModelPath(f"{m.group(0)}{posixpath.normpath(posixpath.join(model_dir, path))}"
-                         f"{q}{query}")
-    if posixpath.isabs(value) or URI.match(value):
-        return value
-    return ModelPath(posixpath.normpath(posixpath.join(model_dir, value)))
-
-
-def with_model_paths(system: System, plan: ProgramPlan, model_dir: str) -> ProgramPlan:
-    """The plan with every relative 'path' parameter made relative to the program's folder
-    (model_dir: the model's folder as seen from there), so that it names the same file
-    whatever the working directory of the program."""
-    parts = []
-    for part in plan.parts:
-        node = system.nodes.get(part.name)
-        decls = getattr(getattr(node, "type", None), "params", {})
-        params = tuple((k, relative_to_program(v, model_dir))
-                       if decls.get(k) is not None and decls[k].type in ("path", "input")
-                       and isinstance(v, str) and v else (k, v)
-                       for k, v in part.params)
-        parts.append(dataclasses.replace(part, params=params))
-    return dataclasses.replace(plan, parts=parts)
-
-
-@dataclass(frozen=True)
-class Settable:
-    """A parameter the program's --set may change when it starts: one that no size or
-    requirement depends on (a generated kernel takes it as a build option)."""
-
-    key: str  # 'component.param'
-    type: str  # the declaration's type
-    value: object  # the model's value (a literal, or a ModelPath)
-    minimum: float | None = None
-    maximum: float | None = None
-
-    def arguments(self) -> list[str]:
-        """runtime.Param's arguments: type, value, and the bounds the declaration has."""
-        return [repr(self.type), py_literal(self.value)] + [
-            f"{k}={v!r}" for k, v in (("minimum", self.minimum), ("maximum", self.maximum))
-            if v is not None]
-
-
-def size_names(t) -> set[str]:
-    """The parameters a type's output sizes or requirements name, those that give a port
-    its channels ('channels: n'), and a stencil's radius parameter (its generated kernel's
-    window and interior are constants): fixed at build time."""
-    import ast
-
-    exprs = [e for d in t.outputs.values() for e in (d.height, d.width) if e is not None]
-    exprs += [check for check, _ in t.requires]
-    names = {n.id for e in exprs for n in ast.walk(e) if isinstance(n, ast.Name)}
-    names |= {d.channels_param for d in (*t.inputs.values(), *t.outputs.values())
-              if d.channels_param}
-    decl = getattr(t, "fusable", None)
-    if decl is not None:
-        names |= decl.radius_names()
-    return names
-
-
-def with_settable_params(system: System, plan: ProgramPlan) -> tuple[ProgramPlan, list]:
-    """The plan with every settable parameter printed as params['component.param'], and
-    the declarations of those parameters (the program's PARAMS table)."""
-    settable: dict[str, Settable] = {}
-
-    def declare(key: str, t, pname: str, value) -> bool:
-        decl = t.params.get(pname)
-        if decl is None or pname in size_names(t) or decl.shape:
-            return False  # arrays are tables compiled into a generated kernel
-        settable[key] = Settable(key, decl.type, value, decl.minimum, decl.maximum)
-        return True
-
-    parts = []
-    for part in plan.parts:
-        t = getattr(system.nodes.get(part.name), "type", None)
-        if t is None:
-            parts.append(part)
-            continue
-        params = tuple((k, ParamRef(f"{part.name}.{k}"))
-                       if declare(f"{part.name}.{k}", t, k, v) else (k, v)
-                       for k, v in part.params)
-        parts.append(dataclasses.replace(part, params=params))
-    launches = []
-    for la in plan.launches:
-        node = system.nodes[la.part]
-        args = []
-        for a in la.arguments:
-            if a.param:
-                owner, pname = a.param.split(".", 1)
-                # a group's parameters are its members' (a group of one: the component's)
-                member = node.member(owner) if hasattr(node, "members") else node
-                if declare(a.param, member.type, pname, a.value):
-                    a = dataclasses.replace(a, value=ParamRef(a.param))  # noqa: PLW2901
-            args.append(a)
-        launches.append(dataclasses.replace(la, arguments=tuple(args)))
-    members = {m.name: m for g in system.kernel_groups for m in g.members}
-    programs = []
-    for prog in plan.programs:
-        defines = []
-        for a in prog.defines:  # a group's constants: its members' parameters
-            owner, pname = a.param.split(".", 1)
-            if declare(a.param, members[owner].type, pname, a.value):
-                a = dataclasses.replace(a, value=ParamRef(a.param))  # noqa: PLW2901
-            defines.append(a)
-        programs.append(dataclasses.replace(prog, defines=tuple(defines)))
-    plan = dataclasses.replace(plan, parts=parts, launches=launches, programs=programs)
-    return plan, sorted(settable.values(), key=lambda s: s.key)
+def settable_arguments(s: Settable) -> list[str]:
+    """runtime.Param's arguments: type, value, and the bounds the declaration has."""
+    return [repr(s.type), py_literal(s.value)] + [
+        f"{k}={v!r}" for k, v in (("minimum", s.minimum), ("maximum", s.maximum))
+        if v is not None]
 
 
 def lib_file_text(src: LibSource, header: str) -> str:
@@ -298,14 +181,15 @@ def lib_file_text(src: LibSource, header: str) -> str:
     return f"# {header}\n# Copied from the component type file of {users}.\n\n{src.text}"
 
 
-def render(system: System, source: str, model_dir: str = ".") -> list[OutputFile]:
+def render(system, source: str, model_dir: str = ".") -> list[OutputFile]:
     """All files of one system, in a stable order: the program, then its lib folder (each
     kernel and user Python file once, whatever number of types use it).  model_dir: the
-    model's folder relative to the output folder ('path' parameters start there)."""
-    plan: ProgramPlan = with_model_paths(system, system.plan, model_dir)
-    plan, settable = with_settable_params(system, plan)
+    model's folder relative to the output folder ('path' parameters start there).
+
+    Everything printed comes from the plan (system.plan), but the fused kernels: the
+    kernel generator still reads the system's groups and device (fused.py)."""
+    plan: ProgramPlan = system.plan.for_program(model_dir)
     env = environment()
-    model = system.model
     lib = plan.lib_dir
     header = HEADER.format(source=comment_text(source))
     files: list[OutputFile] = []
@@ -314,15 +198,11 @@ def render(system: System, source: str, model_dir: str = ".") -> list[OutputFile
         text = group_kernel(groups[src.users[0]], header, system.device) \
             if src.kind == "group" else lib_file_text(src, header)
         files.append(OutputFile(PurePosixPath(lib, src.file), text))
-    from ...plan import plan_lines
-
-    model_folder = model.file.resolve().parent
-    inputs = sorted((comment_text(Path(os.path.relpath(p, model_folder)).as_posix()), digest)
-                    for p, digest in model.inputs.items() if p != model.file.resolve())
+    inputs = sorted((comment_text(path), digest) for path, digest in plan.model_inputs)
     program = env.get_template("program.py.j2").render(
-        header=header, sha256=model.text_sha256, inputs=inputs,
-        description=model.description, lib=lib,
-        plan=plan, plan_lines=plan_lines(plan), settable=settable,
-        sources=[n for n in system.order if isinstance(system.nodes[n], ComponentNode)])
+        header=header, sha256=plan.model_sha256, inputs=inputs,
+        description=plan.description, lib=lib,
+        plan=plan, plan_lines=plan_lines(plan), settable=plan.settable,
+        sources=list(plan.sources))
     files.insert(0, OutputFile(PurePosixPath(f"{system.name}.py"), program))
     return files

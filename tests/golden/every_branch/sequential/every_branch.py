@@ -142,14 +142,25 @@ class FusedToHsvThreshold(runtime.KernelComponent):
 def run(frames=None, context=None, monitor=None, profile=False, params=None):
     """Build the system, stream up to `frames` frames (default: until a source ends).
 
-    A runtime.Monitor shows progress, times the components when asked and hands them
-    runtime options such as --decisions; main() makes one from the command line.
-    With profile=True, OpenCL profiling events time every kernel and copy (see
-    runtime.Profile); the result's profile holds them. params: {'component.param': value}
-    for entries of PARAMS, checked against their declarations.
+    monitor: a runtime.Monitor (progress, timings, options; main() makes one from the
+    command line). With profile=True, OpenCL profiling events time every kernel and copy.
+    params: {'component.param': value} for entries of PARAMS.
     """
-    monitor = monitor or runtime.Monitor(progress=False)
-    params = runtime.param_values(PARAMS, params)
+    # the monitor, the checked params, every part (filled in as it is constructed)
+    session = runtime.Session(PARAMS, params, monitor, profile, [
+        'camera',
+        'adapter1_cpu2gpu',
+        'brighten',
+        'adapter2_gpu2cpu',
+        'probe',
+        'flip_cpu',
+        'adapter3_cpu2gpu',
+        'to_hsv_threshold',
+        'adapter4_gpu2cpu',
+        'sink',
+        'unread',
+    ])
+    params = session.params
     context = context or runtime.create_context()
     # Sequential execution: one in-order queue; copies to the GPU block.
     queue = runtime.create_queue(context, profile)
@@ -171,23 +182,10 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
             '_m1_thresh_type': np.int32(params['threshold.thresh_type']),
         })
 
-    # every component and adapter, filled in as it is constructed; those initialized are
-    # freed once each, in reverse order
-    parts = runtime.Parts([
-        'camera',
-        'adapter1_cpu2gpu',
-        'brighten',
-        'adapter2_gpu2cpu',
-        'probe',
-        'flip_cpu',
-        'adapter3_cpu2gpu',
-        'to_hsv_threshold',
-        'adapter4_gpu2cpu',
-        'sink',
-        'unread',
-    ])
-    frame = None  # while constructing and initializing
-    try:
+    # a failure names its component and frame; every part initialized is freed once, in
+    # reverse order
+    with session:
+        parts = session.parts
         camera = parts['camera'] = Camera(
             width=48, height=32, seed=params['camera.seed'], buoys=params['camera.buoys'],
             frames=params['camera.frames'], folder=params['camera.folder'],
@@ -215,28 +213,21 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
         sink = parts['sink'] = FrameSink(output=params['sink.output'])
         unread = parts['unread'] = Brighten(
             context, queue, brighten_program, gain=params['unread.gain'])
-        monitor.attach(parts)
-        profiler = runtime.Profile(parts) if profile else None
+        session.start()  # the monitor and the profiler see the parts
 
         camera_image_size = camera.initialize()
         camera_image_size = runtime.expect_size('camera.image', camera_image_size, Size(32, 48, 3))
         camera_image_gpu_size = adapter1_cpu2gpu.initialize(camera_image_size, np.uint8)
         brighten_brighter_size = brighten.initialize(camera_image_gpu_size)
-        brighten_brighter_size = runtime.expect_size(
-            'brighten.brighter', brighten_brighter_size, Size(32, 48, 3))
         brighten_brighter_cpu_size = adapter2_gpu2cpu.initialize(brighten_brighter_size, np.uint8)
         probe.initialize(brighten_brighter_cpu_size)
         flip_cpu_dst_size = flip_cpu.initialize(camera_image_size)
         flip_cpu_dst_size = runtime.expect_size('flip_cpu.dst', flip_cpu_dst_size, Size(32, 48, 3))
         flip_cpu_dst_gpu_size = adapter3_cpu2gpu.initialize(flip_cpu_dst_size, np.uint8)
         to_hsv_threshold_dst_size = to_hsv_threshold.initialize(flip_cpu_dst_gpu_size)
-        to_hsv_threshold_dst_size = runtime.expect_size(
-            'to_hsv_threshold.dst', to_hsv_threshold_dst_size, Size(32, 48, 3))
         threshold_dst_cpu_size = adapter4_gpu2cpu.initialize(to_hsv_threshold_dst_size, np.uint8)
         sink.initialize(threshold_dst_cpu_size)
-        unread_brighter_size = unread.initialize(camera_image_gpu_size)
-        unread_brighter_size = runtime.expect_size(
-            'unread.brighter', unread_brighter_size, Size(32, 48, 3))
+        unread.initialize(camera_image_gpu_size)
 
         # brighten: settings preferred, 384 resident threads; kernel arguments in the calling
         # convention's order (a port's name stands for its buffer)
@@ -271,8 +262,8 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
                 np.int32(16),  # tile
             ])
 
-        frame = 0
-        while frames is None or frame < frames:
+        session.frame = 0
+        while frames is None or session.frame < frames:
             camera_image = camera.execute()
             if camera_image is None:
                 break  # end of stream
@@ -289,15 +280,9 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
             sink.execute(threshold_dst_cpu)
             unread.execute(camera_image_gpu)
             cl.wait_for_events([unread.event])  # frame complete
-            frame += 1
-            monitor.frame_done(frame)
+            session.frame_done()
         queue.finish()
-    except Exception as exc:
-        raise runtime.component_failure(exc, frame, parts) from exc
-    finally:
-        runtime.free_all(parts)  # free_memory() on each, in reverse order
-        monitor.close()
-    return runtime.Result(frame, parts, profiler)
+    return session.result()
 
 
 def main(argv=None):
