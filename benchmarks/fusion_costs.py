@@ -140,7 +140,9 @@ def main(argv=None) -> int:
     errors = [abs(np.dot(coef, f) / t - 1) for _, f, t in kernels]
     print(f"\n{len(kernels)} kernels measured; the fit's median error "
           f"{statistics.median(errors):.0%}")
-    row = dict(zip(fuse.FEATURES.values(), coef))
+    # the median error is the row's 'error': placement takes a group's estimated fused
+    # time at that much more when it sets the group against the CPU forms
+    row = {**dict(zip(fuse.FEATURES.values(), coef)), "error": statistics.median(errors)}
     print("\nFUSION_COSTS row (passes/fuse.py), for this device's class:")
     print("    {" + ", ".join(f'"{k}": {v:.3g}' for k, v in row.items()) + "}")
     current = fuse.FUSION_COSTS.get(facts.kind) or fuse.FUSION_COSTS["cpu"]

@@ -22,7 +22,9 @@ frame, 16 frames replayed), not noise. Every variant is built for the device at 
 (`--device auto`, as `gpucompgen run` builds: the OpenCL device PYOPENCL_CTX selects, or
 with `--backend cuda` the CUDA device CUDA_DEVICE selects, its class deciding placement
 and the fusion cost model's constants). Variants: the default
-build (no placement, no fusion option: placed for the device's class), every component on
+build (no placement, no fusion option: placed for the device's class, each chain of
+fusable components weighed whole as the groups it would make on the device; the chains'
+decisions are printed after the table), every component on
 the device (placement: gpu) with fusion auto and with --fusion off, every component on the
 CPU (placement: cpu: the library's CPU forms, OpenCV), placement: auto after
 `gpucompgen tune` (its profile: components and groups measured), and every component on
@@ -284,6 +286,8 @@ def main(argv=None) -> int:
                         placed.append(f"{variant}, {name} {width}x{height}: groups "
                                       f"{', '.join(groups)}")
                     if variant in ("default", "auto after tune"):
+                        placed += [f"{variant}, {name} {width}x{height}: {chain.lines()[0]}"
+                                   for chain in result.system.placement.chains]
                         on_gpu = [n for n in PIPELINES[name][1]
                                   if result.system.component(n).placement == "gpu"]
                         placed.append(f"{variant}, {name} {width}x{height}: "

@@ -8,15 +8,21 @@ and runs each under combinations of the decisions:
 
     frames in flight 1, 2, 3 · fusion auto, off · zero-copy on, off · staging pinned,
     pageable · placement all GPU, all CPU, mixed, by the device (nobody asks: the place
-    pass decides for a device class drawn per system, from its estimate) · execution
+    pass decides for a device class drawn per system, from its estimate, which weighs
+    each chain of fusable components whole, as the groups it would make on the device;
+    the estimate's table is drawn too, the class's own or one under which chains of these
+    small frames go to the device where their components alone would not) · execution
     parallel, sequential · mode gpu-aware, standard
 
 Every sink's frames must equal the reference run's (one frame in flight, no fusion,
 sequential, zero-copy off, every flexible component on the GPU), frame by frame, in order.
 And every build's decisions must be the ones its plan reports: each flexible component's
 side and who decided (with the estimate's figures where an estimate decided, and no
-placement estimated slower than all on one side), each group with its estimate fused
-faster than apart, and a reason for every edge between GPU components left unfused.
+placement estimated slower than all on one side), each chain weighed whole with its
+figures (never placed at more than its estimate on the CPU or on the device) and each of
+its groups chosen exactly where all its members run on the device, each group with its
+estimate fused faster than apart, and a reason for every edge between GPU components left
+unfused.
 
 The combinations are the rows of a pairwise covering array (every pair of values of any
 two decisions is in some row), so each system runs under ~10 combinations instead of 288.
@@ -214,6 +220,10 @@ def systems(draw):
 # a 'device' placement builds for one device of each class (the runs are on PoCL whatever
 # the class: the program is correct on any device)
 DEVICES = ("pocl-cpu", "embedded-igpu", "nvidia-hopper")
+# the placement estimate's table a 'device' placement uses: the class's own, or one under
+# which a component of these small frames is cheaper on the CPU than its launch but a
+# chain of them, one kernel, is not (so the chains' choice is drawn both ways)
+COSTS = (None, {"cpu_bytes_per_s": 2e7, "gpu_bytes_per_s": 1e10, "gpu_launch_s": 25e-6})
 
 
 def decisions_as_planned(system) -> None:
@@ -239,6 +249,22 @@ def decisions_as_planned(system) -> None:
     if placement.estimate_s is not None:  # the chosen placement is the least estimated
         assert placement.estimate_s <= min(placement.all_gpu_s, placement.all_cpu_s) + 1e-12
         assert any(line.startswith("auto (") for line in plan.placement)
+    for chain in placement.chains:  # weighed whole: the least of its options, as planned
+        RAN["chains"] += 1
+        RAN["chains on the device"] += chain.side != "cpu"
+        assert chain.chosen_s <= min(chain.cpu_s, chain.gpu_s) + 1e-12, chain
+        sides = {system.component(m).placement for m in chain.members}
+        assert sides == ({"gpu", "cpu"} if chain.side == "mixed" else {chain.side}), chain
+        assert any(line.startswith(f"chain {', '.join(chain.members)}: {chain.where}; "
+                                   f"frame est. {chain.chosen_s * 1e3:.3f} ms")
+                   for line in plan.placement), chain
+        for members, chosen, *_ in chain.groups:
+            assert chosen == all(system.component(m).placement == "gpu" for m in members)
+            assert any(line.strip().startswith(f"group {'+'.join(members)} "
+                                               f"{'chosen' if chosen else 'refused'}: ")
+                       for line in plan.placement), members
+        for m in chain.members:
+            assert f"its chain weighed whole: {chain.where}" in lines[m]
     groups = [g for g in system.groups]
     assert [[m for m, _, _ in g.members] for g in plan.groups] == \
         [[m.name for m in g.members] for g in groups]
@@ -259,7 +285,7 @@ def decisions_as_planned(system) -> None:
 
 # --- running them --------------------------------------------------------------------------------
 
-RAN = {"systems": 0, "runs": 0}
+RAN = {"systems": 0, "runs": 0, "chains": 0, "chains on the device": 0}
 _loaded = itertools.count()
 
 
@@ -275,12 +301,17 @@ def _places(comps: dict, on_cpu: list[str], placement: str) -> dict[str, str]:
 
 
 def _sink_frames(model: Path, comps: dict, on_cpu: list[str], row: dict, out: Path,
-                 device: str | None = None):
+                 device: str | None = None, costs: dict | None = None):
+    from gpucompgen.passes import place
+
     options = {k: row[k] for k in ("frames_in_flight", "fusion", "zero_copy", "staging",
                                    "execution", "mode")}
-    result = compile_model(model, out, places=_places(comps, on_cpu, row["placement"]),
-                           device=device if row["placement"] == "device" else None,
-                           **options)
+    with pytest.MonkeyPatch.context() as patch:
+        for kind in ("cpu", "integrated-gpu", "discrete-gpu") if costs else ():
+            patch.setitem(place.PLACEMENT_COSTS, kind, {**place.PLACEMENT_COSTS[kind], **costs})
+        result = compile_model(model, out, places=_places(comps, on_cpu, row["placement"]),
+                               device=device if row["placement"] == "device" else None,
+                               **options)
     decisions_as_planned(result.system)
     write(result, out)
     module = load_generated(out / f"{result.system.model.name}.py",
@@ -323,14 +354,33 @@ RACE = ({"src0": {"type": "Noise", "params": {"seed": 3, "width": 11, "height": 
 # the combinations the issue ran it under
 RACE_ROWS = [{**REFERENCE, "frames_in_flight": 2, "fusion": "auto", "execution": "parallel"},
              {**REFERENCE, "frames_in_flight": 3, "fusion": "auto"}]
+# a chain that placement weighs whole (issue 24): under COSTS[1] each component alone is
+# cheaper on the CPU, some of its groups on the device are not; with a fan-out read by a
+# sink (its output must be materialized) and a stencil behind a pointwise step
+CHAIN = ({"src0": {"type": "Noise", "params": {"seed": 5, "width": 13, "height": 11}},
+          "c0": {"type": "RgbToGray"},
+          "c1": {"type": "ThresholdGray", "params": {"thresh": 90, "thresh_type": 2}},
+          "c2": {"type": "ConvertScaleGray", "params": {"alpha": 1.5, "beta": -3.0}},
+          "c3": {"type": "ErodeGray"},
+          "c4": {"type": "InRange", "params": {"lowerb_0": 60}},
+          "c5": {"type": "AbsDiffGray"},
+          "sink0": {"type": "Sink_uint8x1"}, "sink1": {"type": "Sink_uint8x1"}},
+         ["src0.image -> c0.image", "c0.gray -> c1.image", "c1.thresholded -> c2.image",
+          "c2.scaled -> c3.image", "src0.image -> c4.image", "c4.mask -> c5.src1",
+          "c3.eroded -> c5.src2", "c2.scaled -> sink0.image", "c5.diff -> sink1.image"],
+         [], "pocl-cpu")
+CHAIN_ROWS = [{**REFERENCE, "placement": "device", "fusion": "auto", "zero_copy": "on"},
+              {**REFERENCE, "placement": "device", "fusion": "auto", "frames_in_flight": 3,
+               "execution": "parallel", "staging": "pinned"}]
 
 
 @settings(max_examples=SYSTEMS, deadline=None, derandomize=not NIGHTLY,
           suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large,
                                  HealthCheck.function_scoped_fixture])
-@given(system=systems(), extra=extra_rows)
-@example(system=RACE, extra=RACE_ROWS)
-def test_every_decision_gives_the_reference_frames(tmp_path_factory, system, extra):
+@given(system=systems(), extra=extra_rows, costs=st.sampled_from(COSTS))
+@example(system=RACE, extra=RACE_ROWS, costs=COSTS[1])
+@example(system=CHAIN, extra=CHAIN_ROWS, costs=COSTS[1])
+def test_every_decision_gives_the_reference_frames(tmp_path_factory, system, extra, costs):
     require_opencl()
     comps, conns, on_cpu, device = system
     folder = tmp_path_factory.mktemp("decisions")
@@ -342,8 +392,10 @@ def test_every_decision_gives_the_reference_frames(tmp_path_factory, system, ext
     frames, want = _sink_frames(model, comps, on_cpu, REFERENCE, folder / "reference")
     assert want and all(len(f) == frames for f in want.values())
     for k, row in enumerate(_rows(model.read_text()) + extra):
-        got_frames, got = _sink_frames(model, comps, on_cpu, row, folder / f"run{k}", device)
-        where = f"{row}\n{yaml.safe_dump({'components': comps, 'connections': conns})}"
+        got_frames, got = _sink_frames(model, comps, on_cpu, row, folder / f"run{k}", device,
+                                       costs)
+        where = (f"{row} costs={costs}\n"
+                 f"{yaml.safe_dump({'components': comps, 'connections': conns})}")
         assert got_frames == frames, where
         assert got.keys() == want.keys(), where
         for sink in want:
@@ -361,4 +413,5 @@ def _report():
               f"{len(COMBINATIONS)} combinations covering every "
               f"{'three' if NIGHTLY else 'two'} decisions + 2 drawn"
               f"{' + up to 6 random' if NIGHTLY else ''}, and the reference: "
-              f"{RAN['runs']} runs")
+              f"{RAN['runs']} runs; {RAN['chains']} chains weighed whole, "
+              f"{RAN['chains on the device']} of them (wholly or in part) on the device")

@@ -22,6 +22,7 @@ from gpucompgen.device import resolve
 from gpucompgen.errors import GpucompgenError, Pos, Reporter, UsageError
 from gpucompgen.library.camera import Camera
 from gpucompgen.model import load_system
+from gpucompgen.passes import fuse as fuse_mod
 from gpucompgen.passes import place as place_mod
 from gpucompgen.passes import run_passes
 from gpucompgen.plan import plan_lines
@@ -31,10 +32,10 @@ BRANCHES = ROOT / "models" / "parallel_branches.yaml"
 MIB = 1_000_000
 
 
-def _passes(path: Path, places=None, zero_copy="off"):
+def _passes(path: Path, places=None, zero_copy="off", fusion=None):
     model = load_system(path)
     facts = resolve("portable", Pos(""), Reporter())
-    return run_passes(model, facts, places=places, zero_copy=zero_copy)
+    return run_passes(model, facts, places=places, zero_copy=zero_copy, fusion=fusion)
 
 
 # --------------------------------------------------------------------------- defaults
@@ -99,7 +100,12 @@ def test_an_explicit_placement_wins_over_the_devices_class(tmp_path):
     facts = resolve("pocl-cpu", Pos(""), Reporter())
     system, _ = run_passes(model, facts, places={"merger": "gpu"})
     assert system.placement.decided["merger"] == ("gpu", "command line")
-    assert system.placement.decided["detector"] == ("cpu", "default for a cpu device")
+    side, by = system.placement.decided["detector"]
+    assert by == "default for a cpu device"
+    # the detector is weighed with the merger it would be one kernel with on the device
+    (chain,) = system.placement.chains
+    assert chain.members == ("detector",) and chain.side == side
+    assert [g[0] for g in chain.groups] == [("merger", "detector")]
 
 
 def test_adapters_follow_the_placement_and_none_between_same_side_neighbours():
@@ -194,16 +200,24 @@ def test_auto_puts_components_on_the_cpu_when_the_profile_says_it_is_faster(tmp_
 def test_auto_keeps_components_on_the_gpu_when_that_is_faster_with_transfers(tmp_path):
     system, _ = _passes(_auto_model(tmp_path, _profile((5000, 100), (5000, 100), 10, 10_000)))
     assert _sides(system) == {"merger": "gpu", "detector": "gpu"}
-    # by hand: 2 x 100 µs compute + 3 copies of 10 µs + their bytes at 10,000 MB/s
-    by_hand = 200e-6 + 3 * 10e-6 + (2 * CAMERA + MASK) / 10_000e6
+    # by hand: 2 x 100 µs compute, which the two as one kernel take at the fusion
+    # estimate's ratio (its fused time taken at the model's error more: place.py
+    # CostModel.saving), + 3 copies of 10 µs + their bytes at 10,000 MB/s
+    (group,) = system.groups
+    fused, apart = group.estimate_s
+    error = fuse_mod.fusion_costs(system)["error"]
+    by_hand = 200e-6 * min(1, fused * (1 + error) / apart) + 3 * 10e-6 + \
+        (2 * CAMERA + MASK) / 10_000e6
     assert system.placement.estimate_s == pytest.approx(by_hand)
     assert system.placement.all_cpu_s == pytest.approx(10_000e-6)
 
 
 def test_auto_chooses_the_cpu_when_transfers_outweigh_a_faster_gpu(tmp_path):
     """Each component is twice as fast on the GPU, but the frames it would have to cross
-    cost more than the time it saves."""
-    system, _ = _passes(_auto_model(tmp_path, _profile((1000, 500), (1000, 500), 50, 1000)))
+    cost more than the time it saves (fusion off: each priced alone; the two as one kernel
+    are weighed in tests/test_place_groups.py)."""
+    system, _ = _passes(_auto_model(tmp_path, _profile((1000, 500), (1000, 500), 50, 1000)),
+                        fusion="off")
     assert _sides(system) == {"merger": "cpu", "detector": "cpu"}
     assert system.placement.estimate_s == pytest.approx(2000e-6)
     all_gpu = 1000e-6 + 3 * 50e-6 + (2 * CAMERA + MASK) / 1000e6  # 3,607.6 µs
@@ -215,20 +229,21 @@ def test_auto_chooses_the_cpu_when_transfers_outweigh_a_faster_gpu(tmp_path):
 
 def test_auto_splits_when_one_component_pays_for_its_transfers(tmp_path):
     """merger is fixed on the GPU by the model; the detector gains 1 ms on the CPU but its
-    input (1,843,200 bytes) would cross instead of its mask (614,400 bytes)."""
+    input (1,843,200 bytes) would cross instead of its mask (614,400 bytes).  Fusion off:
+    each priced alone (on the GPU the detector would be one kernel with the merger)."""
     path = _auto_model(tmp_path, _profile((1, 1), (3000, 2900), 0, 1000),
                        extra=", placement: gpu")
-    system, _ = _passes(path)
+    system, _ = _passes(path, fusion="off")
     assert _sides(system) == {"merger": "gpu", "detector": "gpu"}
     assert system.placement.decided["merger"] == ("gpu", "model")
     path = _auto_model(tmp_path, _profile((1, 1), (3000, 1000), 0, 1000),
                        extra=", placement: gpu")
     # detector on the GPU: 1000 µs + mask 614.4 µs; on the CPU: 3000 µs + merged 1843.2 µs
-    system, _ = _passes(path)
+    system, _ = _passes(path, fusion="off")
     assert _sides(system)["detector"] == "gpu"
     path = _auto_model(tmp_path, _profile((1, 1), (300, 2000), 0, 1000),
                        extra=", placement: gpu")
-    system, _ = _passes(path)  # 300 + 1843.2 < 2000 + 614.4
+    system, _ = _passes(path, fusion="off")  # 300 + 1843.2 < 2000 + 614.4
     assert _sides(system)["detector"] == "cpu"
 
 
@@ -251,7 +266,7 @@ def test_auto_reads_the_profile_tune_writes_without_platform_profile(tmp_path):
     system, _ = _passes(path)
     assert _sides(system) == {"merger": "cpu", "detector": "cpu"}
     assert {c.source for c in system.placement.costs.values()} == {"profile"}
-    assert "merger: CPU (by auto; est. CPU 0.100 ms, GPU 2.000 ms (profile))" in \
+    assert "merger: CPU (by auto; est. CPU 0.100 ms, GPU 2.000 ms (profile);" in \
         "\n".join(plan_lines(system.plan))
     from gpucompgen.tune import default_profile_path
 

@@ -30,6 +30,10 @@ and Inductor's scheduler, which records why two nodes were not fused):
 - Measured: `gpucompgen tune` times the groups chosen against their members apart and
   writes them in the profile (passes/place.py load_profile); a group measured no faster
   is refused, whatever the estimate says.
+- The choice is choose_groups(): this pass calls it with each component where it was
+  placed; the place pass calls it first, with the sides it weighs, to price a chain of
+  components on the device as the groups they would become (passes/place.py
+  weigh_chains), so both see the same groups, refusals and measurements.
 - A component of a fusable type that ends up in no group (fusion off, 'fuse: false', a
   producer the cost model refused, no fusable neighbour) becomes a group of one: it runs
   the kernel the generator writes from its form, as a group does (the library's fusable
@@ -83,38 +87,8 @@ class Fuse(Pass):
             _generate_singles(system)
             return system
         load_measured(system, rep)
-        at = {n: i for i, n in enumerate(system.order)}
-        assigned: dict[str, str] = {}  # member -> the root of its group
-        reasons: dict[str, str] = {}
-        groups: list[list[str]] = []
-        for root in reversed(system.order):
-            if root in assigned or _opaque(system, root):
-                continue
-            members = {root}
-            changed = True
-            while changed:
-                changed = False
-                for m in sorted(members, key=at.get, reverse=True):
-                    for pname in system.nodes[m].inputs:
-                        src = system.writer(Endpoint(m, pname))
-                        if src is None or src.component in members or \
-                                not _gpu_component(system, src.component):
-                            continue
-                        why = _why_not(system, src, members, m)
-                        if why:
-                            reasons.setdefault(f"{src} -> {m}.{pname}", why)
-                            continue
-                        members.add(src.component)
-                        changed = True
-            why = _group_loses(system, members)
-            if why:  # grown one producer at a time, it may still lose as a whole
-                for e in system.edges:
-                    if e.source.component in members and e.target.component in members:
-                        reasons[str(e)] = why
-                members = {root}
-            for m in members:
-                assigned[m] = root
-            groups.append(sorted(members, key=at.get))
+        groups, reasons = choose_groups(system)
+        assigned = {m: names[-1] for names in groups for m in names}
         for e in gpu_edges:
             a, b = e.source.component, e.target.component
             if assigned.get(a) is not None and assigned.get(a) == assigned.get(b):
@@ -129,6 +103,51 @@ class Fuse(Pass):
                 group.estimate, group.estimate_s = text, figures
         _generate_singles(system)
         return system
+
+
+def choose_groups(system: System, on_gpu=None) -> tuple[list[list[str]], dict[str, str]]:
+    """The groups the fuse pass makes (each a list of members in run order; a component
+    alone is a group of one) and why each edge inside no group was not fused.
+
+    on_gpu(name) says whether a component runs on the GPU; by default where it is placed.
+    The place pass asks with the sides it weighs (passes/place.py), before they are
+    taken, so that it prices a chain on the device as the groups it would become."""
+    if on_gpu is None:
+        def on_gpu(name):
+            return _gpu_component(system, name)
+    at = {n: i for i, n in enumerate(system.order)}
+    assigned: dict[str, str] = {}  # member -> the root of its group
+    reasons: dict[str, str] = {}
+    groups: list[list[str]] = []
+    for root in reversed(system.order):
+        if root in assigned or _opaque(system, root, on_gpu):
+            continue
+        members = {root}
+        changed = True
+        while changed:
+            changed = False
+            for m in sorted(members, key=at.get, reverse=True):
+                for pname in system.nodes[m].inputs:
+                    src = system.writer(Endpoint(m, pname))
+                    if src is None or src.component in members or \
+                            not on_gpu(src.component):
+                        continue
+                    why = _why_not(system, src, members, m, on_gpu)
+                    if why:
+                        reasons.setdefault(f"{src} -> {m}.{pname}", why)
+                        continue
+                    members.add(src.component)
+                    changed = True
+        why = _group_loses(system, members)
+        if why:  # grown one producer at a time, it may still lose as a whole
+            for e in system.edges:
+                if e.source.component in members and e.target.component in members:
+                    reasons[str(e)] = why
+            members = {root}
+        for m in members:
+            assigned[m] = root
+        groups.append(sorted(members, key=at.get))
+    return groups, reasons
 
 
 def _generate_singles(system: System) -> None:
@@ -159,10 +178,12 @@ def _gpu_component(system: System, name: str) -> bool:
     return isinstance(node, ComponentNode) and node.on_gpu
 
 
-def _opaque(system: System, name: str) -> str:
-    """Why a GPU component can never be in a group ('' when it can)."""
+def _opaque(system: System, name: str, on_gpu=None) -> str:
+    """Why a GPU component can never be in a group ('' when it can); on_gpu as for
+    choose_groups."""
     node = system.nodes[name]
-    if not isinstance(node, ComponentNode) or not node.on_gpu:
+    gpu = on_gpu(name) if on_gpu is not None else _gpu_component(system, name)
+    if not isinstance(node, ComponentNode) or not gpu:
         return f"placed on the CPU: {name} does not run on the GPU"
     if node.type.fusable is None:
         return (f"opaque type: {name} ({node.type.name}) has no fusable form, its own kernel "
@@ -172,9 +193,10 @@ def _opaque(system: System, name: str) -> str:
     return ""
 
 
-def _why_not(system: System, src: Endpoint, members: set[str], consumer: str) -> str:
+def _why_not(system: System, src: Endpoint, members: set[str], consumer: str,
+             on_gpu=None) -> str:
     """Why the producer src cannot join the group of members ('' when it can)."""
-    why = _opaque(system, src.component)
+    why = _opaque(system, src.component, on_gpu)
     if why:
         return why
     outside = [_reader(system, r) for r in system.readers(src) if r.component not in members]
@@ -253,7 +275,10 @@ def _reader(system: System, end: Endpoint) -> str:
 # loads only, still cost (40 reads of 40 reads... is refused).  tap_s is set from the
 # groups of a stencil behind a producer that computes (0.08 to 0.15 ns a tap measured:
 # InRange under an erosion, a gray conversion under a blur); every value from 0 to 0.5 ns
-# decides the measured groups alike.  The GPU rows are not fitted on a device yet:
+# decides the measured groups alike.  "error" is the fit's median error a kernel (65%:
+# fusion_costs.py prints it): this pass compares fused with apart under the same constants
+# and does not use it; placement, which sets a group's kernel against the CPU forms, takes
+# the estimated fused time at that much more.  The GPU rows are not fitted on a device yet:
 # memory-bound element costs at an integrated GPU's (~100 GB/s) and a discrete GPU's
 # (~1 TB/s) bandwidth, and their launch costs.  "" (the 'portable' profile)
 # is scheduled as a CPU device is (backend/opencl/fused.py), so it takes the CPU row.
@@ -263,11 +288,11 @@ FEATURES = {"launches": "launch_s", "ops": "op_s", "loads": "load_s", "stores": 
             "taps": "tap_s"}  # kernel_features() -> its constant
 FUSION_COSTS: dict[str, dict[str, float]] = {
     "cpu": {"launch_s": 20e-6, "op_s": 0.7e-11, "load_s": 0.7e-11, "store_s": 4.3e-11,
-            "tap_s": 1e-10},
+            "tap_s": 1e-10, "error": 0.65},
     "integrated-gpu": {"launch_s": 20e-6, "op_s": 2e-12, "load_s": 1e-11, "store_s": 1e-11,
-                       "tap_s": 4e-12},
+                       "tap_s": 4e-12, "error": 0.65},
     "discrete-gpu": {"launch_s": 10e-6, "op_s": 2e-13, "load_s": 1e-12, "store_s": 1e-12,
-                     "tap_s": 4e-13},
+                     "tap_s": 4e-13, "error": 0.65},
 }
 
 

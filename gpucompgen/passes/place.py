@@ -37,6 +37,7 @@ from ..ir import ComponentNode, System
 from ..loader import MAX_FILE_BYTES, FileProblem, load_text, read_text
 from ..model import Endpoint
 from .base import Pass
+from .fuse import load_measured
 
 EXHAUSTIVE_LIMIT = 16
 # the largest time (µs) or bandwidth (MB/s) a profile may give: 1e12 µs is 11 days a frame
@@ -89,6 +90,54 @@ class Cost:
 
 
 @dataclass
+class Chain:
+    """A chain of flexible fusable components weighed whole (weigh_chains): on the CPU,
+    each its CPU form; on the device, the groups the fuse pass would make of them."""
+
+    members: tuple[str, ...]
+    side: str  # where the chain was placed: "gpu" | "cpu" | "mixed" (per component)
+    cpu_s: float  # the frame's estimate with the chain on the CPU
+    gpu_s: float  # ... with the chain on the device, as its groups
+    chosen_s: float  # ... as placed
+    # on the device: each group of two or more members: (members, whether chosen (all its
+    # members placed on the device), what its one kernel
+    # saves a frame over its members' kernels apart, fused_s, apart_s of the group's
+    # kernel and its members' as estimated or measured, where those come from)
+    groups: tuple[tuple[tuple[str, ...], bool, float, float, float, str], ...] = ()
+
+    def why(self, name: str, side: str) -> str:
+        """Why one member runs on side, as the plan says it."""
+        why = f"its chain weighed whole: {self.where}"
+        if side == "cpu":
+            return why + ("" if self.side == "cpu" else ", this one on the CPU")
+        group = next((g for g in self.groups if name in g[0] and g[1]), None)
+        return why + (f", one kernel with {', '.join(m for m in group[0] if m != name)}"
+                      if group else ", its own kernel")
+
+    @property
+    def where(self) -> str:
+        return {"gpu": "on the device", "cpu": "on the CPU", "mixed": "split"}[self.side]
+
+    def lines(self) -> list[str]:
+        """The chain's decision with its figures, and every group it weighed."""
+        inside = {m for g in self.groups for m in g[0] if m in self.members}
+        kernels = len(self.groups) + len(self.members) - len(inside)
+        out = [(f"chain {', '.join(self.members)}: {self.where}; frame est. "
+                f"{_ms(self.chosen_s)} (with the chain on the CPU {_ms(self.cpu_s)}, on the "
+                f"device {_ms(self.gpu_s)} as {kernels} kernel{'s' * (kernels != 1)})")]
+        for members, chosen, saved, fused, apart, source in self.groups:
+            verdict = "chosen" if chosen else "refused"
+            out.append(f"  group {'+'.join(members)} {verdict}: one kernel saves {_ms(saved)} "
+                       f"a frame over its members apart ({apart / fused:.2f}x: fused "
+                       f"{_ms(fused)}, apart {_ms(apart)}; {source})")
+        return out
+
+
+def _ms(seconds: float) -> str:
+    return f"{seconds * 1e3:.3f} ms"
+
+
+@dataclass
 class Placement:
     """How the flexible components were placed, for the plan."""
 
@@ -100,14 +149,22 @@ class Placement:
     all_gpu_s: float | None = None
     all_cpu_s: float | None = None
     search: str = ""  # "exhaustive over 2^n" | "greedy + local improvement"
+    # auto only: each chain of fusable components weighed whole (weigh_chains)
+    chains: list[Chain] = field(default_factory=list)
 
     def lines(self) -> list[str]:
         out = []
+        chain_of = {m: c for c in self.chains for m in c.members}
         for name, (side, by) in self.decided.items():
             c = self.costs.get(name)
             est = (f"; est. CPU {c.cpu_s * 1e3:.3f} ms, GPU {c.gpu_s * 1e3:.3f} ms "
                    f"({c.source})" if c else "")
+            chain = chain_of.get(name)
+            if chain is not None:
+                est += f"; {chain.why(name, side)}"
             out.append(f"{name}: {side.upper()} (by {by}{est})")
+        for chain in self.chains:
+            out += chain.lines()
         if self.estimate_s is not None:
             lat, bw, src = self.transfer
             out.append(f"auto ({self.search}): est. {self.estimate_s * 1e3:.3f} ms a frame "
@@ -133,16 +190,25 @@ class Place(Pass):
         auto = [n for n in flexible if n.asked == "auto" or n.asked == "default" and kind]
         if auto:
             profile = read_profile(system, rep)
+            load_measured(system, rep)  # tune's groups: weigh_chains prices them so
             model = CostModel(system, profile)
             for node in flexible:
                 placement.costs[node.name] = model.compute(node)
             placement.transfer = model.transfer_facts()
             sides, search = choose(model, [n.name for n in auto])
+            # priced with its groups, all on one side may beat the search's choice: start
+            # from the least of the three, then weigh each chain whole
+            start = min((sides, dict.fromkeys(sides, "gpu"), dict.fromkeys(sides, "cpu")),
+                        key=lambda o: round(model.frame_fused(o), 12))
+            if start is not sides:
+                search += (f"; all on the {next(iter(start.values())).upper()}, priced with "
+                           "the groups the fuse pass makes, cheaper than its choice")
+            sides, placement.chains = weigh_chains(model, start)
             for node in auto:
                 node.place(sides[node.name], system.mode)
-            placement.estimate_s = model.frame(sides)
-            placement.all_gpu_s = model.frame(dict.fromkeys(sides, "gpu"))
-            placement.all_cpu_s = model.frame(dict.fromkeys(sides, "cpu"))
+            placement.estimate_s = model.frame_fused(sides)
+            placement.all_gpu_s = model.frame_fused(dict.fromkeys(sides, "gpu"))
+            placement.all_cpu_s = model.frame_fused(dict.fromkeys(sides, "cpu"))
             placement.search = search
         for node in flexible:
             by = node.placed_by
@@ -175,6 +241,7 @@ class CostModel:
             self.transfer_source = self.source
         self._compute = {n.name: self.compute(n) for n in system.components.values()
                          if n.type.flexible}
+        self._groups: dict[tuple, list[list[str]]] = {}
 
     def transfer_facts(self) -> tuple[float, float, str]:
         return self.latency, self.bandwidth, self.transfer_source
@@ -217,6 +284,125 @@ class CostModel:
                                                  for r in readers):
                     total += self.transfer_s(port.data.nbytes)
         return total
+
+    # ---- fused groups: what the fuse pass makes of the components placed on the GPU
+
+    def groups(self, sides: dict[str, str]) -> list[list[str]]:
+        """The groups of two or more members the fuse pass would make with sides taken
+        (fuse.choose_groups, asked with these sides; none when fusion is off)."""
+        from .fuse import choose_groups
+
+        system = self.system
+        if system.fusion == "off" or system.mode == "standard":
+            return []
+        key = tuple(sorted(sides.items()))
+        if key not in self._groups:
+            def on_gpu(name):
+                node = system.nodes.get(name)
+                return isinstance(node, ComponentNode) and self.side(name, sides) == "gpu"
+            found, _ = choose_groups(system, on_gpu)
+            self._groups[key] = [g for g in found if len(g) > 1]
+        return self._groups[key]
+
+    def saving(self, members: list[str]) -> tuple[float, float, float, str]:
+        """(seconds a frame the group's one kernel saves over its members' kernels apart,
+        fused_s, apart_s, where the figures come from).  Where tune timed the group and its
+        members (the profile), the group's kernel is its measured time.  Else the group
+        takes fused_s / apart_s of its members' GPU times (compute()): the ratio tune
+        measured where the profile has the group, else the fusion cost
+        model's (passes/fuse.py FUSION_COSTS: the intermediate frames neither stored nor
+        loaded, launches saved, less what the group computes again) with its fused time
+        taken at the model's median error more (its row's 'error'): a gain the estimate
+        claims counts only beyond what the estimate is known to miss by."""
+        from .fuse import _measured, estimate, fusion_costs
+
+        measured = _measured(self.system, set(members))
+        if measured is not None:
+            (fused, apart), source, error = measured, "measured by tune", 0.0
+        else:
+            (fused, apart) = estimate(self.system, set(members))
+            error = fusion_costs(self.system).get("error", 0.0)
+            source = (f"fusion estimate for {a_device(self.system.device.kind or 'cpu')}, "
+                      f"fused taken {1 + error:.2f}x")
+        members_s = sum(self._compute[m].gpu_s if m in self._compute else 0.0
+                        for m in members)
+        if measured is not None and all(
+                m in self._compute and self._compute[m].source == "profile" for m in members):
+            # the group's own time, timed with its members: not its ratio times theirs,
+            # which would carry a burst of load one member's timing caught
+            return members_s - fused, fused, apart, source
+        ratio = min(1.0, fused * (1 + error) / apart) if apart > 0 else 1.0
+        return members_s * (1 - ratio), fused, apart, source
+
+    def frame_fused(self, sides: dict[str, str]) -> float:
+        """frame(), each group the fuse pass would make on the GPU counted as one kernel:
+        its members' GPU times less what the group saves (saving())."""
+        return self.frame(sides) - sum(self.saving(g)[0] for g in self.groups(sides))
+
+
+def chains(model: CostModel, names: list[str]) -> list[list[str]]:
+    """The maximal chains among names: components of a fusable type that the model lets
+    fuse, connected by their connections (a DAG: a fan-in or fan-out stays one chain) or
+    through a fusable component that runs on the GPU whoever placed it (a merger asked
+    for the GPU, with the detector it feeds: one kernel with it), each in run order, its
+    members the components of names: those with a fusable neighbour."""
+    system = model.system
+
+    def fusable(n):
+        node = system.nodes[n]
+        return isinstance(node, ComponentNode) and node.type.fusable is not None and \
+            node.fuse and (n in names or node.on_gpu)
+    movable = set(names)
+    link: dict[str, set[str]] = {}
+    for e in system.edges:
+        a, b = e.source.component, e.target.component
+        if (a in movable or b in movable) and fusable(a) and fusable(b):
+            link.setdefault(a, set()).add(b)
+            link.setdefault(b, set()).add(a)
+    at = {n: i for i, n in enumerate(system.order)}
+    found, seen = [], set()
+    for n in sorted(link, key=at.get):
+        if n in seen or n not in movable:
+            continue
+        chain, todo = set(), [n]
+        while todo:
+            m = todo.pop()
+            if m not in chain:
+                chain.add(m)
+                todo += link.get(m, ()) if m in movable else ()
+        seen |= chain
+        found.append(sorted(chain & movable, key=at.get))
+    return found
+
+
+def weigh_chains(model: CostModel, sides: dict[str, str]) -> tuple[dict[str, str], list]:
+    """Placement priced component by component never sees that components placed together
+    on the device become one kernel.  So each maximal chain of fusable components is
+    weighed whole: as placed, all on the CPU (each its CPU form), all on the device (the
+    groups the fuse pass would make of it, each one kernel: frame_fused()), and each of
+    those groups alone on the device; the least estimated frame is kept (ties: as placed).
+    Returns the sides and a Chain record for each chain weighed, for the plan."""
+    if model.system.fusion == "off" or model.system.mode == "standard":
+        return sides, []
+    records = []
+    for chain in chains(model, list(sides)):
+        on_cpu = {**sides, **dict.fromkeys(chain, "cpu")}
+        on_gpu = {**sides, **dict.fromkeys(chain, "gpu")}
+        mine = [g for g in model.groups(on_gpu) if set(g) & set(chain)]
+        options = [(model.frame_fused(sides), 0, sides), (model.frame_fused(on_gpu), 1, on_gpu),
+                   (model.frame_fused(on_cpu), 2, on_cpu)]
+        options += [(model.frame_fused(alone), 3 + i, alone) for i, alone in enumerate(
+            {**on_cpu, **{m: "gpu" for m in g if m in sides}} for g in mine
+            if not set(chain) <= set(g))]
+        best_s, _, best = min(options, key=lambda o: (round(o[0], 12), o[1]))
+        placed = {best[m] for m in chain}
+        side = placed.pop() if len(placed) == 1 else "mixed"
+        groups = tuple((tuple(g), all(model.side(m, best) == "gpu" for m in g),
+                        *model.saving(g)) for g in mine)
+        records.append(Chain(tuple(chain), side, options[2][0], options[1][0], best_s,
+                             groups))
+        sides = best
+    return sides, records
 
 
 def choose(model: CostModel, names: list[str]) -> tuple[dict[str, str], str]:
