@@ -16,6 +16,9 @@ import ast
 from collections.abc import Mapping
 
 DIMS = ("height", "width")
+# a requirement may also compare an input's channels ('channel < src.channels'); sizes
+# never follow them
+CONDITION_ATTRS = DIMS + ("channels",)
 FUNCS = ("min", "max")
 MAX_SOURCE = 200  # characters of one expression
 MAX_VALUE = 1 << 62  # bound on every value while evaluating (an int64 with room to spare)
@@ -47,7 +50,7 @@ def parse(text: object, ports: set[str], params: set[str],
         tree = ast.parse(source.strip(), mode="eval")
     except (SyntaxError, ValueError, RecursionError, MemoryError):
         raise SizeExprError(f"cannot parse size expression {source!r}") from None
-    checker = _Checker(source, ports, params)
+    checker = _Checker(source, ports, params, condition)
     if condition:
         checker.condition(tree.body)
     else:
@@ -56,8 +59,10 @@ def parse(text: object, ports: set[str], params: set[str],
 
 
 class _Checker:
-    def __init__(self, source: str, ports: set[str], params: set[str]):
+    def __init__(self, source: str, ports: set[str], params: set[str],
+                 condition: bool = False):
         self.source, self.ports, self.params = source, ports, params
+        self.attrs = CONDITION_ATTRS if condition else DIMS
 
     def fail(self, message: str) -> SizeExprError:
         return SizeExprError(message)
@@ -99,8 +104,10 @@ class _Checker:
             if not isinstance(node.value, ast.Name) or node.value.id not in self.ports:
                 raise self.fail(f"'{ast.unparse(node)}' names no input port in "
                                 f"{self.source!r}")
-            if node.attr not in DIMS:
-                raise self.fail(f"'{ast.unparse(node)}': a port has only .height and .width")
+            if node.attr not in self.attrs:
+                raise self.fail(f"'{ast.unparse(node)}': a port has only .height and .width"
+                                + (" (and .channels, in a requirement)"
+                                   if node.attr == "channels" else ""))
         elif isinstance(node, ast.Name):
             if node.id in self.params:
                 return
@@ -119,9 +126,11 @@ class _Checker:
                             f"({WHAT})")
 
 
-def evaluate(tree: ast.Expression, sizes: Mapping[str, tuple[int, int]],
+def evaluate(tree: ast.Expression, sizes: Mapping[str, tuple[int, ...]],
              params: Mapping[str, object]) -> int | bool:
-    """Evaluate a validated expression with concrete sizes (height, width) and params.
+    """Evaluate a validated expression with concrete sizes (height, width) and params;
+    a requirement that compares an input's channels needs them: (height, width,
+    channels).
 
     A requirement gives True or False; a size gives an integer of at most MAX_SIDE (it
     may be zero or negative: the caller says which port would get it)."""
@@ -136,7 +145,7 @@ def evaluate(tree: ast.Expression, sizes: Mapping[str, tuple[int, int]],
 
 
 class _Evaluator:
-    def __init__(self, shown: str, sizes: Mapping[str, tuple[int, int]],
+    def __init__(self, shown: str, sizes: Mapping[str, tuple[int, ...]],
                  params: Mapping[str, object]):
         self.shown, self.sizes, self.params = shown, sizes, params
 
@@ -170,9 +179,12 @@ class _Evaluator:
                                     f"value (it is {value!r})")
             return self.bounded(value, f"parameter '{node.id}' ({value:,})")
         if isinstance(node, ast.Attribute):
-            height, width = self.sizes[node.value.id]
-            return self.bounded(height if node.attr == "height" else width,
-                                ast.unparse(node))
+            known = self.sizes[node.value.id]
+            index = CONDITION_ATTRS.index(node.attr)
+            if index >= len(known):
+                raise SizeExprError(f"'{ast.unparse(node)}' in '{self.shown}' is not known "
+                                    "here")
+            return self.bounded(known[index], ast.unparse(node))
         if isinstance(node, ast.UnaryOp):
             operand = self.number(node.operand)
             return -operand if isinstance(node.op, ast.USub) else operand

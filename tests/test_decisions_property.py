@@ -182,7 +182,8 @@ def systems(draw):
             fitting = [s for s in streams if s[1] == _kind(port)]
             k = len(fitting) - 1
             feeds.append(fitting[k if draw(st.booleans()) else draw(st.integers(0, k))])
-        sizes = {p: f[2] for p, f in zip(ctype.inputs, feeds)}
+        # (height, width, channels): a requirement may compare channels (ExtractChannel)
+        sizes = {p: (*f[2], f[1][1]) for p, f in zip(ctype.inputs, feeds)}
         params = _params(draw, ctype)
         ints = {k: v for k, v in params.items() if ctype.params[k].type == "int"}
         if not all(sizeexpr.evaluate(tree, sizes, ints) for tree, _ in ctype.requires):

@@ -431,7 +431,9 @@ def fusable_systems(draw):
         for port in ctype.inputs.values():
             fitting = [s for s in streams if s[2] == _kind(port)]
             feeds.append(fitting[draw(st.integers(0, len(fitting) - 1))])
-        sizes = {p: ref.shape[:2] for p, (_, ref, _) in zip(ctype.inputs, feeds)}
+        # (height, width, channels): a requirement may compare channels (ExtractChannel)
+        sizes = {p: (*ref.shape[:2], kind[1])
+                 for p, (_, ref, kind) in zip(ctype.inputs, feeds)}
         params = _param_values(draw, ctype)
         ints = {k: v for k, v in params.items() if ctype.params[k].type == "int"}
         if not all(sizeexpr.evaluate(tree, sizes, ints) for tree, _ in ctype.requires):

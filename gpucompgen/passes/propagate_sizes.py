@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import ast
+
 from .. import sizeexpr
 from ..ir import ComponentNode, Data, Size
 from ..model import DTYPES, Endpoint
@@ -15,7 +17,7 @@ class PropagateSizes(Pass):
     def apply(self, system, rep):
         for name in system.order:
             node = system.nodes[name]
-            in_sizes: dict[str, tuple[int, int]] = {}
+            in_sizes: dict[str, tuple[int, int, int]] = {}  # height, width, channels
             complete = True
             for pname, port in node.inputs.items():
                 src = system.writer(Endpoint(name, pname))
@@ -24,7 +26,7 @@ class PropagateSizes(Pass):
                     complete = False
                     break
                 port.data = Data(Size(data.height, data.width, port.channels), port.dtype)
-                in_sizes[pname] = (data.height, data.width)
+                in_sizes[pname] = (data.height, data.width, port.channels)
             for edge in system.edges:
                 if edge.target.component == name:
                     edge.data = system.data(edge.source)
@@ -53,9 +55,11 @@ class PropagateSizes(Pass):
         for tree, message in ctype.requires:
             try:
                 if not sizeexpr.evaluate(tree, in_sizes, int_params):
-                    shown = ", ".join(f"{p} is {h}x{w}" for p, (h, w) in in_sizes.items())
+                    shown = ", ".join(_shown(p, size, tree) for p, size in in_sizes.items())
                     rep.error(node.pos, f"'{name}' ({ctype.name}): {message} ({shown})",
-                              "change the sizes of what feeds it")
+                              "change the parameters or what feeds it"
+                              if ".channels" in ast.unparse(tree.body)
+                              else "change the sizes of what feeds it")
                     ok = False
             except sizeexpr.SizeExprError as exc:
                 rep.error(node.pos, f"'{name}': {exc}")
@@ -84,3 +88,11 @@ class PropagateSizes(Pass):
                           "use smaller frames; check parameters and inputs")
                 continue
             port.data = Data(Size(h, w, port.channels), port.dtype)
+
+
+def _shown(port: str, size: tuple[int, int, int], tree) -> str:
+    """'src is 7x10', with the channels where the requirement compares them."""
+    h, w, channels = size
+    counted = f"{port}.channels" in ast.unparse(tree.body)
+    return f"{port} is {h}x{w}" + (f" with {channels} channel" + "s" * (channels != 1)
+                                   if counted else "")
