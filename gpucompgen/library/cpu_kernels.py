@@ -380,3 +380,11 @@ def _store(values: np.ndarray, out: np.ndarray | None, type_name: str,
 from .cpu_ops import CPU_OPS
 
 CPU_IMPLEMENTATIONS.update(CPU_OPS)
+
+# the camera formats of yuv.yaml (cpu_colour.py), channels.yaml and magnitude.yaml
+# (cpu_channels.py)
+from .cpu_channels import CPU_CHANNELS
+from .cpu_colour import CPU_COLOUR
+
+CPU_IMPLEMENTATIONS.update(CPU_COLOUR)
+CPU_IMPLEMENTATIONS.update(CPU_CHANNELS)
