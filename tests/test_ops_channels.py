@@ -320,3 +320,15 @@ def test_generated_program_equals_opencv_on_every_placement(program_outputs):
                 ours = components[name][i]
                 np.testing.assert_array_equal(ours.reshape(values[name].shape), values[name],
                                               err_msg=f"{placement}: {name}, frame {i}")
+
+
+def test_docs_list_every_type_beside_its_opencv_call():
+    """docs/library.md has a table row naming each type and the OpenCV call it equals."""
+    import re
+
+    from conftest import ROOT
+
+    rows = [line for line in (ROOT / "docs" / "library.md").read_text().splitlines()
+            if line.startswith("| ")]
+    for name in new_types():
+        assert any(re.search(rf"\b{name}\b", row) and "cv2." in row for row in rows), name
