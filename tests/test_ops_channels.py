@@ -255,6 +255,7 @@ CHAIN: dict[str, tuple[str, dict, tuple[str, ...]]] = {
     "green": ("ExtractChannel", {"channel": 1}, ("camera",)),
     "blue": ("ExtractChannel", {"channel": 2}, ("camera",)),
     "bgr": ("MergeChannels3", {}, ("blue", "green", "red")),
+    "inverse": ("BitwiseNot", {}, ("bgr",)),  # a reader: MergeChannels3 in a fused group
     "pair": ("MergeChannels2", {}, ("green", "red")),
     "rgba": ("MergeChannels4", {}, ("red", "green", "blue", "green")),
     "alpha": ("ExtractChannel", {"channel": 3}, ("rgba",)),
@@ -277,6 +278,8 @@ def _chain_opencv(type_name: str, params: dict, *inputs):
         return _merge_cv(*inputs)
     if type_name == "Magnitude":
         return cpu_channels.magnitude(*inputs)  # the bytes; OpenCV's bound is tested above
+    if type_name == "BitwiseNot":
+        return cv2.bitwise_not(inputs[0])
     if type_name == "Sobel":
         return cv2.Sobel(inputs[0], cv2.CV_16S, params["dx"], params["dy"], ksize=3)
     return cv2.convertScaleAbs(inputs[0], alpha=params["alpha"], beta=params["beta"])
@@ -332,3 +335,18 @@ def test_docs_list_every_type_beside_its_opencv_call():
             if line.startswith("| ")]
     for name in new_types():
         assert any(re.search(rf"\b{name}\b", row) and "cv2." in row for row in rows), name
+
+
+def test_fused_equals_unfused_equals_cpu(tmp_path, cl_context):
+    require_opencl()
+    from test_ops_yuv import fused_builds
+
+    found = fused_builds(tmp_path, "channels_fused", CHAIN, cl_context)
+    built, fused = found["fused"]
+    grouped = {m.type.name for g in built.system.groups for m in g.members}
+    assert set(new_types()) <= grouped, sorted(set(new_types()) - grouped)
+    for variant in ("unfused", "cpu"):
+        for name, frames in found[variant][1].items():
+            for i, frame in enumerate(frames):
+                np.testing.assert_array_equal(fused[name][i], frame,
+                                              err_msg=f"{variant}: {name}, frame {i}")

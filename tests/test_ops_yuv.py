@@ -362,3 +362,59 @@ def test_docs_list_every_type_beside_its_opencv_call():
             if line.startswith("| ")]
     for name in yuv_types():
         assert any(re.search(rf"\b{name}\b", row) and "cv2." in row for row in rows), name
+
+
+# -- fused, unfused and on the CPU: the same bytes ---------------------------------------------
+def fused_builds(folder, system: str, chain: dict, cl_context) -> dict:
+    """{variant: (build, {end: frames})}: chain (as chain_model takes it) with only its ends
+    kept, built fused (launches made so dear that every legal group forms), unfused and on
+    the CPU, each run for FRAMES frames."""
+    from test_imgproc_ops import chain_model
+
+    from gpucompgen.build import compile_model, write
+    from gpucompgen.passes.fuse import FUSION_COSTS
+
+    write_keep_types(folder)
+    ends = sorted(set(chain) - {s for _, _, inputs in chain.values() for s in inputs})
+    found = {}
+    for variant, placement, fusion in (("fused", "gpu", "auto"), ("unfused", "gpu", "off"),
+                                       ("cpu", "cpu", "auto")):
+        model = folder / f"{system}_{variant}.yaml"
+        model.write_text(chain_model(system, chain, placement, keep=ends))
+        out = folder / f"out_{variant}"
+        with pytest.MonkeyPatch.context() as patch:
+            patch.setattr("gpucompgen.passes.fuse.FUSION_COSTS",
+                          {k: {**v, "launch_s": 1e6} for k, v in FUSION_COSTS.items()})
+            built = compile_model(model, out, fusion=fusion)
+        write(built, out)
+        program = load_generated(out / f"{system}.py", f"{system}_{variant}")
+        result = program.run(frames=FRAMES, context=cl_context)
+        found[variant] = (built, {n: result.components[f"keep_{n}"].frames for n in ends})
+    return found
+
+
+def _fused_chain() -> dict:
+    """Each type with one reader (BitwiseNot), each YUYV/UYVY one with a MergeChannels2 of
+    its own: every type can be inside a group."""
+    chain = {"small": CHAIN["small"], "plane": CHAIN["plane"]}
+    for i, (name, spec) in enumerate(sorted(TYPES.items())):
+        source = {"nv": "plane", "rgb": "small"}.get(spec.layout, f"packed{i}")
+        if spec.layout in ("yuyv", "uyvy"):
+            chain[source] = ("MergeChannels2", {}, ("plane", "plane"))
+        chain[f"t{i}"] = (name, {}, (source,))
+        chain[f"not{i}"] = ("BitwiseNot", {}, (f"t{i}",))
+    return chain
+
+
+def test_fused_equals_unfused_equals_cpu(tmp_path, cl_context):
+    require_opencl()
+    found = fused_builds(tmp_path, "yuv_fused", _fused_chain(), cl_context)
+    built, fused = found["fused"]
+    grouped = {m.type.name for g in built.system.groups for m in g.members}
+    assert set(TYPES) <= grouped, sorted(set(TYPES) - grouped)  # every type inside a group
+    assert not found["unfused"][0].system.groups
+    for variant in ("unfused", "cpu"):
+        for name, frames in found[variant][1].items():
+            for i, frame in enumerate(frames):
+                np.testing.assert_array_equal(fused[name][i], frame,
+                                              err_msg=f"{variant}: {name}, frame {i}")
