@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import load_generated, require_opencl, run_generated, write_keep_types
+from conftest import require_opencl, run_generated
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -285,30 +285,13 @@ def _chain_opencv(type_name: str, params: dict, *inputs):
     return cv2.convertScaleAbs(inputs[0], alpha=params["alpha"], beta=params["beta"])
 
 
-MIXED = {name: ("cpu" if i % 2 else "gpu") for i, name in enumerate(CHAIN)}
-
-
 @pytest.fixture(scope="module")
 def program_outputs(tmp_path_factory, cl_context):
     require_opencl()
-    from test_imgproc_ops import chain_model
+    from test_ops_yuv import placed_outputs
 
-    from gpucompgen.build import compile_model, write
-
-    folder = tmp_path_factory.mktemp("channels_all")
-    write_keep_types(folder)
-    found = {}
-    for variant, places in (("gpu", None), ("cpu", None), ("mixed", MIXED)):
-        model = folder / f"channels_{variant}.yaml"
-        model.write_text(chain_model("channels_all", CHAIN, "cpu" if variant == "cpu"
-                                     else "gpu"))
-        out = folder / f"out_{variant}"
-        built = compile_model(model, out, "gpu-aware", None, places=places)
-        write(built, out)
-        program = load_generated(out / "channels_all.py", f"channels_all_{variant}")
-        result = program.run(frames=FRAMES, context=cl_context)
-        found[variant] = {n: result.components[f"keep_{n}"].frames for n in CHAIN}
-    return found
+    return placed_outputs(tmp_path_factory.mktemp("channels_all"), "channels_all", CHAIN,
+                          cl_context)
 
 
 def test_generated_program_equals_opencv_on_every_placement(program_outputs):
@@ -339,14 +322,7 @@ def test_docs_list_every_type_beside_its_opencv_call():
 
 def test_fused_equals_unfused_equals_cpu(tmp_path, cl_context):
     require_opencl()
-    from test_ops_yuv import fused_builds
+    from test_ops_yuv import assert_fused_equal, fused_builds
 
-    found = fused_builds(tmp_path, "channels_fused", CHAIN, cl_context)
-    built, fused = found["fused"]
-    grouped = {m.type.name for g in built.system.groups for m in g.members}
-    assert set(new_types()) <= grouped, sorted(set(new_types()) - grouped)
-    for variant in ("unfused", "cpu"):
-        for name, frames in found[variant][1].items():
-            for i, frame in enumerate(frames):
-                np.testing.assert_array_equal(fused[name][i], frame,
-                                              err_msg=f"{variant}: {name}, frame {i}")
+    assert_fused_equal(fused_builds(tmp_path, "channels_fused", CHAIN, cl_context),
+                       new_types())

@@ -307,31 +307,33 @@ OPENCV = {
     "MergeChannels2": lambda a, b: cv2.merge([a, b]),
     **{name: spec.opencv for name, spec in TYPES.items()},
 }
-MIXED = {name: ("cpu" if i % 2 else "gpu") for i, name in enumerate(CHAIN)}
+def placed_outputs(folder, system: str, chain: dict, cl_context) -> dict:
+    """{placement: {component: frames}}: chain (as test_imgproc_ops.chain_model takes it)
+    built with every component on the GPU, on the CPU and alternating, run FRAMES frames."""
+    from test_imgproc_ops import chain_model
+
+    from gpucompgen.build import compile_model, write
+
+    write_keep_types(folder)
+    mixed = {name: ("cpu" if i % 2 else "gpu") for i, name in enumerate(chain)}
+    found = {}
+    for variant, places in (("gpu", None), ("cpu", None), ("mixed", mixed)):
+        model = folder / f"{system}_{variant}.yaml"
+        model.write_text(chain_model(system, chain, "cpu" if variant == "cpu" else "gpu"))
+        out = folder / f"out_{variant}"
+        built = compile_model(model, out, "gpu-aware", None, places=places)
+        write(built, out)
+        program = load_generated(out / f"{system}.py", f"{system}_{variant}")
+        result = program.run(frames=FRAMES, context=cl_context)
+        assert result.frames == FRAMES
+        found[variant] = {n: result.components[f"keep_{n}"].frames for n in chain}
+    return found
 
 
 @pytest.fixture(scope="module")
 def program_outputs(tmp_path_factory, cl_context):
     require_opencl()
-    from test_imgproc_ops import chain_model
-
-    from gpucompgen.build import compile_model, write
-
-    folder = tmp_path_factory.mktemp("yuv_all")
-    write_keep_types(folder)
-    found = {}
-    for variant, places in (("gpu", None), ("cpu", None), ("mixed", MIXED)):
-        placement = "cpu" if variant == "cpu" else "gpu"
-        model = folder / f"yuv_{variant}.yaml"
-        model.write_text(chain_model("yuv_all", CHAIN, placement))
-        out = folder / f"out_{variant}"
-        built = compile_model(model, out, "gpu-aware", None, places=places)
-        write(built, out)
-        program = load_generated(out / "yuv_all.py", f"yuv_all_{variant}")
-        result = program.run(frames=FRAMES, context=cl_context)
-        assert result.frames == FRAMES
-        found[variant] = {n: result.components[f"keep_{n}"].frames for n in CHAIN}
-    return found
+    return placed_outputs(tmp_path_factory.mktemp("yuv_all"), "yuv_all", CHAIN, cl_context)
 
 
 def test_the_chain_has_every_yuv_type():
@@ -406,15 +408,20 @@ def _fused_chain() -> dict:
     return chain
 
 
-def test_fused_equals_unfused_equals_cpu(tmp_path, cl_context):
-    require_opencl()
-    found = fused_builds(tmp_path, "yuv_fused", _fused_chain(), cl_context)
+def assert_fused_equal(found: dict, type_names) -> None:
+    """Every one of type_names inside a group of the fused build, no group unfused, and
+    the three builds' frames equal."""
     built, fused = found["fused"]
     grouped = {m.type.name for g in built.system.groups for m in g.members}
-    assert set(TYPES) <= grouped, sorted(set(TYPES) - grouped)  # every type inside a group
+    assert set(type_names) <= grouped, sorted(set(type_names) - grouped)
     assert not found["unfused"][0].system.groups
     for variant in ("unfused", "cpu"):
         for name, frames in found[variant][1].items():
             for i, frame in enumerate(frames):
                 np.testing.assert_array_equal(fused[name][i], frame,
                                               err_msg=f"{variant}: {name}, frame {i}")
+
+
+def test_fused_equals_unfused_equals_cpu(tmp_path, cl_context):
+    require_opencl()
+    assert_fused_equal(fused_builds(tmp_path, "yuv_fused", _fused_chain(), cl_context), TYPES)
