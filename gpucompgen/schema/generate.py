@@ -188,7 +188,8 @@ def _port() -> dict[str, Any]:
          "description": "any of these channel counts"},
         {"type": "string", "pattern": follows.format("channels"),
          "description": "the channels of input <port>"},
-        dict(NAME, description="an int parameter's value")],
+        # not 'any', which the enum above is (oneOf wants one match)
+        dict(NAME, **{"not": _enum(model.ANY)}, description="an int parameter's value")],
         "description": "channels: a number, a list, 'any', '<input>.channels' or an int "
                        "parameter (generic ports, resolved for each component)"}
     return {"memory": _enum(model.MEMORIES), "dtype": dtype,
