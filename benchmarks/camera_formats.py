@@ -26,7 +26,7 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent))
 sys.path.insert(0, str(HERE))
 
-from kernels import _stats, gen_variant  # noqa: E402 - after the paths
+from kernels import _stats, gen_variant
 
 
 def _cases(cv2, rgb):
