@@ -321,7 +321,7 @@ def placed_outputs(folder, system: str, chain: dict, cl_context) -> dict:
         model = folder / f"{system}_{variant}.yaml"
         model.write_text(chain_model(system, chain, "cpu" if variant == "cpu" else "gpu"))
         out = folder / f"out_{variant}"
-        built = compile_model(model, out, "gpu-aware", None, places=places)
+        built = compile_model(model, out, places=places)
         write(built, out)
         program = load_generated(out / f"{system}.py", f"{system}_{variant}")
         result = program.run(frames=FRAMES, context=cl_context)
