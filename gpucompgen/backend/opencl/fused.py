@@ -24,7 +24,8 @@ OpenCL devices):
   (A pointwise chain with Threshold's thresh_type a kernel argument took 3.05 ms a
   640x360 frame on PoCL, its selects keeping the row loop scalar; a constant: 0.28 ms.)
 - Borders outside the hot path.  A stencil's reads outside its input follow its border
-  rule (clamp, reflect101) in the accessor; where the group has stencils and no index
+  rule (clamp, reflect101, reflect, constant; or the one a parameter picks by OpenCV's
+  code, fixed at build time) in the accessor; where the group has stencils and no index
   map, each member has a second, interior version whose accessors read without any
   border rule, and the kernel runs it on the output elements whose every read is inside
   the frame (``margin``: the radii summed along the deepest path), the border version on
@@ -66,6 +67,15 @@ BORDER_RULES = {
         "    const int period = 2 * (n - 1);",
         "    p = (p < 0 ? -p : p) % period;",
         "    return p < n ? p : period - p;",
+        "}",
+        ""],
+    "reflect": [
+        "// OpenCV's BORDER_REFLECT (fedcba|abcdefgh|hgfedcb) of position p in 0..n-1",
+        "static inline int _reflect(int p, const int n)",
+        "{",
+        "    const int period = 2 * n;",
+        "    p = (p < 0 ? -p - 1 : p) % period;",
+        "    return p < n ? p : period - 1 - p;",
         "}",
         ""],
     "clamp": [
@@ -279,7 +289,8 @@ def group_kernel(group: GroupNode, header: str, device=None) -> str:
              "",
              *_constants(group, constants),
              *[line for rule, text in BORDER_RULES.items()
-               if any(m.type.fusable.form == "stencil" and m.type.fusable.border == rule
+               if any(m.type.fusable.form == "stencil"
+                      and m.type.fusable.border_of(m.params) == rule
                       for m in group.members) for line in text],
              "#define _PARAMS \\",
              *(f"    {d}, \\" if i < len(decls) - 1 else f"    {d}" for i, d in enumerate(decls)),
@@ -360,17 +371,17 @@ def _member(m, feeds: dict[Endpoint, str], producer: dict[Endpoint, Endpoint], i
     decl = m.type.fusable
     ctype = DTYPES[next(iter(m.outputs.values())).dtype][1]
     what = "interior: no border rule" if interior else "every element"
+    border = decl.border_of(m.params) if decl.form == "stencil" else None
     lines = [f"// {m.name}: {m.type.name} ({decl.form}"
-             + (f", radius {decl.radius}, border {decl.border}" if decl.form == "stencil"
-                else "") + f"); {what}"]
+             + (f", radius {decl.radius}, border {border}" if border else "") + f"); {what}"]
     macros = []
     for pname, port in m.inputs.items():
         src = producer.get(Endpoint(m.name, pname))
         h, w = port.data.height, port.data.width
         yy, xx = "(y_)", "(x_)"
-        if decl.form == "stencil" and not interior:
-            rule = "_reflect101" if decl.border == "reflect101" else "_clamp"
-            yy, xx = f"{rule}((y_), {h})", f"{rule}((x_), {w})"
+        outside_zero = border == "constant" and not interior
+        if border and border != "constant" and not interior:
+            yy, xx = f"_{border}((y_), {h})", f"_{border}((x_), {w})"
         if flat and port.channels > 1:
             # x is the element's place in the row of W x C: a read dx pixels away is
             # dx x C elements away, the same channel
@@ -384,6 +395,8 @@ def _member(m, feeds: dict[Endpoint, str], producer: dict[Endpoint, Endpoint], i
             else:
                 body = (f"{buf}[{port.channels} * ((size_t){yy} * {w} + {xx}) + (c_)]"
                         if port.channels > 1 else f"{buf}[(size_t){yy} * {w} + {xx}]")
+        if outside_zero:  # BORDER_CONSTANT: a read outside the input is 0
+            body = f"((unsigned)(y_) < {h}u && (unsigned)(x_) < {w}u ? {body} : 0)"
         macros.append(pname)
         lines.append(f"#define {pname}(y_, x_, c_) {body}")
     arrays = {p: d for p, d in m.type.params.items() if d.shape}
