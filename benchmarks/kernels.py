@@ -114,6 +114,19 @@ def _cases(cv2):
         "ResizeGray linear": ("ResizeGray", {"width": 320, "height": 180, "interpolation": 1},
                               lambda a: cv2.resize(a, (320, 180),
                                                    interpolation=cv2.INTER_LINEAR)),
+        # enlarging: 640x360 to 1920x1080 is a whole factor 3, 1280x720 to it 1.5; 777x501
+        # a ratio that is none (the tests' size; from 301x200 with --sizes 301x200)
+        "Resize linear 1920x1080": ("Resize", {"width": 1920, "height": 1080,
+                                               "interpolation": 1},
+                                    lambda a: cv2.resize(a, (1920, 1080),
+                                                         interpolation=cv2.INTER_LINEAR)),
+        "Resize linear 777x501": ("Resize", {"width": 777, "height": 501, "interpolation": 1},
+                                  lambda a: cv2.resize(a, (777, 501),
+                                                       interpolation=cv2.INTER_LINEAR)),
+        "ResizeGray linear 777x501": ("ResizeGray", {"width": 777, "height": 501,
+                                                     "interpolation": 1},
+                                      lambda a: cv2.resize(a, (777, 501),
+                                                           interpolation=cv2.INTER_LINEAR)),
         # the operations issue 26 added
         "BitwiseAnd": ("BitwiseAnd", {}, lambda a, b: cv2.bitwise_and(a, b)),
         "BitwiseAndGray": ("BitwiseAndGray", {}, lambda a, b: cv2.bitwise_and(a, b)),

@@ -9,13 +9,17 @@ and PyTorch Inductor's ``Pointwise(inner_fn)``, whose loads are index expression
       value: "image(image_height - 1 - y, x, c)"     # OpenCL C: an expression, or
                                                      # statements ending in 'return ...;'
       # stencil only: radius: 2 (or an int parameter, or an expression of them such
-      # as 'ksize // 2'), border: clamp
+      # as 'ksize // 2'), border: clamp (or reflect101, reflect, constant, or an int
+      # parameter holding OpenCV's border code)
 
 pointwise   reads every input only at (y, x) (any channel)
 index_map   reads each input at one position computed from y, x, c, sizes and parameters
             (a mirror, a crop, side-by-side merging of two inputs)
 stencil     reads a window of 'radius' around (y, x); reads outside the input follow
-            'border' (clamp: the nearest edge pixel), applied by the accessor
+            'border', applied by the accessor: clamp (the nearest edge pixel, OpenCV's
+            BORDER_REPLICATE), reflect101, reflect, constant (0), or the name of an int
+            parameter whose value is OpenCV's code for one of them (OPENCV_BORDERS),
+            fixed at build time like the radius
 
 The snippet is read once, at check time, by the snippet language (gpucompgen/snippet/:
 a C lexer, a whitelist grammar, name resolution), and kept parsed in the type; kernels
@@ -34,8 +38,13 @@ from .errors import Pos
 from .snippet import MAX_SNIPPET, Snippet, analyse, print_lines
 
 FORMS = ("pointwise", "index_map", "stencil")
-BORDERS = ("clamp", "reflect101")  # the nearest edge pixel; OpenCV's BORDER_REFLECT_101
-__all__ = ["BORDERS", "FORMS", "MAX_SNIPPET", "FusableDecl", "analyse", "snippet_position"]
+# the nearest edge pixel (BORDER_REPLICATE); OpenCV's BORDER_REFLECT_101 (gfedcb|abcdefgh),
+# BORDER_REFLECT (fedcba|abcdefgh) and BORDER_CONSTANT with 0 (000000|abcdefgh)
+BORDERS = ("clamp", "reflect101", "reflect", "constant")
+# OpenCV's border codes, for a border chosen by a parameter ('border: border_type')
+OPENCV_BORDERS = {0: "constant", 1: "clamp", 2: "reflect", 4: "reflect101"}
+__all__ = ["BORDERS", "FORMS", "MAX_SNIPPET", "OPENCV_BORDERS", "FusableDecl", "analyse",
+           "snippet_position"]
 
 
 @dataclass(frozen=True)
@@ -49,7 +58,8 @@ class FusableDecl:
     # 'builtin' or 'constant' (built-ins are never renamed)
     radius: int | str = 0  # stencil: a number, or an int parameter or an expression of
     # int parameters ('ksize // 2', 'iterations * (ksize - 1)'): fixed at build time
-    border: str = "clamp"  # stencil
+    border: str = "clamp"  # stencil: one of BORDERS, or an int parameter holding
+    # OpenCV's code of one (OPENCV_BORDERS): fixed at build time, like the radius
 
     def radius_of(self, params: Mapping[str, object]) -> int:
         """The stencil's radius for these parameter values (0 for another form)."""
@@ -60,13 +70,29 @@ class FusableDecl:
         tree = ast.parse(self.radius.strip(), mode="eval")
         return max(0, int(sizeexpr.evaluate(tree, {}, params)))
 
+    def border_of(self, params: Mapping[str, object]) -> str:
+        """The stencil's border rule (one of BORDERS) for these parameter values."""
+        if self.border in BORDERS:
+            return self.border
+        code = int(params[self.border])
+        if code not in OPENCV_BORDERS:
+            raise ValueError(f"{self.border}={code} is not one of OpenCV's border codes "
+                             f"{sorted(OPENCV_BORDERS)}")
+        return OPENCV_BORDERS[code]
+
     def radius_names(self) -> set[str]:
-        """The parameters the radius depends on (constants of a generated kernel)."""
-        if self.form != "stencil" or isinstance(self.radius, int):
+        """The parameters that fix the window: those the radius depends on, and the one
+        that picks the border rule (constants of a generated kernel, fixed at build time:
+        its interior and its accessors are written for them)."""
+        if self.form != "stencil":
             return set()
+        names = set() if self.border in BORDERS else {self.border}
+        if isinstance(self.radius, int):
+            return names
         tree = ast.parse(self.radius.strip(), mode="eval")
         calls = {id(n.func) for n in ast.walk(tree) if isinstance(n, ast.Call)}  # min, max
-        return {n.id for n in ast.walk(tree) if isinstance(n, ast.Name) and id(n) not in calls}
+        return names | {n.id for n in ast.walk(tree)
+                        if isinstance(n, ast.Name) and id(n) not in calls}
 
     def lines(self, rename: Mapping[str, str] | None = None) -> list[str]:
         """The snippet as C statements ending by returning the element, one a line

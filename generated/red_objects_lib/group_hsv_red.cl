@@ -54,7 +54,7 @@ static inline __attribute__((overloadable)) float _max(const float a, const floa
 
 // hsv: RgbToHsv (pointwise); every element
 #define src(y_, x_, c_) _in0[3 * ((size_t)(y_) * 301 + (x_)) + (c_)]
-static inline uchar _f0_hsv(_PARAMS, const int y, const int x, const int c)
+static inline __attribute__((always_inline)) uchar _f0_hsv(_PARAMS, const int y, const int x, const int c)
 {
     const int src_height = 200, src_width = 301;
     const int dst_height = 200, dst_width = 301;
@@ -77,7 +77,7 @@ static inline uchar _f0_hsv(_PARAMS, const int y, const int x, const int c)
 
 // red: InRange (pointwise); every element
 #define src(y_, x_, c_) _f0_hsv(_ARGS, (y_), (x_), (c_))
-static inline uchar _f1_red(_PARAMS, const int y, const int x, const int c)
+static inline __attribute__((always_inline)) uchar _f1_red(_PARAMS, const int y, const int x, const int c)
 {
     const int src_height = 200, src_width = 301;
     const int dst_height = 200, dst_width = 301;

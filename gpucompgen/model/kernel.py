@@ -189,10 +189,11 @@ def _load_fusable(doc, rep, base, ctype: ComponentType, fspec) -> None:
                       did_you_mean(str(radius), int_params) if int_params else
                       "e.g. radius: 1")
             return
-        if border not in fusable_forms.BORDERS:
+        if not _named(border, fusable_forms.BORDERS) and not _named(border, int_params):
             rep.error(doc.pos(*path, "border"), f"stencil border {border!r} of "
-                      f"'{ctype.name}' is not one of {list(fusable_forms.BORDERS)}",
-                      "clamp: reads outside the input take the nearest edge pixel")
+                      f"'{ctype.name}' is not one of {list(fusable_forms.BORDERS)} nor an "
+                      "int parameter", "clamp: reads outside the input take the nearest edge "
+                      "pixel; an int parameter holds OpenCV's border code (0, 1, 2 or 4)")
             return
     else:
         for key in ("radius", "border"):

@@ -238,9 +238,12 @@ def types_schema() -> dict[str, Any]:
                       "<port>(y, x, c)"),
         "radius": {"type": ["integer", "string"],
                    "description": "stencil: the window's radius, a number or an int parameter"},
-        "border": _enum(fusable_forms.BORDERS, "stencil: what a read outside the input gets: "
-                        "clamp, the nearest edge pixel; reflect101, OpenCV's BORDER_REFLECT_101 "
-                        "(gfedcb|abcdefgh|gfedcba)")}, ("form", "value"),
+        "border": {"anyOf": [_enum(fusable_forms.BORDERS), {"type": "string"}],
+                   "description": "stencil: what a read outside the input gets: clamp, the "
+                   "nearest edge pixel; reflect101, OpenCV's BORDER_REFLECT_101 "
+                   "(gfedcb|abcdefgh|gfedcba); reflect, BORDER_REFLECT (fedcba|abcdefgh); "
+                   "constant, 0; or an int parameter holding OpenCV's border code "
+                   "(0 constant, 1 clamp, 2 reflect, 4 reflect101)"}}, ("form", "value"),
         description="the per-element work in a form the system may fuse with its neighbours "
                     "into one kernel; a type with a form needs no 'kernel': its kernel, "
                     "alone as in a group, is generated from the form")

@@ -177,7 +177,7 @@ static inline uchar _convert_uchar_sat_rte(float v)
 
 // absx: ConvertScaleAbsGray (pointwise); every element
 #define src(y_, x_, c_) _in0[(size_t)(y_) * 301 + (x_)]
-static inline uchar _f0_absx(_PARAMS, const int y, const int x, const int c)
+static inline __attribute__((always_inline)) uchar _f0_absx(_PARAMS, const int y, const int x, const int c)
 {
     const int src_height = 200, src_width = 301;
     const int dst_height = 200, dst_width = 301;
@@ -189,7 +189,7 @@ static inline uchar _f0_absx(_PARAMS, const int y, const int x, const int c)
 
 // absy: ConvertScaleAbsGray (pointwise); every element
 #define src(y_, x_, c_) _in1[(size_t)(y_) * 301 + (x_)]
-static inline uchar _f1_absy(_PARAMS, const int y, const int x, const int c)
+static inline __attribute__((always_inline)) uchar _f1_absy(_PARAMS, const int y, const int x, const int c)
 {
     const int src_height = 200, src_width = 301;
     const int dst_height = 200, dst_width = 301;
@@ -202,7 +202,7 @@ static inline uchar _f1_absy(_PARAMS, const int y, const int x, const int c)
 // sobel: AddWeightedGray (pointwise); every element
 #define src1(y_, x_, c_) _f0_absx(_ARGS, (y_), (x_), (c_))
 #define src2(y_, x_, c_) _f1_absy(_ARGS, (y_), (x_), (c_))
-static inline uchar _f2_sobel(_PARAMS, const int y, const int x, const int c)
+static inline __attribute__((always_inline)) uchar _f2_sobel(_PARAMS, const int y, const int x, const int c)
 {
     const int src1_height = 200, src1_width = 301;
     const int src2_height = 200, src2_width = 301;
@@ -218,7 +218,7 @@ static inline uchar _f2_sobel(_PARAMS, const int y, const int x, const int c)
 
 // abslap: ConvertScaleAbsGray (pointwise); every element
 #define src(y_, x_, c_) _in2[(size_t)(y_) * 301 + (x_)]
-static inline uchar _f3_abslap(_PARAMS, const int y, const int x, const int c)
+static inline __attribute__((always_inline)) uchar _f3_abslap(_PARAMS, const int y, const int x, const int c)
 {
     const int src_height = 200, src_width = 301;
     const int dst_height = 200, dst_width = 301;
@@ -230,7 +230,7 @@ static inline uchar _f3_abslap(_PARAMS, const int y, const int x, const int c)
 
 // canny_rgb: GrayToRgb (pointwise); every element
 #define src(y_, x_, c_) _in3[(size_t)(y_) * 301 + (x_)]
-static inline uchar _f4_canny_rgb(_PARAMS, const int y, const int x, const int c)
+static inline __attribute__((always_inline)) uchar _f4_canny_rgb(_PARAMS, const int y, const int x, const int c)
 {
     const int src_height = 200, src_width = 301;
     const int dst_height = 200, dst_width = 301;
@@ -240,7 +240,7 @@ static inline uchar _f4_canny_rgb(_PARAMS, const int y, const int x, const int c
 
 // sobel_rgb: GrayToRgb (pointwise); every element
 #define src(y_, x_, c_) _f2_sobel(_ARGS, (y_), (x_), (c_))
-static inline uchar _f5_sobel_rgb(_PARAMS, const int y, const int x, const int c)
+static inline __attribute__((always_inline)) uchar _f5_sobel_rgb(_PARAMS, const int y, const int x, const int c)
 {
     const int src_height = 200, src_width = 301;
     const int dst_height = 200, dst_width = 301;
@@ -250,7 +250,7 @@ static inline uchar _f5_sobel_rgb(_PARAMS, const int y, const int x, const int c
 
 // laplace_rgb: GrayToRgb (pointwise); every element
 #define src(y_, x_, c_) _f3_abslap(_ARGS, (y_), (x_), (c_))
-static inline uchar _f6_laplace_rgb(_PARAMS, const int y, const int x, const int c)
+static inline __attribute__((always_inline)) uchar _f6_laplace_rgb(_PARAMS, const int y, const int x, const int c)
 {
     const int src_height = 200, src_width = 301;
     const int dst_height = 200, dst_width = 301;
@@ -261,7 +261,7 @@ static inline uchar _f6_laplace_rgb(_PARAMS, const int y, const int x, const int
 // left: ImageMerger (index_map); every element
 #define left(y_, x_, c_) _f4_canny_rgb(_ARGS, (y_), (x_), (c_))
 #define right(y_, x_, c_) _f5_sobel_rgb(_ARGS, (y_), (x_), (c_))
-static inline uchar _f7_left(_PARAMS, const int y, const int x, const int c)
+static inline __attribute__((always_inline)) uchar _f7_left(_PARAMS, const int y, const int x, const int c)
 {
     const int left_height = 200, left_width = 301;
     const int right_height = 200, right_width = 301;
@@ -274,7 +274,7 @@ static inline uchar _f7_left(_PARAMS, const int y, const int x, const int c)
 // merged: ImageMerger (index_map); every element
 #define left(y_, x_, c_) _f7_left(_ARGS, (y_), (x_), (c_))
 #define right(y_, x_, c_) _f6_laplace_rgb(_ARGS, (y_), (x_), (c_))
-static inline uchar _f8_merged(_PARAMS, const int y, const int x, const int c)
+static inline __attribute__((always_inline)) uchar _f8_merged(_PARAMS, const int y, const int x, const int c)
 {
     const int left_height = 200, left_width = 602;
     const int right_height = 200, right_width = 301;

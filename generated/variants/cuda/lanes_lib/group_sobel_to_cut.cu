@@ -175,7 +175,7 @@ static inline uchar _convert_uchar_sat_rte(float v)
 
 // sobel: SobelGray (stencil, radius 1, border reflect101); every element
 #define src(y_, x_, c_) _in0[(size_t)_reflect101((y_), 200) * 301 + _reflect101((x_), 301)]
-static inline short _f0_sobel(_PARAMS, const int y, const int x, const int c)
+static inline __attribute__((always_inline)) short _f0_sobel(_PARAMS, const int y, const int x, const int c)
 {
     const int src_height = 200, src_width = 301;
     const int dst_height = 200, dst_width = 301;
@@ -192,7 +192,7 @@ static inline short _f0_sobel(_PARAMS, const int y, const int x, const int c)
 
 // magnitude: ConvertScaleAbsGray (pointwise); every element
 #define src(y_, x_, c_) _f0_sobel(_ARGS, (y_), (x_), (c_))
-static inline uchar _f1_magnitude(_PARAMS, const int y, const int x, const int c)
+static inline __attribute__((always_inline)) uchar _f1_magnitude(_PARAMS, const int y, const int x, const int c)
 {
     const int src_height = 200, src_width = 301;
     const int dst_height = 200, dst_width = 301;
@@ -204,7 +204,7 @@ static inline uchar _f1_magnitude(_PARAMS, const int y, const int x, const int c
 
 // strong: ThresholdGray (pointwise); every element
 #define src(y_, x_, c_) _f1_magnitude(_ARGS, (y_), (x_), (c_))
-static inline uchar _f2_strong(_PARAMS, const int y, const int x, const int c)
+static inline __attribute__((always_inline)) uchar _f2_strong(_PARAMS, const int y, const int x, const int c)
 {
     const int src_height = 200, src_width = 301;
     const int dst_height = 200, dst_width = 301;
@@ -225,7 +225,7 @@ static inline uchar _f2_strong(_PARAMS, const int y, const int x, const int c)
 #define src1(y_, x_, c_) _f2_strong(_ARGS, (y_), (x_), (c_))
 #define src2(y_, x_, c_) _f2_strong(_ARGS, (y_), (x_), (c_))
 #define mask(y_, x_, c_) _in1[(size_t)(y_) * 301 + (x_)]
-static inline uchar _f3_cut(_PARAMS, const int y, const int x, const int c)
+static inline __attribute__((always_inline)) uchar _f3_cut(_PARAMS, const int y, const int x, const int c)
 {
     const int src1_height = 200, src1_width = 301;
     const int src2_height = 200, src2_width = 301;
@@ -239,7 +239,7 @@ static inline uchar _f3_cut(_PARAMS, const int y, const int x, const int c)
 
 // sobel: SobelGray (stencil, radius 1, border reflect101); interior: no border rule
 #define src(y_, x_, c_) _in0[(size_t)(y_) * 301 + (x_)]
-static inline short _f0_sobel_in(_PARAMS, const int y, const int x, const int c)
+static inline __attribute__((always_inline)) short _f0_sobel_in(_PARAMS, const int y, const int x, const int c)
 {
     const int src_height = 200, src_width = 301;
     const int dst_height = 200, dst_width = 301;
@@ -256,7 +256,7 @@ static inline short _f0_sobel_in(_PARAMS, const int y, const int x, const int c)
 
 // magnitude: ConvertScaleAbsGray (pointwise); interior: no border rule
 #define src(y_, x_, c_) _f0_sobel_in(_ARGS, (y_), (x_), (c_))
-static inline uchar _f1_magnitude_in(_PARAMS, const int y, const int x, const int c)
+static inline __attribute__((always_inline)) uchar _f1_magnitude_in(_PARAMS, const int y, const int x, const int c)
 {
     const int src_height = 200, src_width = 301;
     const int dst_height = 200, dst_width = 301;
@@ -268,7 +268,7 @@ static inline uchar _f1_magnitude_in(_PARAMS, const int y, const int x, const in
 
 // strong: ThresholdGray (pointwise); interior: no border rule
 #define src(y_, x_, c_) _f1_magnitude_in(_ARGS, (y_), (x_), (c_))
-static inline uchar _f2_strong_in(_PARAMS, const int y, const int x, const int c)
+static inline __attribute__((always_inline)) uchar _f2_strong_in(_PARAMS, const int y, const int x, const int c)
 {
     const int src_height = 200, src_width = 301;
     const int dst_height = 200, dst_width = 301;
@@ -289,7 +289,7 @@ static inline uchar _f2_strong_in(_PARAMS, const int y, const int x, const int c
 #define src1(y_, x_, c_) _f2_strong_in(_ARGS, (y_), (x_), (c_))
 #define src2(y_, x_, c_) _f2_strong_in(_ARGS, (y_), (x_), (c_))
 #define mask(y_, x_, c_) _in1[(size_t)(y_) * 301 + (x_)]
-static inline uchar _f3_cut_in(_PARAMS, const int y, const int x, const int c)
+static inline __attribute__((always_inline)) uchar _f3_cut_in(_PARAMS, const int y, const int x, const int c)
 {
     const int src1_height = 200, src1_width = 301;
     const int src2_height = 200, src2_width = 301;
@@ -306,24 +306,52 @@ static inline uchar _f3_cut_in(_PARAMS, const int y, const int x, const int c)
 // threads one after another: a row is the longest loop, which the compiler vectorizes).
 // Elements 1 or more from every edge read inside the frame: the interior version, without
 // border rules, computes them.
+// A work-item computes 4 interior rows in one loop: the compiler shares the reads their
+// windows have in common.
 __kernel void sobel_to_cut(_PARAMS, const int _tile)
 {
     const int _y0 = get_group_id(1) * _tile;
     const int _y1 = min(_y0 + _tile, 200);
     const int _k = get_local_id(1) * get_local_size(0) + get_local_id(0);
     const int _n = get_local_size(0) * get_local_size(1);
-    for (int _y = _y0 + _k; _y < _y1; _y += _n) {
-        __global uchar *_row = _out + (size_t)_y * 301;
-        if (_y >= 1 && _y < 199) {
-            for (int _x = 0; _x < 1; _x++)
+    for (int _p = _y0 + 4 * _k; _p < _y1; _p += 4 * _n) {
+        if (_p >= 1 && _p + 3 < min(_y1, 199)) {
+            // rows _p to _p + 3, every one in the interior
+            const int _y = _p;
+            __global uchar *_row = _out + (size_t)_y * 301;
+            for (int _x = 0; _x < 1; _x++) {
                 _row[_x] = _f3_cut(_ARGS, _y, _x, 0);
-            for (int _x = 1; _x < 300; _x++)
+                _row[301 + _x] = _f3_cut(_ARGS, _y + 1, _x, 0);
+                _row[602 + _x] = _f3_cut(_ARGS, _y + 2, _x, 0);
+                _row[903 + _x] = _f3_cut(_ARGS, _y + 3, _x, 0);
+            }
+            for (int _x = 1; _x < 300; _x++) {
                 _row[_x] = _f3_cut_in(_ARGS, _y, _x, 0);
-            for (int _x = 300; _x < 301; _x++)
+                _row[301 + _x] = _f3_cut_in(_ARGS, _y + 1, _x, 0);
+                _row[602 + _x] = _f3_cut_in(_ARGS, _y + 2, _x, 0);
+                _row[903 + _x] = _f3_cut_in(_ARGS, _y + 3, _x, 0);
+            }
+            for (int _x = 300; _x < 301; _x++) {
                 _row[_x] = _f3_cut(_ARGS, _y, _x, 0);
-        } else {
-            for (int _x = 0; _x < 301; _x++)
-                _row[_x] = _f3_cut(_ARGS, _y, _x, 0);
+                _row[301 + _x] = _f3_cut(_ARGS, _y + 1, _x, 0);
+                _row[602 + _x] = _f3_cut(_ARGS, _y + 2, _x, 0);
+                _row[903 + _x] = _f3_cut(_ARGS, _y + 3, _x, 0);
+            }
+            continue;
+        }
+        for (int _y = _p; _y < min(_p + 4, _y1); _y++) {
+            __global uchar *_row = _out + (size_t)_y * 301;
+            if (_y >= 1 && _y < 199) {
+                for (int _x = 0; _x < 1; _x++)
+                    _row[_x] = _f3_cut(_ARGS, _y, _x, 0);
+                for (int _x = 1; _x < 300; _x++)
+                    _row[_x] = _f3_cut_in(_ARGS, _y, _x, 0);
+                for (int _x = 300; _x < 301; _x++)
+                    _row[_x] = _f3_cut(_ARGS, _y, _x, 0);
+            } else {
+                for (int _x = 0; _x < 301; _x++)
+                    _row[_x] = _f3_cut(_ARGS, _y, _x, 0);
+            }
         }
     }
 }

@@ -16,7 +16,7 @@
 
 // gray: RgbToGray (pointwise); every element
 #define src(y_, x_, c_) _in0[3 * ((size_t)(y_) * 301 + (x_)) + (c_)]
-static inline uchar _f0_gray(_PARAMS, const int y, const int x, const int c)
+static inline __attribute__((always_inline)) uchar _f0_gray(_PARAMS, const int y, const int x, const int c)
 {
     const int src_height = 200, src_width = 301;
     const int dst_height = 200, dst_width = 301;

@@ -50,7 +50,7 @@ static inline uchar _convert_uchar_sat_rte(float v)
 // sobel: AddWeightedGray (pointwise); every element
 #define src1(y_, x_, c_) _in0[(size_t)(y_) * 301 + (x_)]
 #define src2(y_, x_, c_) _in1[(size_t)(y_) * 301 + (x_)]
-static inline uchar _f0_sobel(_PARAMS, const int y, const int x, const int c)
+static inline __attribute__((always_inline)) uchar _f0_sobel(_PARAMS, const int y, const int x, const int c)
 {
     const int src1_height = 200, src1_width = 301;
     const int src2_height = 200, src2_width = 301;

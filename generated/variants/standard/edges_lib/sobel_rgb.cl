@@ -16,7 +16,7 @@
 
 // sobel_rgb: GrayToRgb (pointwise); every element
 #define src(y_, x_, c_) _in0[(size_t)(y_) * 301 + (x_)]
-static inline uchar _f0_sobel_rgb(_PARAMS, const int y, const int x, const int c)
+static inline __attribute__((always_inline)) uchar _f0_sobel_rgb(_PARAMS, const int y, const int x, const int c)
 {
     const int src_height = 200, src_width = 301;
     const int dst_height = 200, dst_width = 301;

@@ -16,7 +16,7 @@
 
 // mirror2: VerticalMirror (index_map); every element
 #define src(y_, x_, c_) _in0[(size_t)(y_) * 3456 + (x + ((x_) - x) * 3)]
-static inline uchar _f0_mirror2(_PARAMS, const int y, const int x, const int c)
+static inline __attribute__((always_inline)) uchar _f0_mirror2(_PARAMS, const int y, const int x, const int c)
 {
     const int src_height = 864, src_width = 1152;
     const int dst_height = 864, dst_width = 1152;

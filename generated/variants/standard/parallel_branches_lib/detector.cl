@@ -26,7 +26,7 @@
 
 // detector: ObjectDetector (pointwise); every element
 #define frame(y_, x_, c_) _in0[3 * ((size_t)(y_) * 1280 + (x_)) + (c_)]
-static inline uchar _f0_detector(_PARAMS, const int y, const int x, const int c)
+static inline __attribute__((always_inline)) uchar _f0_detector(_PARAMS, const int y, const int x, const int c)
 {
     const int frame_height = 480, frame_width = 1280;
     const int mask_height = 480, mask_width = 1280;

@@ -20,7 +20,7 @@
 // merger: ImageMerger (index_map); every element
 #define left(y_, x_, c_) _in0[3 * ((size_t)(y_) * 640 + (x_)) + (c_)]
 #define right(y_, x_, c_) _in1[3 * ((size_t)(y_) * 640 + (x_)) + (c_)]
-static inline uchar _f0_merger(_PARAMS, const int y, const int x, const int c)
+static inline __attribute__((always_inline)) uchar _f0_merger(_PARAMS, const int y, const int x, const int c)
 {
     const int left_height = 480, left_width = 640;
     const int right_height = 480, right_width = 640;

@@ -19,7 +19,7 @@
 
 // mirror1: VerticalMirror (index_map); every element
 #define src(y_, x_, c_) _in0[(size_t)(y_) * 3456 + (x + ((x_) - x) * 3)]
-static inline uchar _f0_mirror1(_PARAMS, const int y, const int x, const int c)
+static inline __attribute__((always_inline)) uchar _f0_mirror1(_PARAMS, const int y, const int x, const int c)
 {
     const int src_height = 864, src_width = 1152;
     const int dst_height = 864, dst_width = 1152;
@@ -29,7 +29,7 @@ static inline uchar _f0_mirror1(_PARAMS, const int y, const int x, const int c)
 
 // mirror2: VerticalMirror (index_map); every element
 #define src(y_, x_, c_) _f0_mirror1(_ARGS, (y_), (x + ((x_) - x) * 3), (c_))
-static inline uchar _f1_mirror2(_PARAMS, const int y, const int x, const int c)
+static inline __attribute__((always_inline)) uchar _f1_mirror2(_PARAMS, const int y, const int x, const int c)
 {
     const int src_height = 864, src_width = 1152;
     const int dst_height = 864, dst_width = 1152;
@@ -39,7 +39,7 @@ static inline uchar _f1_mirror2(_PARAMS, const int y, const int x, const int c)
 
 // mirror3: VerticalMirror (index_map); every element
 #define src(y_, x_, c_) _f1_mirror2(_ARGS, (y_), (x + ((x_) - x) * 3), (c_))
-static inline uchar _f2_mirror3(_PARAMS, const int y, const int x, const int c)
+static inline __attribute__((always_inline)) uchar _f2_mirror3(_PARAMS, const int y, const int x, const int c)
 {
     const int src_height = 864, src_width = 1152;
     const int dst_height = 864, dst_width = 1152;
@@ -49,7 +49,7 @@ static inline uchar _f2_mirror3(_PARAMS, const int y, const int x, const int c)
 
 // mirror4: VerticalMirror (index_map); every element
 #define src(y_, x_, c_) _f2_mirror3(_ARGS, (y_), (x + ((x_) - x) * 3), (c_))
-static inline uchar _f3_mirror4(_PARAMS, const int y, const int x, const int c)
+static inline __attribute__((always_inline)) uchar _f3_mirror4(_PARAMS, const int y, const int x, const int c)
 {
     const int src_height = 864, src_width = 1152;
     const int dst_height = 864, dst_width = 1152;
@@ -59,7 +59,7 @@ static inline uchar _f3_mirror4(_PARAMS, const int y, const int x, const int c)
 
 // mirror5: VerticalMirror (index_map); every element
 #define src(y_, x_, c_) _f3_mirror4(_ARGS, (y_), (x + ((x_) - x) * 3), (c_))
-static inline uchar _f4_mirror5(_PARAMS, const int y, const int x, const int c)
+static inline __attribute__((always_inline)) uchar _f4_mirror5(_PARAMS, const int y, const int x, const int c)
 {
     const int src_height = 864, src_width = 1152;
     const int dst_height = 864, dst_width = 1152;

@@ -148,7 +148,7 @@ static inline __attribute__((overloadable)) float _max(const float a, const floa
 
 // to_hsv: RgbToHsv (pointwise); every element
 #define src(y_, x_, c_) _in0[3 * ((size_t)(y_) * 48 + (x_)) + (c_)]
-static inline uchar _f0_to_hsv(_PARAMS, const int y, const int x, const int c)
+static inline __attribute__((always_inline)) uchar _f0_to_hsv(_PARAMS, const int y, const int x, const int c)
 {
     const int src_height = 32, src_width = 48;
     const int dst_height = 32, dst_width = 48;
@@ -171,7 +171,7 @@ static inline uchar _f0_to_hsv(_PARAMS, const int y, const int x, const int c)
 
 // threshold: Threshold (pointwise); every element
 #define src(y_, x_, c_) _f0_to_hsv(_ARGS, (y_), (x_), (c_))
-static inline uchar _f1_threshold(_PARAMS, const int y, const int x, const int c)
+static inline __attribute__((always_inline)) uchar _f1_threshold(_PARAMS, const int y, const int x, const int c)
 {
     const int src_height = 32, src_width = 48;
     const int dst_height = 32, dst_width = 48;

@@ -29,7 +29,7 @@
 
 // threshold: Threshold (pointwise); every element
 #define src(y_, x_, c_) _in0[(size_t)(y_) * 144 + (x + ((x_) - x) * 3)]
-static inline uchar _f0_threshold(_PARAMS, const int y, const int x, const int c)
+static inline __attribute__((always_inline)) uchar _f0_threshold(_PARAMS, const int y, const int x, const int c)
 {
     const int src_height = 32, src_width = 48;
     const int dst_height = 32, dst_width = 48;
