@@ -380,3 +380,8 @@ def _store(values: np.ndarray, out: np.ndarray | None, type_name: str,
 from .cpu_ops import CPU_OPS
 
 CPU_IMPLEMENTATIONS.update(CPU_OPS)
+
+# the warps (warp.yaml): their CPU forms live in warp_ops.py
+from .warp_ops import WARP_OPS
+
+CPU_IMPLEMENTATIONS.update(WARP_OPS)
