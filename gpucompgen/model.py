@@ -92,6 +92,9 @@ class ParamDecl:
     # length of each dimension, outermost first; () for a scalar. min and max bound every
     # element; the value is nested tuples, the element type's numbers.
     shape: tuple[tuple[int, int], ...] = ()
+    # a float matrix (2x2, 3x3, or 2x3: its left 2x2) whose determinant must not be 0: a
+    # warp's matrix, a camera matrix ('invertible: true' in the type file)
+    invertible: bool = False
 
     @property
     def element(self) -> str:
@@ -381,7 +384,7 @@ def _positive_int(doc: Document, rep: Reporter, path: tuple, value: Any, what: s
 TYPE_KEYS = ("kind", "description", "family", "params", "inputs", "outputs", "requires",
              "kernel", "python", "gpu", "cpu", "fusable")
 PORT_KEYS = ("memory", "dtype", "channels", "height", "width", "description", "aliases")
-PARAM_KEYS = ("type", "default", "min", "max", "description")
+PARAM_KEYS = ("type", "default", "min", "max", "description", "invertible")
 REQUIRE_KEYS = ("check", "message")
 KERNEL_KEYS = ("file", "function", "grid", "cover")
 GPU_KEYS = ("tiles", "block_z", "prefer", "max_threads", "square")
@@ -558,8 +561,14 @@ def _load_type(doc: Document, rep: Reporter, path: Path, origin: str, tname: str
             rep.error(doc.pos(*ppath, "default"), f"default of '{pname}' is empty (null)",
                       f"give {'an' if ptype == 'int' else 'a'} {ptype} default, or remove "
                       "'default:' to make the parameter required")
+        invertible = pspec.get("invertible", False)
+        if invertible is not False and (invertible is not True or not _matrix(ptype, shape)):
+            rep.error(doc.pos(*ppath, "invertible"), f"'invertible' of parameter '{pname}' "
+                      f"is true or absent, and only for a float matrix, not {ptype}",
+                      "give 'float[2][2]', 'float[3][3]' or 'float[2][3]', or remove it")
+            invertible = False
         decl = ParamDecl(pname, ptype, minimum=bounds["min"], maximum=bounds["max"],
-                         shape=shape)
+                         shape=shape, invertible=invertible)
         problem, at = (None, ()) if default is None else _value_problem_at(
             default, decl, kind in ("gpu-aware", "flexible"))
         if problem:
@@ -573,7 +582,7 @@ def _load_type(doc: Document, rep: Reporter, path: Path, origin: str, tname: str
                                         bounds["min"], bounds["max"],
                                         _text(doc, rep, ppath + ("description",),
                                               pspec.get("description"), "description"),
-                                        shape)
+                                        shape, invertible)
     # ports
     seen_ports: dict[str, str] = {}
     failed_inputs = 0
@@ -757,8 +766,34 @@ def _value_problem_at(value: Any, decl: ParamDecl,
                       kernel: bool) -> tuple[str | None, tuple[int, ...]]:
     """_param_value_problem, and for an array the index of the element at fault."""
     if decl.shape:
-        return _array_problem(value, decl, kernel) or (None, ())
+        found = _array_problem(value, decl, kernel)
+        if found is None and decl.invertible:
+            return _singular(value), ()
+        return found or (None, ())
     return _param_value_problem(value, decl, kernel), ()
+
+
+def _matrix(ptype: str, shape: tuple[tuple[int, int], ...]) -> bool:
+    """Whether an array type is a matrix 'invertible:' can apply to."""
+    return ptype.startswith("float") and shape in (((2, 2), (2, 2)), ((3, 3), (3, 3)),
+                                                   ((2, 2), (3, 3)))
+
+
+def _singular(value) -> str | None:
+    """Why a matrix (2x3: its left 2x2) is not invertible, or None: its determinant is 0
+    within float32's precision, relative to its rows' sizes."""
+    a = [[float(v) for v in row[:len(value)]] for row in value]
+    if len(a) == 2:
+        det = a[0][0] * a[1][1] - a[0][1] * a[1][0]
+    else:
+        det = (a[0][0] * (a[1][1] * a[2][2] - a[1][2] * a[2][1])
+               - a[0][1] * (a[1][0] * a[2][2] - a[1][2] * a[2][0])
+               + a[0][2] * (a[1][0] * a[2][1] - a[1][1] * a[2][0]))
+    scale = math.prod(max(abs(v) for v in row) for row in a)
+    if abs(det) > 1e-6 * scale:
+        return None
+    return (f"is a singular matrix (determinant {det:.3g}): it maps the whole frame onto a "
+            "line or a point, and has no inverse")
 
 
 def param_value(value: Any, decl: ParamDecl) -> Any:
@@ -1770,7 +1805,10 @@ def _instance_params(doc, rep, cpath, ctype: ComponentType, given) -> dict[str, 
         problem, at = _value_problem_at(value, decl, ctype.gpu_aware)
         if problem:
             hint = ""
-            if decl.shape:
+            if decl.invertible and _array_problem(value, decl, ctype.gpu_aware) is None:
+                hint = ("give an invertible matrix: no row a combination of the others "
+                        "(of a 2x3, of its left 2x2)")
+            elif decl.shape:
                 hint = (f"give {decl.type}: nested lists of {decl.element} values within "
                         "the parameter's range"
                         + (f", e.g. '{pname}: {py_yaml(decl.default)}'"
