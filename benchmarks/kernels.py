@@ -488,7 +488,8 @@ def main(argv=None) -> int:
             for k, v in variants.items():
                 got = v.output()
                 diff = np.abs(got.astype(np.int32) - expected.astype(np.int32)).max()
-                if diff > (8 if name == "Undistort" else 1 if "linear" in name else 0):  # library.md
+                # the bounds docs/library.md states
+                if diff > (8 if name == "Undistort" else 1 if "linear" in name else 0):
                     print(f"  {name} {size} {k}: differs from OpenCV by {diff}")
                     return 1
             runs[name] = (variants, ref, arrays, {k: [] for k in [*variants, "cv2"]})

@@ -349,3 +349,136 @@ def test_warp_affine_random_frames(case, gpu):
 def test_warp_perspective_random_frames(case, gpu):
     src, params, setting = case
     check_all("WarpPerspective", [src], params, gpu, setting, "random")
+
+
+@st.composite
+def remap_case(draw):
+    h, w = draw(st.integers(1, 24)), draw(st.integers(1, 24))
+    oh, ow = draw(st.integers(1, 24)), draw(st.integers(1, 24))
+    channels = draw(st.sampled_from([1, 3]))
+    rng = np.random.default_rng(draw(st.integers(0, 2 ** 32 - 1)))
+    src = rng.integers(0, 256, (h, w) if channels == 1 else (h, w, 3), dtype=np.uint8)
+    # positions inside, on and past the edges, some whole and half pixels
+    map1 = rng.uniform(-3, w + 3, (oh, ow)).astype(F32)
+    map2 = rng.uniform(-3, h + 3, (oh, ow)).astype(F32)
+    map1[::3] = np.round(map1[::3] * 2) / 2
+    params = {"interpolation": draw(st.integers(0, 1)), "border_mode": draw(st.integers(0, 1)),
+              "border_value": draw(st.integers(0, 255))}
+    setting = draw(st.sampled_from([(8, 1, 1, 1), (16, 16, 16, 1), (32, 8, 3, 1)]))
+    return [src, map1, map2], params, setting
+
+
+@PROPERTY
+@given(case=remap_case())
+def test_remap_random_frames(case, gpu):
+    arrays, params, setting = case
+    check_all("Remap", arrays, params, gpu, setting, "random")
+
+
+# -- in generated programs: placed on the GPU, the CPU, alternating; fused and unfused ------
+FRAMES = 3
+ROTATE = _tuple(cv2.getRotationMatrix2D((140.0, 90.0), 20.0, 0.9))  # 301x200 photos
+
+
+def _lists(value):
+    """Matrices (in a dict of parameters, or one) as nested lists, as chain_model writes
+    them into YAML."""
+    if isinstance(value, dict):
+        return {k: _lists(v) for k, v in value.items()}
+    return [_lists(v) for v in value] if isinstance(value, (tuple, list)) else value
+
+
+
+# name: (type, params, inputs in port order; "camera" is the source, 301x200 RGB)
+CHAIN: dict = {
+    "gray": ("RgbToGray", {}, ("camera",)),
+    "affine": ("WarpAffine", {"m": _lists(ROTATE), "width": 280, "height": 190,
+                              "flags": 17, "border_mode": 0, "border_value": 40},
+               ("camera",)),
+    "blur": ("GaussianBlur", {"ksize": 3}, ("affine",)),  # a stencil over a warp
+    "persp": ("WarpPerspective", {"m": _lists(perspective_matrices(301, 200)[0]),
+                                  "width": 301, "height": 200, "flags": 16,
+                                  "border_mode": 1, "border_value": 0}, ("gray",)),
+    "mirror": ("WarpAffine", {"m": [[-1.0, 0.0, 300.0], [0.0, 1.0, 0.0]], "width": 301,
+                              "height": 200, "flags": 16, "border_mode": 0,
+                              "border_value": 0}, ("persp",)),  # a warp of a warp
+    "lens": ("Undistort", _lists(camera(301, 200)), ("camera",)),
+    "edges": ("Threshold", {"thresh": 100, "maxval": 255, "thresh_type": 0}, ("lens",)),
+}
+ENDS = ["blur", "mirror", "edges"]
+MIXED = {name: ("cpu" if i % 2 else "gpu") for i, name in enumerate(CHAIN)}
+
+
+def _opencv_of(type_name):
+    if type_name in NUMPY:
+        return lambda *arrays, **params: opencv(type_name, list(arrays), params)
+    from test_imgproc import SPECS
+
+    return SPECS[type_name].opencv
+
+
+@pytest.fixture(scope="module")
+def programs(tmp_path_factory, cl_context):
+    """{variant: {component: frames}}: the chain built on the GPU with every output kept,
+    on the CPU, alternating sides, and with only its ends kept fused (launches made so dear
+    that every legal group forms) and unfused."""
+    require_opencl()
+    from conftest import load_generated, write_keep_types
+    from test_imgproc_ops import chain_model
+
+    from gpucompgen.build import compile_model, write
+    from gpucompgen.passes.fuse import FUSION_COSTS
+
+    folder = tmp_path_factory.mktemp("warps")
+    write_keep_types(folder)
+    found = {}
+    for variant, placement, places, fusion, keep in (
+            ("gpu", "gpu", None, "off", None), ("cpu", "cpu", None, "auto", None),
+            ("mixed", "gpu", MIXED, "auto", None), ("fused", "gpu", None, "auto", ENDS),
+            ("unfused", "gpu", None, "off", ENDS)):
+        model = folder / f"warps_{variant}.yaml"
+        model.write_text(chain_model("warps", CHAIN, placement, keep=keep))
+        out = folder / f"out_{variant}"
+        with pytest.MonkeyPatch.context() as patch:
+            patch.setattr("gpucompgen.passes.fuse.FUSION_COSTS",
+                          {k: {**v, "launch_s": 1e6} for k, v in FUSION_COSTS.items()})
+            built = compile_model(model, out, places=places, fusion=fusion)
+        write(built, out)
+        if variant == "fused":  # every warp inside a group
+            grouped = {m.name for g in built.system.groups for m in g.members
+                       if len(g.members) > 1}
+            assert {"affine", "persp", "mirror", "lens"} <= grouped, grouped
+        program = load_generated(out / "warps.py", f"warps_{variant}")
+        result = program.run(frames=FRAMES, context=cl_context)
+        assert result.frames == FRAMES
+        found[variant] = {n: result.components[f"keep_{n}"].frames
+                          for n in (keep or CHAIN)}
+    return found
+
+
+def test_programs_equal_opencv_on_every_placement(programs):
+    """Each component's output equals OpenCV's function of its inputs as the program
+    computed them (within the type's bound on the GPU); on the CPU, OpenCV's own chain."""
+    for variant in ("gpu", "cpu", "mixed"):
+        frames = programs[variant]
+        for i in range(FRAMES):
+            for name, (type_name, params, inputs) in CHAIN.items():
+                if "camera" in inputs:
+                    continue  # the source's frames are the photographs, read by the program
+                arrays = [frames[s][i] for s in inputs]
+                reference = _opencv_of(type_name)(*arrays, **params)
+                limit = bound(type_name, params) if type_name in NUMPY else (0, 0.0)
+                if variant == "cpu" or MIXED[name] == "cpu" and variant == "mixed":
+                    limit = (0, 0.0)  # OpenCV's own call
+                assert_within(np.asarray(frames[name][i]).reshape(reference.shape),
+                              reference, limit, f"{variant}: {name}, frame {i}")
+
+
+def test_fused_equals_unfused(programs):
+    for name in ENDS:
+        for i in range(FRAMES):
+            np.testing.assert_array_equal(programs["fused"][name][i],
+                                          programs["unfused"][name][i],
+                                          err_msg=f"{name}, frame {i}")
+            np.testing.assert_array_equal(programs["fused"][name][i],
+                                          programs["gpu"][name][i])
