@@ -251,11 +251,10 @@ def test_every_warp_is_compared_flexible_fusable_and_in_geometry():
 
 @pytest.fixture(scope="module")
 def photos():
-    out = []
-    for load in (skdata.chelsea, skdata.coffee, skdata.astronaut):
-        rgb = np.ascontiguousarray(load())
-        out.append({3: rgb, 1: cv2.cvtColor(rgb, cv2.COLOR_RGB2GRAY)})
-    return out
+    """The photographs in RGB and gray, as tests/test_imgproc_ops.py has them."""
+    from test_imgproc_ops import photos as fixture
+
+    return fixture.__wrapped__()
 
 
 @pytest.fixture(scope="module")

@@ -55,11 +55,8 @@ def warp_affine(src: np.ndarray, *, m, width: int, height: int, flags: int,
                 out: np.ndarray | None = None) -> np.ndarray:
     """WarpAffine: cv2.warpAffine(src, m, (width, height), flags=, borderMode=,
     borderValue=)."""
-    _image("WarpAffine", "src", src)
-    flags, border_mode, value = _checked("WarpAffine", flags, border_mode, border_value)
-    return _finish(cv2.warpAffine(src, _matrix("WarpAffine", m, (2, 3)),
-                                  (int(width), int(height)), flags=flags,
-                                  borderMode=border_mode, borderValue=value), src, out)
+    return _warp(cv2.warpAffine, "WarpAffine", (2, 3), src, m, width, height, flags,
+                 border_mode, border_value, out)
 
 
 def warp_perspective(src: np.ndarray, *, m, width: int, height: int, flags: int,
@@ -67,11 +64,16 @@ def warp_perspective(src: np.ndarray, *, m, width: int, height: int, flags: int,
                      out: np.ndarray | None = None) -> np.ndarray:
     """WarpPerspective: cv2.warpPerspective(src, m, (width, height), flags=, borderMode=,
     borderValue=)."""
-    _image("WarpPerspective", "src", src)
-    flags, border_mode, value = _checked("WarpPerspective", flags, border_mode, border_value)
-    return _finish(cv2.warpPerspective(src, _matrix("WarpPerspective", m, (3, 3)),
-                                       (int(width), int(height)), flags=flags,
-                                       borderMode=border_mode, borderValue=value), src, out)
+    return _warp(cv2.warpPerspective, "WarpPerspective", (3, 3), src, m, width, height,
+                 flags, border_mode, border_value, out)
+
+
+def _warp(call, type_name: str, shape: tuple[int, int], src, m, width, height, flags,
+          border_mode, border_value, out) -> np.ndarray:
+    _image(type_name, "src", src)
+    flags, border_mode, value = _checked(type_name, flags, border_mode, border_value)
+    return _finish(call(src, _matrix(type_name, m, shape), (int(width), int(height)),
+                        flags=flags, borderMode=border_mode, borderValue=value), src, out)
 
 
 def remap(src: np.ndarray, map1: np.ndarray, map2: np.ndarray, *, interpolation: int,
