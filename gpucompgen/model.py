@@ -564,8 +564,9 @@ def _load_type(doc: Document, rep: Reporter, path: Path, origin: str, tname: str
         invertible = pspec.get("invertible", False)
         if invertible is not False and (invertible is not True or not _matrix(ptype, shape)):
             rep.error(doc.pos(*ppath, "invertible"), f"'invertible' of parameter '{pname}' "
-                      f"is true or absent, and only for a float matrix, not {ptype}",
-                      "give 'float[2][2]', 'float[3][3]' or 'float[2][3]', or remove it")
+                      "is only 'true', on a float matrix (float[2][2], float[3][3] or "
+                      f"float[2][3]), not {py_yaml(invertible)} on {ptype}",
+                      "remove 'invertible', or make the parameter such a matrix")
             invertible = False
         decl = ParamDecl(pname, ptype, minimum=bounds["min"], maximum=bounds["max"],
                          shape=shape, invertible=invertible)
