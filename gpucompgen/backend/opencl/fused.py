@@ -359,7 +359,8 @@ def _member(m, feeds: dict[Endpoint, str], producer: dict[Endpoint, Endpoint], i
     """A member's snippet as a function, between the macros of its input accessors.  The
     root's is always inlined into the row loop, which it must be for the loop to vectorize:
     PoCL's inliner left WarpAffine's bilinear snippet (cost 410 > 337) a call per element,
-    29 ms a 320x240 frame, 0.8 ms inlined."""
+    29 ms a 320x240 frame, 0.8 ms inlined. Not a stencil's: its unrolled window inlined at
+    every channel's call took MorphologyEx 15x15 open from 5 s to 64 s to compile."""
     decl = m.type.fusable
     ctype = DTYPES[next(iter(m.outputs.values())).dtype][1]
     what = "interior: no border rule" if interior else "every element"
@@ -393,7 +394,8 @@ def _member(m, feeds: dict[Endpoint, str], producer: dict[Endpoint, Endpoint], i
     if arrays and not interior:  # once, before the member's first version
         lines[1:1] = [line for p, d in arrays.items()
                       for line in _constant_table(f"_m{index[m.name]}_{p}", d, m.params[p])]
-    inline = "static inline __attribute__((always_inline))" if root else "static inline"
+    inline = "static inline __attribute__((always_inline))" if root and \
+        decl.form != "stencil" else "static inline"
     lines.append(f"{inline} {ctype} {_function(m.name, index, interior)}(_PARAMS, "
                  "const int y, const int x, const int c)")
     lines.append("{")
