@@ -33,6 +33,9 @@ FAMILY_TITLES = {"colour": "colour", "filters": "filters", "morphology": "morpho
                  "features": "features", "io": "I/O: sources and sinks"}
 
 
+MAX_PORTS_COLUMN = 22  # characters of the widest signature the column is sized for
+
+
 def listing(types: Mapping[str, ComponentType]) -> list[str]:
     """Every type, one line each: the library's by family (colour, filters, ...; those
     without one by file), then the model's own by file.  Each line shows what the type
@@ -47,12 +50,17 @@ def listing(types: Mapping[str, ComponentType]) -> list[str]:
             key = (0 if ctype.origin == "library" else 1, len(families), _source(ctype))
         groups.setdefault(key, []).append((name, ctype))
     name_width = max((len(n) for n in types), default=0) + 2
-    ports_width = max((len(signature(t)) for t in types.values()), default=0) + 2
+    # the ports column fits the usual signatures; a longer one (Remap's three inputs) takes
+    # room from its own description, not from every line's
+    ports_width = min(max((len(signature(t)) for t in types.values()), default=0),
+                      MAX_PORTS_COLUMN) + 2
     lines: list[str] = []
     for (_, _, title), members in sorted(groups.items()):
         lines.append(f"{title}:")
         for name, ctype in sorted(members, key=lambda m: (bool(m[1].alias_of), m[1].name)):
-            head = f"  {name:<{name_width}}{ctype.kind:<11}{signature(ctype):<{ports_width}}"
+            ports = signature(ctype)
+            ports += "  " if len(ports) + 2 > ports_width else ""
+            head = f"  {name:<{name_width}}{ctype.kind:<11}{ports:<{ports_width}}"
             text = (f"deprecated: {ctype.alias_of} with {ctype.alias_channels} channel"
                     f"{'s' if ctype.alias_channels != 1 else ''}" if ctype.alias_of
                     else summary(ctype))

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import time
 
+import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
@@ -384,8 +385,9 @@ def test_every_library_snippet_compiles_printed_with_every_name_renamed(cl_conte
                   f"{d.default if not isinstance(d.default, bool) else int(d.default)};"
                   for p, d in t.params.items() if not d.shape]
         lines += [f"    const {'float' if d.element == 'float' else 'int'} {name}_{p}"
-                  f"[{len(d.default)}] = {{{', '.join(map(str, d.default))}}};"
-                  for p, d in t.params.items() if d.shape]  # an array (Lut's table)
+                  f"{''.join(f'[{n}]' for n in np.shape(d.default))} = "
+                  f"{{{', '.join(map(str, np.ravel(d.default)))}}};"
+                  for p, d in t.params.items() if d.shape]  # an array: Lut's table, a matrix
         lines += [f"    {line}" for line in f.lines(rename)]
         lines += ["}"] + [f"#undef {name}_{p}" for p in t.inputs]
         functions.append("\n".join(lines))

@@ -382,9 +382,11 @@ from .cpu_ops import CPU_OPS
 CPU_IMPLEMENTATIONS.update(CPU_OPS)
 
 # the camera formats of yuv.yaml (cpu_colour.py), channels.yaml and magnitude.yaml
-# (cpu_channels.py)
+# (cpu_channels.py), the warps of warp.yaml (warp_ops.py)
 from .cpu_channels import CPU_CHANNELS
 from .cpu_colour import CPU_COLOUR
+from .warp_ops import WARP_OPS
 
 CPU_IMPLEMENTATIONS.update(CPU_COLOUR)
 CPU_IMPLEMENTATIONS.update(CPU_CHANNELS)
+CPU_IMPLEMENTATIONS.update(WARP_OPS)

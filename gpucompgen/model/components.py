@@ -13,7 +13,7 @@ from ..loader import Document
 from ..names import fold, name_problem, snake
 from .decls import MAX_COMPONENTS, PLACEMENTS, ComponentType, Instance
 from .fields import _expect_map, _named, _unknown_keys
-from .params import _value_fits, _value_problem_at, param_value, py_yaml
+from .params import _array_problem, _value_fits, _value_problem_at, param_value, py_yaml
 from .type_files import LIBRARY_PREFIX, ModelTypes
 
 INSTANCE_KEYS = ("type", "params", "description", "placement", "fuse")
@@ -83,7 +83,10 @@ def _instance_params(doc, rep, cpath, ctype: ComponentType, given) -> dict[str, 
         problem, at = _value_problem_at(value, decl, ctype.gpu_aware)
         if problem:
             hint = ""
-            if decl.shape:
+            if decl.invertible and _array_problem(value, decl, ctype.gpu_aware) is None:
+                hint = ("give an invertible matrix: no row a combination of the others "
+                        "(of a 2x3, of its left 2x2)")
+            elif decl.shape:
                 hint = (f"give {decl.type}: nested lists of {decl.element} values within "
                         "the parameter's range"
                         + (f", e.g. '{pname}: {py_yaml(decl.default)}'"

@@ -66,6 +66,9 @@ class ParamDecl:
     # length of each dimension, outermost first; () for a scalar. min and max bound every
     # element; the value is nested tuples, the element type's numbers.
     shape: tuple[tuple[int, int], ...] = ()
+    # a float matrix (2x2, 3x3, or 2x3: its left 2x2) whose determinant must not be 0: a
+    # warp's matrix, a camera matrix ('invertible: true' in the type file)
+    invertible: bool = False
 
     @property
     def element(self) -> str:

@@ -25,7 +25,7 @@ ARRAY_TYPE = re.compile(ARRAY_TYPE_PATTERN)
 MAX_ARRAY_ELEMENTS = 65536  # of one array parameter (a 256 x 256 table)
 
 
-PARAM_KEYS = ("type", "default", "min", "max", "description")
+PARAM_KEYS = ("type", "default", "min", "max", "description", "invertible")
 
 
 def gpu_kernel_param_problem(kind: str, ptype: str) -> bool:
@@ -91,8 +91,34 @@ def _value_problem_at(value: Any, decl: ParamDecl,
                       kernel: bool) -> tuple[str | None, tuple[int, ...]]:
     """_param_value_problem, and for an array the index of the element at fault."""
     if decl.shape:
-        return _array_problem(value, decl, kernel) or (None, ())
+        found = _array_problem(value, decl, kernel)
+        if found is None and decl.invertible:
+            return _singular(value), ()
+        return found or (None, ())
     return _param_value_problem(value, decl, kernel), ()
+
+
+def _matrix(ptype: str, shape: tuple[tuple[int, int], ...]) -> bool:
+    """Whether an array type is a matrix 'invertible:' can apply to."""
+    return ptype.startswith("float") and shape in (((2, 2), (2, 2)), ((3, 3), (3, 3)),
+                                                   ((2, 2), (3, 3)))
+
+
+def _singular(value) -> str | None:
+    """Why a matrix (2x3: its left 2x2) is not invertible, or None: its determinant is 0
+    within float32's precision, relative to its rows' sizes."""
+    a = [[float(v) for v in row[:len(value)]] for row in value]
+    if len(a) == 2:
+        det = a[0][0] * a[1][1] - a[0][1] * a[1][0]
+    else:
+        det = (a[0][0] * (a[1][1] * a[2][2] - a[1][2] * a[2][1])
+               - a[0][1] * (a[1][0] * a[2][2] - a[1][2] * a[2][0])
+               + a[0][2] * (a[1][0] * a[2][1] - a[1][1] * a[2][0]))
+    scale = math.prod(max(abs(v) for v in row) for row in a)
+    if abs(det) > 1e-6 * scale:
+        return None
+    return (f"is a singular matrix (determinant {det:.3g}): it maps the whole frame onto a "
+            "line or a point, and has no inverse")
 
 
 def param_value(value: Any, decl: ParamDecl) -> Any:
@@ -181,8 +207,15 @@ def _load_param(doc: Document, rep: Reporter, ppath: tuple, ctype: ComponentType
         rep.error(doc.pos(*ppath, "default"), f"default of '{pname}' is empty (null)",
                   f"give {'an' if ptype == 'int' else 'a'} {ptype} default, or remove "
                   "'default:' to make the parameter required")
+    invertible = pspec.get("invertible", False)
+    if invertible is not False and (invertible is not True or not _matrix(ptype, shape)):
+        rep.error(doc.pos(*ppath, "invertible"), f"'invertible' of parameter '{pname}' "
+                  "is only 'true', on a float matrix (float[2][2], float[3][3] or "
+                  f"float[2][3]), not {py_yaml(invertible)} on {ptype}",
+                  "remove 'invertible', or make the parameter such a matrix")
+        invertible = False
     decl = ParamDecl(pname, ptype, minimum=bounds["min"], maximum=bounds["max"],
-                     shape=shape)
+                     shape=shape, invertible=invertible)
     problem, at = (None, ()) if default is None else _value_problem_at(
         default, decl, ctype.kind in ("gpu-aware", "flexible"))
     if problem:
@@ -195,7 +228,7 @@ def _load_param(doc: Document, rep: Reporter, ppath: tuple, ctype: ComponentType
                      bounds["min"], bounds["max"],
                      _text(doc, rep, ppath + ("description",), pspec.get("description"),
                            "description"),
-                     shape)
+                     shape, invertible)
 
 
 def _param_type(doc: Document, rep: Reporter, ppath: tuple, ctype: ComponentType, pname: str,

@@ -205,7 +205,9 @@ def types_schema() -> dict[str, Any]:
                        "or a range of lengths ('int[256]', 'float[2][3]', 'int[3..64][2]')"}]}
     param = {"oneOf": [param_types, _object(model.PARAM_KEYS, {
         "type": param_types, "default": VALUE, "min": {"type": "number"},
-        "max": {"type": "number"}, "description": TEXT}, ("type",))]}
+        "max": {"type": "number"}, "description": TEXT,
+        "invertible": {"type": "boolean", "description": "a float matrix (2x2, 3x3, 2x3) "
+                       "whose determinant must not be 0"}}, ("type",))]}
     port = _port()
     inputs = _named_map(_object(tuple(k for k in model.PORT_KEYS if k in port), port))
     outputs = _named_map(_object(model.PORT_KEYS, dict(port, height=SIZE_EXPR,
