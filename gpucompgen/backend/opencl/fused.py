@@ -67,7 +67,11 @@ MAX_UNROLLED_CHANNELS = 4  # a pixel of at most this many channels: one store st
 # snippets compute from them alike: Erode's row minima), where the group reads at most
 # MAX_TAPS_TOGETHER elements of its inputs an element (the body is inlined that many times).
 ROWS_TOGETHER = 4
-MAX_TAPS_TOGETHER = 81
+# Beyond this many reads an output element, a stencil group computes one row at a time and
+# its members are left to the compiler to inline or call: forced inline, an unrolled
+# window copied at every call made compile time explode (MorphologyEx gradient k9: 2.9 s
+# left to PoCL, 35 s forced with 4 rows together; open k15: 20 s against 193 s)
+MAX_TAPS_TOGETHER = 25
 
 BORDER_RULES = {
     "reflect101": [
@@ -389,11 +393,13 @@ def _function(name: str, index, interior: bool) -> str:
 
 def _member(m, feeds: dict[Endpoint, str], producer: dict[Endpoint, Endpoint], index,
             names, flat: bool, interior: bool, used: set[str], root: bool = False) -> list[str]:
-    """A member's snippet as a function, between the macros of its input accessors.  The
-    root's is always inlined into the row loop, which it must be for the loop to vectorize:
-    PoCL's inliner left WarpAffine's bilinear snippet (cost 410 > 337) a call per element,
-    29 ms a 320x240 frame, 0.8 ms inlined. Not a stencil's: its unrolled window inlined at
-    every channel's call took MorphologyEx 15x15 open from 5 s to 64 s to compile."""
+    """A member's snippet as a function, between the macros of its input accessors.
+
+    Forced inline (always_inline), which the row loop needs to vectorize: PoCL's inliner
+    left WarpAffine's bilinear snippet (cost 410 > 337) a call per element, 29 ms a
+    320x240 frame, 0.8 ms inlined, and left stencil members called once per row of the
+    rows-together loop (about 20x slower).  Not a stencil reading more than
+    MAX_TAPS_TOGETHER elements an output (see there): compile time exploded."""
     decl = m.type.fusable
     ctype = DTYPES[next(iter(m.outputs.values())).dtype][1]
     what = "interior: no border rule" if interior else "every element"
@@ -429,9 +435,10 @@ def _member(m, feeds: dict[Endpoint, str], producer: dict[Endpoint, Endpoint], i
     if arrays and not interior:  # once, before the member's first version
         lines[1:1] = [line for p, d in arrays.items()
                       for line in _constant_table(f"_m{index[m.name]}_{p}", d, m.params[p])]
-    lines.append(f"static inline __attribute__((always_inline)) {ctype} "
-                 f"{_function(m.name, index, interior)}(_PARAMS, const int y, const int x, "
-                 "const int c)")
+    inline = "static inline" if decl.taps(m.params) > MAX_TAPS_TOGETHER else \
+        "static inline __attribute__((always_inline))"
+    lines.append(f"{inline} {ctype} {_function(m.name, index, interior)}(_PARAMS, "
+                 "const int y, const int x, const int c)")
     lines.append("{")
     for pname, port in {**m.inputs, **m.outputs}.items():
         lines.append(f"    const int {pname}_height = {port.data.height}, "

@@ -73,7 +73,7 @@ static inline __attribute__((overloadable)) float _max(const float a, const floa
 
 // hsv: RgbToHsv (pointwise); every element
 #define src(y_, x_, c_) _in0[3 * ((size_t)(y_) * 640 + (x_)) + (c_)]
-static inline uchar _f0_hsv(_PARAMS, const int y, const int x, const int c)
+static inline __attribute__((always_inline)) uchar _f0_hsv(_PARAMS, const int y, const int x, const int c)
 {
     const int src_height = 480, src_width = 640;
     const int dst_height = 480, dst_width = 640;
@@ -96,7 +96,7 @@ static inline uchar _f0_hsv(_PARAMS, const int y, const int x, const int c)
 
 // low_red: InRange (pointwise); every element
 #define src(y_, x_, c_) _f0_hsv(_ARGS, (y_), (x_), (c_))
-static inline uchar _f1_low_red(_PARAMS, const int y, const int x, const int c)
+static inline __attribute__((always_inline)) uchar _f1_low_red(_PARAMS, const int y, const int x, const int c)
 {
     const int src_height = 480, src_width = 640;
     const int dst_height = 480, dst_width = 640;
@@ -114,7 +114,7 @@ static inline uchar _f1_low_red(_PARAMS, const int y, const int x, const int c)
 
 // high_red: InRange (pointwise); every element
 #define src(y_, x_, c_) _f0_hsv(_ARGS, (y_), (x_), (c_))
-static inline uchar _f2_high_red(_PARAMS, const int y, const int x, const int c)
+static inline __attribute__((always_inline)) uchar _f2_high_red(_PARAMS, const int y, const int x, const int c)
 {
     const int src_height = 480, src_width = 640;
     const int dst_height = 480, dst_width = 640;
@@ -133,7 +133,7 @@ static inline uchar _f2_high_red(_PARAMS, const int y, const int x, const int c)
 // red: BitwiseOr (pointwise); every element
 #define src1(y_, x_, c_) _f1_low_red(_ARGS, (y_), (x_), (c_))
 #define src2(y_, x_, c_) _f2_high_red(_ARGS, (y_), (x_), (c_))
-static inline uchar _f3_red(_PARAMS, const int y, const int x, const int c)
+static inline __attribute__((always_inline)) uchar _f3_red(_PARAMS, const int y, const int x, const int c)
 {
     const int src1_height = 480, src1_width = 640;
     const int src2_height = 480, src2_width = 640;

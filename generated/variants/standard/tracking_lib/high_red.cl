@@ -38,7 +38,7 @@
 
 // high_red: InRange (pointwise); every element
 #define src(y_, x_, c_) _in0[3 * ((size_t)(y_) * 640 + (x_)) + (c_)]
-static inline uchar _f0_high_red(_PARAMS, const int y, const int x, const int c)
+static inline __attribute__((always_inline)) uchar _f0_high_red(_PARAMS, const int y, const int x, const int c)
 {
     const int src_height = 480, src_width = 640;
     const int dst_height = 480, dst_width = 640;

@@ -20,7 +20,7 @@
 // red: BitwiseOr (pointwise); every element
 #define src1(y_, x_, c_) _in0[(size_t)(y_) * 640 + (x_)]
 #define src2(y_, x_, c_) _in1[(size_t)(y_) * 640 + (x_)]
-static inline uchar _f0_red(_PARAMS, const int y, const int x, const int c)
+static inline __attribute__((always_inline)) uchar _f0_red(_PARAMS, const int y, const int x, const int c)
 {
     const int src1_height = 480, src1_width = 640;
     const int src2_height = 480, src2_width = 640;

@@ -45,7 +45,7 @@ static inline __attribute__((overloadable)) float _max(const float a, const floa
 
 // clean: MorphologyEx (stencil, radius (ksize // 2) * iterations * (1 + min(1, max(0, op - 1)) - max(0, 1 - (op - 4) * (op - 4))), border clamp); every element
 #define src(y_, x_, c_) _in0[(size_t)_clamp((y_), 480) * 640 + _clamp((x_), 640)]
-static inline uchar _f0_clean(_PARAMS, const int y, const int x, const int c)
+static inline __attribute__((always_inline)) uchar _f0_clean(_PARAMS, const int y, const int x, const int c)
 {
     const int src_height = 480, src_width = 640;
     const int dst_height = 480, dst_width = 640;
@@ -57,41 +57,40 @@ static inline uchar _f0_clean(_PARAMS, const int y, const int x, const int c)
     const int r = shape == 0 ? side * iterations : side;
     const bool nested = op == 2 || op == 3 || op == 5 || op == 6;
     const bool erode_first = op == 2 || op == 5;
-    int lo = 255, hi = 0;
-    int outer = erode_first ? 0 : 255;
+    uchar lo = 255, hi = 0;
+    uchar outer = erode_first ? 0 : 255;
     #pragma unroll
     for (int dy = -r; dy <= r; dy++) {
-        const int yy = y + dy;
-        if (yy < 0 || yy >= src_height)
-            continue;
         const int w = shape == 0 ? r : shape == 1 ? (dy == 0 ? r : 0) : (int)rint(sqrt((float)(side * side - dy * dy)));
+        if (!nested) {
+            uchar row_lo = src(y + dy, x - w, c);
+            uchar row_hi = row_lo;
+            #pragma unroll
+            for (int dx = 1 - w; dx <= w; dx++) {
+                const uchar v = src(y + dy, x + dx, c);
+                row_lo = _min(row_lo, v);
+                row_hi = _max(row_hi, v);
+            }
+            lo = _min(lo, row_lo);
+            hi = _max(hi, row_hi);
+            continue;
+        }
         #pragma unroll
         for (int dx = -w; dx <= w; dx++) {
-            const int xx = x + dx;
-            if (xx < 0 || xx >= src_width)
-                continue;
-            if (!nested) {
-                const int v = src(yy, xx, c);
-                lo = _min(lo, v);
-                hi = _max(hi, v);
-                continue;
-            }
-            int inner = erode_first ? 255 : 0;
+            uchar inner = erode_first ? 255 : 0;
             #pragma unroll
             for (int ey = -r; ey <= r; ey++) {
-                const int vy = yy + ey;
-                if (vy < 0 || vy >= src_height)
-                    continue;
                 const int ew = shape == 0 ? r : shape == 1 ? (ey == 0 ? r : 0) : (int)rint(sqrt((float)(side * side - ey * ey)));
+                uchar row = src(y + dy + ey, x + dx - ew, c);
                 #pragma unroll
-                for (int ex = -ew; ex <= ew; ex++) {
-                    const int vx = xx + ex;
-                    if (vx >= 0 && vx < src_width)
-                        inner = erode_first ? _min(inner, (int)src(vy, vx, c))
-                                : _max(inner, (int)src(vy, vx, c));
-                }
+                for (int ex = 1 - ew; ex <= ew; ex++)
+                    row = erode_first ? _min(row, src(y + dy + ey, x + dx + ex, c))
+                          : _max(row, src(y + dy + ey, x + dx + ex, c));
+                inner = erode_first ? _min(inner, row) : _max(inner, row);
             }
-            outer = erode_first ? _max(outer, inner) : _min(outer, inner);
+            const bool inside = y + dy >= 0 && y + dy < src_height && x + dx >= 0 && x + dx < src_width;
+            const uchar tap = inside ? inner : erode_first ? 0 : 255;
+            outer = erode_first ? _max(outer, tap) : _min(outer, tap);
         }
     }
     if (op == 0)
@@ -102,14 +101,14 @@ static inline uchar _f0_clean(_PARAMS, const int y, const int x, const int c)
         return hi - lo;
     if (op == 2 || op == 3)
         return outer;
-    const int p = src(y, x, c);
-    return op == 5 ? _max(p - outer, 0) : _max(outer - p, 0);
+    const uchar p = src(y, x, c);
+    return op == 5 ? (p > outer ? p - outer : 0) : (outer > p ? outer - p : 0);
 }
 #undef src
 
 // clean: MorphologyEx (stencil, radius (ksize // 2) * iterations * (1 + min(1, max(0, op - 1)) - max(0, 1 - (op - 4) * (op - 4))), border clamp); interior: no border rule
 #define src(y_, x_, c_) _in0[(size_t)(y_) * 640 + (x_)]
-static inline uchar _f0_clean_in(_PARAMS, const int y, const int x, const int c)
+static inline __attribute__((always_inline)) uchar _f0_clean_in(_PARAMS, const int y, const int x, const int c)
 {
     const int src_height = 480, src_width = 640;
     const int dst_height = 480, dst_width = 640;
@@ -121,41 +120,40 @@ static inline uchar _f0_clean_in(_PARAMS, const int y, const int x, const int c)
     const int r = shape == 0 ? side * iterations : side;
     const bool nested = op == 2 || op == 3 || op == 5 || op == 6;
     const bool erode_first = op == 2 || op == 5;
-    int lo = 255, hi = 0;
-    int outer = erode_first ? 0 : 255;
+    uchar lo = 255, hi = 0;
+    uchar outer = erode_first ? 0 : 255;
     #pragma unroll
     for (int dy = -r; dy <= r; dy++) {
-        const int yy = y + dy;
-        if (yy < 0 || yy >= src_height)
-            continue;
         const int w = shape == 0 ? r : shape == 1 ? (dy == 0 ? r : 0) : (int)rint(sqrt((float)(side * side - dy * dy)));
+        if (!nested) {
+            uchar row_lo = src(y + dy, x - w, c);
+            uchar row_hi = row_lo;
+            #pragma unroll
+            for (int dx = 1 - w; dx <= w; dx++) {
+                const uchar v = src(y + dy, x + dx, c);
+                row_lo = _min(row_lo, v);
+                row_hi = _max(row_hi, v);
+            }
+            lo = _min(lo, row_lo);
+            hi = _max(hi, row_hi);
+            continue;
+        }
         #pragma unroll
         for (int dx = -w; dx <= w; dx++) {
-            const int xx = x + dx;
-            if (xx < 0 || xx >= src_width)
-                continue;
-            if (!nested) {
-                const int v = src(yy, xx, c);
-                lo = _min(lo, v);
-                hi = _max(hi, v);
-                continue;
-            }
-            int inner = erode_first ? 255 : 0;
+            uchar inner = erode_first ? 255 : 0;
             #pragma unroll
             for (int ey = -r; ey <= r; ey++) {
-                const int vy = yy + ey;
-                if (vy < 0 || vy >= src_height)
-                    continue;
                 const int ew = shape == 0 ? r : shape == 1 ? (ey == 0 ? r : 0) : (int)rint(sqrt((float)(side * side - ey * ey)));
+                uchar row = src(y + dy + ey, x + dx - ew, c);
                 #pragma unroll
-                for (int ex = -ew; ex <= ew; ex++) {
-                    const int vx = xx + ex;
-                    if (vx >= 0 && vx < src_width)
-                        inner = erode_first ? _min(inner, (int)src(vy, vx, c))
-                                : _max(inner, (int)src(vy, vx, c));
-                }
+                for (int ex = 1 - ew; ex <= ew; ex++)
+                    row = erode_first ? _min(row, src(y + dy + ey, x + dx + ex, c))
+                          : _max(row, src(y + dy + ey, x + dx + ex, c));
+                inner = erode_first ? _min(inner, row) : _max(inner, row);
             }
-            outer = erode_first ? _max(outer, inner) : _min(outer, inner);
+            const bool inside = y + dy >= 0 && y + dy < src_height && x + dx >= 0 && x + dx < src_width;
+            const uchar tap = inside ? inner : erode_first ? 0 : 255;
+            outer = erode_first ? _max(outer, tap) : _min(outer, tap);
         }
     }
     if (op == 0)
@@ -166,8 +164,8 @@ static inline uchar _f0_clean_in(_PARAMS, const int y, const int x, const int c)
         return hi - lo;
     if (op == 2 || op == 3)
         return outer;
-    const int p = src(y, x, c);
-    return op == 5 ? _max(p - outer, 0) : _max(outer - p, 0);
+    const uchar p = src(y, x, c);
+    return op == 5 ? (p > outer ? p - outer : 0) : (outer > p ? outer - p : 0);
 }
 #undef src
 
@@ -176,24 +174,52 @@ static inline uchar _f0_clean_in(_PARAMS, const int y, const int x, const int c)
 // threads one after another: a row is the longest loop, which the compiler vectorizes).
 // Elements 2 or more from every edge read inside the frame: the interior version, without
 // border rules, computes them.
+// A work-item computes 4 interior rows in one loop: the compiler shares the reads their
+// windows have in common.
 __kernel void clean(_PARAMS, const int _tile)
 {
     const int _y0 = get_group_id(1) * _tile;
     const int _y1 = min(_y0 + _tile, 480);
     const int _k = get_local_id(1) * get_local_size(0) + get_local_id(0);
     const int _n = get_local_size(0) * get_local_size(1);
-    for (int _y = _y0 + _k; _y < _y1; _y += _n) {
-        __global uchar *_row = _out + (size_t)_y * 640;
-        if (_y >= 2 && _y < 478) {
-            for (int _x = 0; _x < 2; _x++)
+    for (int _p = _y0 + 4 * _k; _p < _y1; _p += 4 * _n) {
+        if (_p >= 2 && _p + 3 < min(_y1, 478)) {
+            // rows _p to _p + 3, every one in the interior
+            const int _y = _p;
+            __global uchar *_row = _out + (size_t)_y * 640;
+            for (int _x = 0; _x < 2; _x++) {
                 _row[_x] = _f0_clean(_ARGS, _y, _x, 0);
-            for (int _x = 2; _x < 638; _x++)
+                _row[640 + _x] = _f0_clean(_ARGS, _y + 1, _x, 0);
+                _row[1280 + _x] = _f0_clean(_ARGS, _y + 2, _x, 0);
+                _row[1920 + _x] = _f0_clean(_ARGS, _y + 3, _x, 0);
+            }
+            for (int _x = 2; _x < 638; _x++) {
                 _row[_x] = _f0_clean_in(_ARGS, _y, _x, 0);
-            for (int _x = 638; _x < 640; _x++)
+                _row[640 + _x] = _f0_clean_in(_ARGS, _y + 1, _x, 0);
+                _row[1280 + _x] = _f0_clean_in(_ARGS, _y + 2, _x, 0);
+                _row[1920 + _x] = _f0_clean_in(_ARGS, _y + 3, _x, 0);
+            }
+            for (int _x = 638; _x < 640; _x++) {
                 _row[_x] = _f0_clean(_ARGS, _y, _x, 0);
-        } else {
-            for (int _x = 0; _x < 640; _x++)
-                _row[_x] = _f0_clean(_ARGS, _y, _x, 0);
+                _row[640 + _x] = _f0_clean(_ARGS, _y + 1, _x, 0);
+                _row[1280 + _x] = _f0_clean(_ARGS, _y + 2, _x, 0);
+                _row[1920 + _x] = _f0_clean(_ARGS, _y + 3, _x, 0);
+            }
+            continue;
+        }
+        for (int _y = _p; _y < min(_p + 4, _y1); _y++) {
+            __global uchar *_row = _out + (size_t)_y * 640;
+            if (_y >= 2 && _y < 478) {
+                for (int _x = 0; _x < 2; _x++)
+                    _row[_x] = _f0_clean(_ARGS, _y, _x, 0);
+                for (int _x = 2; _x < 638; _x++)
+                    _row[_x] = _f0_clean_in(_ARGS, _y, _x, 0);
+                for (int _x = 638; _x < 640; _x++)
+                    _row[_x] = _f0_clean(_ARGS, _y, _x, 0);
+            } else {
+                for (int _x = 0; _x < 640; _x++)
+                    _row[_x] = _f0_clean(_ARGS, _y, _x, 0);
+            }
         }
     }
 }
