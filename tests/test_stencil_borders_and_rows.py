@@ -125,3 +125,31 @@ def test_rows_together_compute_what_one_row_at_a_time_computes(
         for r in results[1:]:
             np.testing.assert_array_equal(r, results[0], err_msg=f"{name} {shape}")
     conftest._GENERATED.clear()
+
+
+@pytest.mark.parametrize("op,ksize,iterations,ok", [
+    (2, 15, 1, True), (3, 5, 3, True), (3, 15, 2, False), (5, 9, 4, False),
+    (0, 15, 4, True), (4, 15, 4, True)])
+def test_a_window_of_windows_too_large_for_one_kernel_is_refused(tmp_path, op, ksize,
+                                                                  iterations, ok):
+    """Open, close, top hat and black hat of (ksize // 2) * iterations above 7 would read
+    more than 15^4 elements an output (ksize 15, 4 iterations: not compiled in 5 minutes):
+    check refuses them, saying what to chain instead."""
+    from gpucompgen.build import compile_model
+    from gpucompgen.errors import GpucompgenError
+
+    model = tmp_path / "m.yaml"
+    model.write_text(
+        "system: morph\ncomponents:\n"
+        "  src: {type: StillImage, params: {width: 64, height: 48}}\n"
+        f"  morph: {{type: MorphologyEx, params: {{op: {op}, ksize: {ksize}, "
+        f"iterations: {iterations}}}}}\n"
+        "  sink: {type: FrameSink}\n"
+        "connections:\n  - src.image -> morph.src\n  - morph.dst -> sink.image\n")
+    if ok:
+        compile_model(model, tmp_path / "out")
+        return
+    with pytest.raises(GpucompgenError) as info:
+        compile_model(model, tmp_path / "out")
+    text = str(info.value)
+    assert "m.yaml:4:3" in text and "window of windows" in text and "op 0 then op 1" in text
