@@ -55,11 +55,7 @@ class PropagateSizes(Pass):
         for tree, message in ctype.requires:
             try:
                 if not sizeexpr.evaluate(tree, in_sizes, int_params):
-                    shown = ", ".join(_shown(p, size, tree) for p, size in in_sizes.items())
-                    rep.error(node.pos, f"'{name}' ({ctype.name}): {message} ({shown})",
-                              "change the parameters or what feeds it"
-                              if ".channels" in ast.unparse(tree.body)
-                              else "change the sizes of what feeds it")
+                    rep.error(node.pos, *_unmet(name, ctype.name, message, tree, in_sizes))
                     ok = False
             except sizeexpr.SizeExprError as exc:
                 rep.error(node.pos, f"'{name}': {exc}")
@@ -96,3 +92,17 @@ def _shown(port: str, size: tuple[int, int, int], tree) -> str:
     counted = f"{port}.channels" in ast.unparse(tree.body)
     return f"{port} is {h}x{w}" + (f" with {channels} channel" + "s" * (channels != 1)
                                    if counted else "")
+
+
+def _unmet(name: str, tname: str, message: str, tree, in_sizes) -> tuple[str, str]:
+    """The message and hint of a requirement not met: the sizes it reads shown, and the
+    hint naming what it depends on (parameters only, sizes only, or both)."""
+    names = {n.id for n in ast.walk(tree) if isinstance(n, ast.Name)}
+    ports = [p for p in in_sizes if p in names]
+    if not ports:  # a requirement on the parameters alone
+        return f"'{name}' ({tname}): {message}", "change the parameters"
+    shown = ", ".join(_shown(p, in_sizes[p], tree) for p in ports)
+    return (f"'{name}' ({tname}): {message} ({shown})",
+            "change the parameters or what feeds it"
+            if ".channels" in ast.unparse(tree.body) or names - set(ports)
+            else "change the sizes of what feeds it")
