@@ -66,7 +66,7 @@ def opencv_boxes(frame: np.ndarray) -> list[tuple[int, int, int, int]]:
     clean = _params("clean")
     mask = cv2.morphologyEx(cv2.bitwise_or(*masks), clean["op"], cv2.getStructuringElement(
         clean["shape"], (clean["ksize"], clean["ksize"])), iterations=clean["iterations"])
-    regions = _params("regions")
+    regions = _params("objs")
     _, _, stats, _ = cv2.connectedComponentsWithStats((mask > 0).astype(np.uint8),
                                                       connectivity=regions["connectivity"])
     kept = sorted((s for s in stats[1:] if s[4] >= regions["min_area"]), key=lambda s: -s[4])

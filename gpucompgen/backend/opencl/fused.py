@@ -70,8 +70,9 @@ ROWS_TOGETHER = 4
 # Beyond this many reads an output element, a stencil group computes one row at a time and
 # its members are left to the compiler to inline or call: forced inline, an unrolled
 # window copied at every call made compile time explode (MorphologyEx gradient k9: 2.9 s
-# left to PoCL, 35 s forced with 4 rows together; open k15: 20 s against 193 s)
-MAX_TAPS_TOGETHER = 25
+# left to PoCL, 35 s forced with 4 rows together; open k15: 20 s against 193 s; even a
+# 3x3 elliptic opening, 25 reads, took 224 s on the loaded CI machine): 3x3 windows only
+MAX_TAPS_TOGETHER = 9
 
 BORDER_RULES = {
     "reflect101": [
