@@ -74,6 +74,7 @@ class CpuToGpuAdapter(_Adapter):
             self.buffers.append(api.device_buffer(self.context, self.nbytes, "read"))
             if self.staging == "pinned":
                 self.pinned.append(api.pinned(self.context, self.queue, size.shape, dtype))
+        self._reading = [None] * self.buffer_sets
         self.buffer = self.buffers[0]
         return size
 
@@ -85,12 +86,10 @@ class CpuToGpuAdapter(_Adapter):
         self._turn = (k + 1) % self.buffer_sets
         self.buffer = self.buffers[k]
         if self.pinned:
-            if not self.blocking:
-                self._reading += [None] * (self.buffer_sets - len(self._reading))
-                if self._reading[k] is not None:
-                    # the device may not have read the set's previous frame yet (nothing
-                    # else orders the host's write after it); done already, this is free
-                    self._api.wait([self._reading[k]])
+            if not self.blocking and self._reading[k] is not None:
+                # the device may not have read the set's previous frame yet (nothing
+                # else orders the host's write after it); done already, this is free
+                self._api.wait([self._reading[k]])
             source = self.pinned[k][1]
             np.copyto(source, np.reshape(host, source.shape), casting="no")
         else:
