@@ -14,8 +14,6 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from .cpu_ops import _image
-
 WARP_INVERSE_MAP = 16  # cv2.WARP_INVERSE_MAP
 BORDER_MODES = (0, 1)  # cv2.BORDER_CONSTANT, cv2.BORDER_REPLICATE
 
@@ -109,3 +107,8 @@ def undistort(src: np.ndarray, *, camera_matrix, dist_coeffs,
 
 WARP_OPS = {"WarpAffine": warp_affine, "WarpPerspective": warp_perspective,
             "Remap": remap, "Undistort": undistort}
+
+# last, as in cpu_ops.py, so that any of the library's CPU modules may be imported first (a
+# generated program whose only CPU-placed library type is a warp imports this one first):
+# cpu_ops imports cpu_kernels, which imports WARP_OPS from here
+from .cpu_ops import _image
