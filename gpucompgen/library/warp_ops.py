@@ -89,6 +89,10 @@ def remap(src: np.ndarray, map1: np.ndarray, map2: np.ndarray, *, interpolation:
     flags, border_mode, value = _checked("Remap", interpolation, border_mode, border_value)
     if flags > 1:
         raise ValueError(f"Remap: interpolation must be 0 or 1, not {interpolation}")
+    if np.shares_memory(maps[0], maps[1]):
+        # one frame feeding both ports: OpenCV 5.0's remap misreads two maps that are one
+        # array (positions one pixel off; a copy gives its own right answer)
+        maps[1] = maps[1].copy()
     return _finish(cv2.remap(src, maps[0], maps[1], flags, borderMode=border_mode,
                              borderValue=value), src, out)
 
