@@ -80,10 +80,10 @@ ROWS_TOGETHER = 4
 MAX_TAPS_TOGETHER = 25
 # What the compiler is given to inline and unroll, in input reads (unrolled_reads: the
 # members' reads with their loops unrolled, a producer's counted at every read of its
-# consumer): rows together, and the members' interior functions forced inline, where the
-# rows' inlined bodies read at most this many elements (4 rows of a 5x5, 7x7 or 9x9
-# window, or of a 3x3 opening's 9 x 9); else one row, forced inline where that row's body
-# stays within it.  Compile time follows the inlined reads, not the window: a 640x360
+# consumer): rows together, and the members' functions forced inline, where the rows'
+# inlined bodies read at most this many elements (4 rows of a 5x5 window, 100, or of a 3x3
+# opening's 9 x 9, 324); else one row, forced inline where that row's body stays within
+# it.  Compile time follows the inlined reads, not the window: a 640x360
 # frame, PoCL 3.0 (LLVM 14), build and first launch at load 6 to 7 (docs/benchmarks.md):
 # 4 x 25 reads 1.4 to 2.2 s, 4 x 81 (an opening 3x3) 3.5 to 4.4 s, 4 x 225 (GaussianBlur
 # k3 fused into an Erode) 6.3 s, 4 x 625 (an opening 5x5) 35 s and a kernel 36 times
@@ -91,8 +91,9 @@ MAX_TAPS_TOGETHER = 25
 MAX_UNROLLED_READS = 400
 # A member's loops are unrolled (#pragma unroll) where it reads at most this many
 # elements with them unrolled; beyond, the compiler decides: a 31x31 Blur (961 reads) builds
-# in about 9 s at load 7, an opening of 15x15 (50,625 reads) in 20 s unrolled, 2 s not
-# (and runs 8.7 s a 640x360 frame: a window of windows that large needs two passes).
+# in about 9 s at load 7, an opening of 15x15 (50,625 reads) in 20 s unrolled (measured
+# at merge), about 2 s not (and runs 8.7 s a 640x360 frame: a window of windows that
+# large needs two passes).
 MAX_UNROLLED_LOOPS = 1024
 
 BORDER_RULES = {
@@ -322,9 +323,8 @@ def rows_together(group: GroupNode, how: str) -> int:
 
 
 def forced_inline(group: GroupNode, how: str) -> bool:
-    """Whether the members' interior functions (the only ones where a group has no
-    interior version) are always_inline: where the body a work-item's loop inlines, its
-    rows together, reads at most MAX_UNROLLED_READS elements."""
+    """Whether the members' functions are always_inline: where the body a work-item's
+    loop inlines, its rows together, reads at most MAX_UNROLLED_READS elements."""
     return rows_together(group, how) * unrolled_reads(group) <= MAX_UNROLLED_READS
 
 
@@ -445,8 +445,8 @@ def _member(m, feeds: dict[Endpoint, str], producer: dict[Endpoint, Endpoint], i
     inliner left WarpAffine's bilinear snippet (cost 410 > 337) a call per element, 29 ms
     a 320x240 frame, 0.8 ms inlined, and left stencil members called once per row of the
     rows-together loop (about 20x slower).  Not a group beyond MAX_UNROLLED_READS
-    (forced_inline): compile time exploded.  A member's
-    loops are unrolled where it reads at most MAX_UNROLLED_LOOPS elements so."""
+    (forced_inline): compile time exploded.  A member's loops are unrolled where it reads
+    at most MAX_UNROLLED_LOOPS elements so."""
     decl = m.type.fusable
     ctype = DTYPES[next(iter(m.outputs.values())).dtype][1]
     what = "interior: no border rule" if interior else "every element"
