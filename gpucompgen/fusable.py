@@ -10,7 +10,9 @@ and PyTorch Inductor's ``Pointwise(inner_fn)``, whose loads are index expression
                                                      # statements ending in 'return ...;'
       # stencil only: radius: 2 (or an int parameter, or an expression of them such
       # as 'ksize // 2'), border: clamp (or reflect101, reflect, constant, or an int
-      # parameter holding OpenCV's border code)
+      # parameter holding OpenCV's border code); reads: how many input elements an
+      # output element reads with the snippet's loops unrolled, where a stencil's
+      # snippet nests windows (a number, an int parameter or an expression of them)
 
 pointwise   reads every input only at (y, x) (any channel)
 index_map   reads each input at one position computed from y, x, c, sizes and parameters
@@ -35,7 +37,8 @@ from dataclasses import dataclass, field
 
 from . import sizeexpr
 from .errors import Pos
-from .snippet import MAX_SNIPPET, Snippet, analyse, print_lines
+from .snippet import MAX_SNIPPET, Snippet, analyse, is_builtin, print_lines
+from .snippet.syntax import Call, DoWhile, For, Node, While
 
 FORMS = ("pointwise", "index_map", "stencil")
 # the nearest edge pixel (BORDER_REPLICATE); OpenCV's BORDER_REFLECT_101 (gfedcb|abcdefgh),
@@ -60,15 +63,15 @@ class FusableDecl:
     # int parameters ('ksize // 2', 'iterations * (ksize - 1)'): fixed at build time
     border: str = "clamp"  # stencil: one of BORDERS, or an int parameter holding
     # OpenCV's code of one (OPENCV_BORDERS): fixed at build time, like the radius
+    reads: int | str | None = None  # stencil: input elements an output element reads
+    # with the loops unrolled, where the window count (reads_of) would be wrong: a
+    # snippet that nests windows (MorphologyEx's opening: a window of windows)
 
     def radius_of(self, params: Mapping[str, object]) -> int:
         """The stencil's radius for these parameter values (0 for another form)."""
         if self.form != "stencil":
             return 0
-        if isinstance(self.radius, int):
-            return self.radius
-        tree = ast.parse(self.radius.strip(), mode="eval")
-        return max(0, int(sizeexpr.evaluate(tree, {}, params)))
+        return _int_of(self.radius, params)
 
     def border_of(self, params: Mapping[str, object]) -> str:
         """The stencil's border rule (one of BORDERS) for these parameter values."""
@@ -112,6 +115,50 @@ class FusableDecl:
         if self.form != "stencil":
             return 1
         return (2 * self.radius_of(params) + 1) ** 2
+
+    def reads_of(self, params: Mapping[str, object]) -> int:
+        """Input elements one evaluation of the snippet reads with its loops unrolled
+        (what a kernel that inlines it repeats, and what its compile time follows): the
+        declared 'reads' where the type states it, else its accessor calls, a call inside
+        n loops counted (2 radius + 1)^n times for a stencil (a loop walks the window's
+        side), once for other forms."""
+        if self.reads is not None:
+            return max(1, _int_of(self.reads, params))
+        side = 2 * self.radius_of(params) + 1 if self.form == "stencil" else 1
+        return max(1, unrolled_calls(self.tree, side))
+
+
+_LOOPS = (For, While, DoWhile)
+
+
+def unrolled_calls(tree, side: int) -> int:
+    """Accessor calls (calls of anything but a built-in) in the snippet, each inside n
+    loops counted side^n times."""
+    def walk(node, weight: int) -> int:
+        found = weight if isinstance(node, Call) and not is_builtin(node.func) else 0
+        if isinstance(node, _LOOPS):
+            weight *= side
+        if isinstance(node, Node):
+            children = vars(node).values()
+        elif isinstance(node, tuple):
+            children = node
+        else:
+            return found
+        return found + sum(walk(child, weight) for child in children)
+
+    return walk(tree, 1)
+
+
+def _int_of(value: int | str, params: Mapping[str, object]) -> int:
+    """A number, an int parameter or an expression of them, for these values (0 at
+    least)."""
+    if isinstance(value, int):
+        return value
+    tree = ast.parse(value.strip(), mode="eval")
+    try:
+        return max(0, int(sizeexpr.evaluate(tree, {}, params)))
+    except sizeexpr.SizeExprError:  # beyond any size: a count beyond every bound
+        return sizeexpr.MAX_SIDE + 1
 
 
 def snippet_position(start: Pos, raw: str | None, style: str | None, value: str,

@@ -20,7 +20,7 @@ KERNEL_KEYS = ("file", "function", "grid", "cover")
 GPU_KEYS = ("tiles", "block_z", "prefer", "max_threads", "square")
 
 
-FUSABLE_KEYS = ("form", "value", "radius", "border")
+FUSABLE_KEYS = ("form", "value", "radius", "border", "reads")
 
 
 def _check_signature(doc, rep, base, ctype: ComponentType, kspec: dict) -> None:
@@ -175,14 +175,7 @@ def _load_fusable(doc, rep, base, ctype: ComponentType, fspec) -> None:
     if form == "stencil":
         radius = fspec.get("radius")
         int_params = _int_params(ctype)
-        expression = None
-        if isinstance(radius, str) and not _named(radius, int_params):
-            try:  # an expression of int parameters, e.g. 'ksize // 2'
-                expression = sizeexpr.parse(radius, set(), set(int_params))
-            except sizeexpr.SizeExprError:
-                expression = None
-        if not (isinstance(radius, int) and not isinstance(radius, bool) and radius >= 0) \
-                and not _named(radius, int_params) and expression is None:
+        if not _count(radius, int_params):
             rep.error(doc.pos(*path, "radius") if "radius" in fspec else doc.key_pos(*path),
                       f"stencil '{ctype.name}' needs 'radius': a number of pixels (0 or "
                       f"more), an int parameter or an expression of them, not {radius!r}",
@@ -195,12 +188,36 @@ def _load_fusable(doc, rep, base, ctype: ComponentType, fspec) -> None:
                       "int parameter", "clamp: reads outside the input take the nearest edge "
                       "pixel; an int parameter holds OpenCV's border code (0, 1, 2 or 4)")
             return
+        reads = fspec.get("reads")
+        if reads is not None and not _count(reads, int_params, least=1):
+            rep.error(doc.pos(*path, "reads"), f"stencil '{ctype.name}': 'reads' must be a "
+                      "number (1 or more), an int parameter or an expression of them, not "
+                      f"{reads!r}", "the input elements an output element reads with the "
+                      "snippet's loops unrolled, e.g. reads: (2 * r + 1) * (2 * r + 1)")
+            return
     else:
-        for key in ("radius", "border"):
+        for key in ("radius", "border", "reads"):
             if key in fspec:
                 rep.error(doc.key_pos(*path, key), f"'{key}' is only for the stencil form",
                           f"remove '{key}' or use 'form: stencil'")
     if analysis.problems:
         return
     ctype.fusable = fusable_forms.FusableDecl(form, value, analysis.tree, analysis.names,
-                                              radius, border)
+                                              radius, border,
+                                              fspec.get("reads") if form == "stencil" else None)
+
+
+def _count(value, int_params, least: int = 0) -> bool:
+    """Whether value is a number (least or more), an int parameter or an expression of
+    int parameters (a stencil's radius, its reads)."""
+    if isinstance(value, int) and not isinstance(value, bool):
+        return value >= least
+    if not isinstance(value, str):
+        return False
+    if _named(value, int_params):
+        return True
+    try:  # an expression of int parameters, e.g. 'ksize // 2'
+        sizeexpr.parse(value, set(), set(int_params))
+    except sizeexpr.SizeExprError:
+        return False
+    return True

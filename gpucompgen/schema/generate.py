@@ -240,6 +240,11 @@ def types_schema() -> dict[str, Any]:
                       "<port>(y, x, c)"),
         "radius": {"type": ["integer", "string"],
                    "description": "stencil: the window's radius, a number or an int parameter"},
+        "reads": {"type": ["integer", "string"],
+                  "description": "stencil: input elements an output element reads with the "
+                                 "snippet's loops unrolled, where its snippet nests windows "
+                                 "(a number, an int parameter or an expression of them); "
+                                 "by default its reads, (2 radius + 1) a loop level"},
         "border": {"anyOf": [_enum(fusable_forms.BORDERS), {"type": "string"}],
                    "description": "stencil: what a read outside the input gets: clamp, the "
                    "nearest edge pixel; reflect101, OpenCV's BORDER_REFLECT_101 "

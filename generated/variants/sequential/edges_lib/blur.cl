@@ -33,7 +33,7 @@ static inline int _reflect101(int p, const int n)
 
 // blur: GaussianBlurGray (stencil, radius 2, border reflect101); every element
 #define src(y_, x_, c_) _in0[(size_t)_reflect101((y_), 200) * 301 + _reflect101((x_), 301)]
-static inline uchar _f0_blur(_PARAMS, const int y, const int x, const int c)
+static inline __attribute__((always_inline)) uchar _f0_blur(_PARAMS, const int y, const int x, const int c)
 {
     const int src_height = 200, src_width = 301;
     const int dst_height = 200, dst_width = 301;
@@ -52,7 +52,7 @@ static inline uchar _f0_blur(_PARAMS, const int y, const int x, const int c)
 
 // blur: GaussianBlurGray (stencil, radius 2, border reflect101); interior: no border rule
 #define src(y_, x_, c_) _in0[(size_t)(y_) * 301 + (x_)]
-static inline uchar _f0_blur_in(_PARAMS, const int y, const int x, const int c)
+static inline __attribute__((always_inline)) uchar _f0_blur_in(_PARAMS, const int y, const int x, const int c)
 {
     const int src_height = 200, src_width = 301;
     const int dst_height = 200, dst_width = 301;
@@ -75,24 +75,46 @@ static inline uchar _f0_blur_in(_PARAMS, const int y, const int x, const int c)
 // vectorizes).
 // Elements 2 or more from every edge read inside the frame: the interior version, without
 // border rules, computes them.
+// A work-item computes 4 interior rows in one loop: the compiler shares the reads their
+// windows have in common.
 __kernel void blur(_PARAMS, const int _tile)
 {
     const int _y0 = get_group_id(1) * _tile;
     const int _y1 = min(_y0 + _tile, 200);
     const int _k = get_local_id(1) * get_local_size(0) + get_local_id(0);
     const int _n = get_local_size(0) * get_local_size(1);
-    for (int _y = _y0 + _k; _y < _y1; _y += _n) {
-        __global uchar *_row = _out + (size_t)_y * 301;
-        if (_y >= 2 && _y < 198) {
-            for (int _x = 0; _x < 2; _x++)
-                _row[_x] = _f0_blur(_ARGS, _y, _x, 0);
-            for (int _x = 2; _x < 299; _x++)
+    for (int _p = _y0 + 4 * _k; _p < _y1; _p += 4 * _n) {
+        if (_p >= 2 && _p + 3 < min(_y1, 198)) {
+            // rows _p to _p + 3, every one in the interior
+            const int _y = _p;
+            __global uchar *_row = _out + (size_t)_y * 301;
+            for (int _r = 0; _r < 4; _r++) {
+                for (int _x = 0; _x < 2; _x++)
+                    _row[_r * 301 + _x] = _f0_blur(_ARGS, _y + _r, _x, 0);
+                for (int _x = 299; _x < 301; _x++)
+                    _row[_r * 301 + _x] = _f0_blur(_ARGS, _y + _r, _x, 0);
+            }
+            for (int _x = 2; _x < 299; _x++) {
                 _row[_x] = _f0_blur_in(_ARGS, _y, _x, 0);
-            for (int _x = 299; _x < 301; _x++)
-                _row[_x] = _f0_blur(_ARGS, _y, _x, 0);
-        } else {
-            for (int _x = 0; _x < 301; _x++)
-                _row[_x] = _f0_blur(_ARGS, _y, _x, 0);
+                _row[301 + _x] = _f0_blur_in(_ARGS, _y + 1, _x, 0);
+                _row[602 + _x] = _f0_blur_in(_ARGS, _y + 2, _x, 0);
+                _row[903 + _x] = _f0_blur_in(_ARGS, _y + 3, _x, 0);
+            }
+            continue;
+        }
+        for (int _y = _p; _y < min(_p + 4, _y1); _y++) {
+            __global uchar *_row = _out + (size_t)_y * 301;
+            if (_y >= 2 && _y < 198) {
+                for (int _x = 0; _x < 2; _x++)
+                    _row[_x] = _f0_blur(_ARGS, _y, _x, 0);
+                for (int _x = 2; _x < 299; _x++)
+                    _row[_x] = _f0_blur_in(_ARGS, _y, _x, 0);
+                for (int _x = 299; _x < 301; _x++)
+                    _row[_x] = _f0_blur(_ARGS, _y, _x, 0);
+            } else {
+                for (int _x = 0; _x < 301; _x++)
+                    _row[_x] = _f0_blur(_ARGS, _y, _x, 0);
+            }
         }
     }
 }
