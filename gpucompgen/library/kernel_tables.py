@@ -57,10 +57,12 @@ def gaussian_kernel(n: int, sigma: float) -> list[float]:
     return side + [mul] + side[::-1]
 
 
-def gaussian_q8(n: int, sigma: float, n_else: int = 0, sigma_else: float = 0.0) -> tuple:
+def gaussian_q8(n: int, sigma: float, n_else: int = 0, sigma_else: float = 0.0,
+                reduced: bool = False) -> tuple:
     """The fixed-point weights (integers summing to 256) of OpenCV's 8-bit GaussianBlur
     along one axis: n taps for sigma; n <= 0 takes n_else, sigma <= 0 takes sigma_else
-    (GaussianBlur's ksize height and sigmaY of 0: those of the width)."""
+    (GaussianBlur's ksize height and sigmaY of 0: those of the width).  reduced: divided
+    by the largest power of two that divides them all (their sum 256 by it too)."""
     n = int(n) if n > 0 else int(n_else)
     sigma = float(sigma) if sigma > 0 else float(sigma_else)
     k = gaussian_kernel(n, sigma)
@@ -71,8 +73,22 @@ def gaussian_q8(n: int, sigma: float, n_else: int = 0, sigma_else: float = 0.0) 
         q = round(adjusted)  # half to even, as cvRound
         err = adjusted - float(q)
         side.append(q)
-    return (*side, 256 - 2 * sum(side), *side[::-1])
+    weights = (*side, 256 - 2 * sum(side), *side[::-1])
+    if reduced:
+        common = 256
+        while any(w % common for w in weights):
+            common //= 2
+        weights = tuple(w // common for w in weights)
+    return weights
+
+
+def gaussian_q8_reduced(n: int, sigma: float, n_else: int = 0,
+                        sigma_else: float = 0.0) -> tuple:
+    """gaussian_q8's weights divided by the largest power of two that divides them all:
+    the same sums in smaller numbers ((1 2 1) for 3 taps and sigma 0, whose row sums fit
+    16 bits: a CPU's vector lanes hold twice as many), their sum 256 divided by it."""
+    return gaussian_q8(n, sigma, n_else, sigma_else, reduced=True)
 
 
 # the functions a type's 'tables:' may call, by name: (function, least and most arguments)
-TABLES = {"gaussian_q8": (gaussian_q8, 2, 4)}
+TABLES = {"gaussian_q8": (gaussian_q8, 2, 4), "gaussian_q8_reduced": (gaussian_q8_reduced, 2, 4)}
