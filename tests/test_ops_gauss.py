@@ -26,8 +26,8 @@ import sys
 
 import numpy as np
 import pytest
-from conftest import ROOT, load_generated, require_opencl, run_generated, write_keep_types
-from test_imgproc_ops import FRAMES, _camera_frames, _pad, chain_model
+from conftest import ROOT, require_opencl, run_generated
+from test_imgproc_ops import FRAMES, _camera_frames, _pad, fused_unfused_cpu
 
 from gpucompgen.library import cpu_kernels
 from gpucompgen.library.kernel_tables import gaussian_q8
@@ -226,26 +226,8 @@ def _opencv(type_name, src, params):
 @pytest.fixture(scope="module")
 def chain_outputs(tmp_path_factory, cl_context):
     require_opencl()
-    from gpucompgen.build import compile_model, write
-    from gpucompgen.passes.fuse import FUSION_COSTS
-
-    folder = tmp_path_factory.mktemp("gauss_chain")
-    write_keep_types(folder)
-    found = {}
-    for variant, placement, fusion in (("fused", "gpu", "auto"), ("unfused", "gpu", "off"),
-                                       ("cpu", "cpu", "auto")):
-        model = folder / f"gauss_{variant}.yaml"
-        model.write_text(chain_model("gauss_chain", CHAIN, placement, keep=ENDS))
-        out = folder / f"out_{variant}"
-        with pytest.MonkeyPatch.context() as patch:  # launches so dear that groups form
-            patch.setattr("gpucompgen.passes.fuse.FUSION_COSTS",
-                          {k: {**v, "launch_s": 1e6} for k, v in FUSION_COSTS.items()})
-            built = compile_model(model, out, fusion=fusion)
-        write(built, out)
-        program = load_generated(out / "gauss_chain.py", f"gauss_chain_{variant}")
-        result = program.run(frames=FRAMES, context=cl_context)
-        found[variant] = (built, {n: result.components[f"keep_{n}"].frames for n in ENDS})
-    return found
+    return fused_unfused_cpu(tmp_path_factory.mktemp("gauss_chain"), cl_context,
+                             "gauss_chain", CHAIN, ENDS)
 
 
 def test_chain_fused_unfused_cpu_equal_opencv(chain_outputs):
