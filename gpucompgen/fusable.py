@@ -12,7 +12,9 @@ and PyTorch Inductor's ``Pointwise(inner_fn)``, whose loads are index expression
       # as 'ksize // 2'), border: clamp (or reflect101, reflect, constant, or an int
       # parameter holding OpenCV's border code); reads: how many input elements an
       # output element reads with the snippet's loops unrolled, where a stencil's
-      # snippet nests windows (a number, an int parameter or an expression of them)
+      # snippet nests windows (a number, an int parameter or an expression of them);
+      # tables: {kx: 'gaussian_q8(ksize, sigma)'} (tables the snippet reads, computed
+      # from parameters)
 
 pointwise   reads every input only at (y, x) (any channel)
 index_map   reads each input at one position computed from y, x, c, sizes and parameters
@@ -21,7 +23,12 @@ stencil     reads a window of 'radius' around (y, x); reads outside the input fo
             'border', applied by the accessor: clamp (the nearest edge pixel, OpenCV's
             BORDER_REPLICATE), reflect101, reflect, constant (0), or the name of an int
             parameter whose value is OpenCV's code for one of them (OPENCV_BORDERS),
-            fixed at build time like the radius
+            fixed at build time like the radius; 'tables' name arrays the snippet reads
+            (kx[i]) that one of gpucompgen's table functions (library/kernel_tables.py:
+            an OpenCV kernel's fixed-point weights) computes from parameters when the
+            kernel is generated: those parameters are fixed at build time too
+An array parameter's lengths are names of the snippet and of the radius: <name>_length
+(one dimension), <name>_rows and <name>_cols (two or three), fixed at build time.
 
 The snippet is read once, at check time, by the snippet language (gpucompgen/snippet/:
 a C lexer, a whitelist grammar, name resolution), and kept parsed in the type; kernels
@@ -37,6 +44,7 @@ from dataclasses import dataclass, field
 
 from . import sizeexpr
 from .errors import Pos
+from .library.kernel_tables import TABLES
 from .snippet import MAX_SNIPPET, Snippet, analyse, is_builtin, print_lines
 from .snippet.syntax import Call, DoWhile, For, Node, While
 
@@ -46,8 +54,53 @@ FORMS = ("pointwise", "index_map", "stencil")
 BORDERS = ("clamp", "reflect101", "reflect", "constant")
 # OpenCV's border codes, for a border chosen by a parameter ('border: border_type')
 OPENCV_BORDERS = {0: "constant", 1: "clamp", 2: "reflect", 4: "reflect101"}
-__all__ = ["BORDERS", "FORMS", "MAX_SNIPPET", "OPENCV_BORDERS", "FusableDecl", "analyse",
-           "snippet_position"]
+__all__ = ["BORDERS", "FORMS", "MAX_SNIPPET", "OPENCV_BORDERS", "TABLES", "FusableDecl",
+           "analyse", "array_lengths", "length_names", "snippet_position", "table_call"]
+
+
+def length_names(name: str, dims: int) -> tuple[str, ...]:
+    """The names of an array parameter's lengths: <name>_length for one dimension,
+    <name>_rows and <name>_cols for two or more."""
+    return (f"{name}_length",) if dims == 1 else (f"{name}_rows", f"{name}_cols")
+
+
+def array_lengths(params: Mapping[str, object]) -> dict[str, int]:
+    """The lengths of the array values among params, by length_names."""
+    found = {}
+    for name, value in params.items():
+        if not isinstance(value, (tuple, list)):
+            continue
+        if value and isinstance(value[0], (tuple, list)):
+            found[f"{name}_rows"], found[f"{name}_cols"] = len(value), len(value[0])
+        else:
+            found[f"{name}_length"] = len(value)
+    return found
+
+
+def table_call(text: object, params: Mapping[str, str]) -> tuple[str, tuple[str, ...]] | str:
+    """A 'tables:' entry ('gaussian_q8(ksize, sigma)') as its function and argument
+    names, or why it cannot be: the function one of TABLES, each argument an int or float
+    parameter (params: name -> type)."""
+    known = ", ".join(TABLES)
+    try:
+        call = ast.parse(str(text).strip(), mode="eval").body if isinstance(text, str) \
+            else None
+    except (SyntaxError, ValueError, RecursionError, MemoryError):
+        call = None
+    if not (isinstance(call, ast.Call) and isinstance(call.func, ast.Name)) or call.keywords:
+        return f"a table is a call of a table function ({known}) on parameters, not {text!r}"
+    if call.func.id not in TABLES:
+        return f"{call.func.id!r} is no table function: there are {known}"
+    _, least, most = TABLES[call.func.id]
+    if not least <= len(call.args) <= most:
+        return f"{call.func.id}() takes {least} to {most} parameters, not {len(call.args)}"
+    names = []
+    for arg in call.args:
+        if not isinstance(arg, ast.Name) or params.get(arg.id) not in ("int", "float"):
+            return (f"argument {ast.unparse(arg)!r} of {call.func.id}() is not an int or "
+                    "float parameter")
+        names.append(arg.id)
+    return call.func.id, tuple(names)
 
 
 @dataclass(frozen=True)
@@ -66,6 +119,10 @@ class FusableDecl:
     reads: int | str | None = None  # stencil: input elements an output element reads
     # with the loops unrolled, where the window count (reads_of) would be wrong: a
     # snippet that nests windows (MorphologyEx's opening: a window of windows)
+    # stencil: arrays the snippet reads, each a table function of TABLES and the
+    # parameters it is called with ('kx': ('gaussian_q8', ('ksize', 'sigma'))): computed
+    # when the kernel is generated, so those parameters are fixed at build time
+    tables: Mapping[str, tuple[str, tuple[str, ...]]] = field(default_factory=dict)
 
     def radius_of(self, params: Mapping[str, object]) -> int:
         """The stencil's radius for these parameter values (0 for another form)."""
@@ -83,13 +140,25 @@ class FusableDecl:
                              f"{sorted(OPENCV_BORDERS)}")
         return OPENCV_BORDERS[code]
 
+    @staticmethod
+    def lengths_of(params: Mapping[str, object]) -> dict[str, int]:
+        """The lengths of the array parameters (array_lengths): constants of a kernel."""
+        return array_lengths(params)
+
+    def tables_of(self, params: Mapping[str, object]) -> dict[str, tuple]:
+        """The tables the snippet reads, computed for these parameter values."""
+        return {name: TABLES[function][0](*(params[a] for a in args))
+                for name, (function, args) in self.tables.items()}
+
     def radius_names(self) -> set[str]:
-        """The parameters that fix the window: those the radius depends on, and the one
-        that picks the border rule (constants of a generated kernel, fixed at build time:
-        its interior and its accessors are written for them)."""
+        """The parameters that fix the window: those the radius depends on, the one
+        that picks the border rule and those the tables are computed from (constants of a
+        generated kernel, fixed at build time: its interior, its accessors and its tables
+        are written for them)."""
         if self.form != "stencil":
             return set()
         names = set() if self.border in BORDERS else {self.border}
+        names |= {a for _, args in self.tables.values() for a in args}
         if isinstance(self.radius, int):
             return names
         tree = ast.parse(self.radius.strip(), mode="eval")
@@ -156,7 +225,7 @@ def _int_of(value: int | str, params: Mapping[str, object]) -> int:
         return value
     tree = ast.parse(value.strip(), mode="eval")
     try:
-        return max(0, int(sizeexpr.evaluate(tree, {}, params)))
+        return max(0, int(sizeexpr.evaluate(tree, {}, {**params, **array_lengths(params)})))
     except sizeexpr.SizeExprError:  # beyond any size: a count beyond every bound
         return sizeexpr.MAX_SIDE + 1
 

@@ -259,18 +259,28 @@ def rotate180(src: np.ndarray, *, out: np.ndarray | None = None) -> np.ndarray:
                       dst=_output(out, src.shape, "Rotate180", "dst"))
 
 
-def gaussian_blur(src: np.ndarray, *, ksize: int,
+def gaussian_blur(src: np.ndarray, *, ksize: int, ksize_y: int = 0, sigma: float = 0.0,
+                  sigma_y: float = 0.0, border_type: int = 4,
                   out: np.ndarray | None = None) -> np.ndarray:
-    """GaussianBlur / GaussianBlurGray: cv2.GaussianBlur(image, (ksize, ksize), 0).
+    """GaussianBlur / GaussianBlurGray: cv2.GaussianBlur(src, (ksize, ksize_y or ksize),
+    sigma, sigmaY=sigma_y, borderType=border_type).
 
-    ksize 3 or 5: OpenCV's binomial weights (1 2 1)/4 or (1 4 6 4 1)/16 along both axes
-    (its bit-exact fixed-point blur), borders BORDER_REFLECT_101 (OpenCV's default).
+    Window sides odd, 1..31 (ksize_y 0: ksize); sigma 0 from the side, sigma_y 0 sigma;
+    border 0 CONSTANT, 1 REPLICATE, 2 REFLECT, 4 REFLECT_101 (OpenCV's default).  OpenCV
+    computes 8-bit images in fixed point (weights in 1/256), bit-exact.
     """
     _channels("GaussianBlur", "src", src)
-    ksize = int(ksize)
-    if ksize not in (3, 5):
-        raise ValueError(f"GaussianBlur: ksize must be 3 or 5, not {ksize}")
-    return cv2.GaussianBlur(src, (ksize, ksize), 0,
+    width, height = int(ksize), int(ksize_y) or int(ksize)
+    for name, side in (("ksize", width), ("ksize_y", height)):
+        if side < 1 or side > 31 or side % 2 == 0:
+            raise ValueError(f"GaussianBlur: {name} must be odd, 1..31, not {side}")
+    if not (0 <= sigma <= 1000 and 0 <= sigma_y <= 1000):
+        raise ValueError(f"GaussianBlur: sigma and sigma_y must be 0..1000, not {sigma} "
+                         f"and {sigma_y}")
+    if int(border_type) not in (0, 1, 2, 4):
+        raise ValueError(f"GaussianBlur: border_type must be 0, 1, 2 or 4, not {border_type}")
+    return cv2.GaussianBlur(src, (width, height), float(sigma), sigmaY=float(sigma_y),
+                            borderType=int(border_type),
                             dst=_output(out, src.shape, "GaussianBlur", "dst"))
 
 

@@ -20,7 +20,7 @@ KERNEL_KEYS = ("file", "function", "grid", "cover")
 GPU_KEYS = ("tiles", "block_z", "prefer", "max_threads", "square")
 
 
-FUSABLE_KEYS = ("form", "value", "radius", "border", "reads")
+FUSABLE_KEYS = ("form", "value", "radius", "border", "reads", "tables")
 
 
 def _check_signature(doc, rep, base, ctype: ComponentType, kspec: dict) -> None:
@@ -159,9 +159,16 @@ def _load_fusable(doc, rep, base, ctype: ComponentType, fspec) -> None:
                   "statements ending in 'return ...;') for output element (y, x, c)",
                   "e.g. value: \"image(image_height - 1 - y, x, c)\"")
         return
+    tables = _load_tables(doc, rep, path, ctype, fspec) if form == "stencil" else {}
+    if tables is None:
+        return
+    # an array parameter's lengths: names of the snippet and of the radius
+    lengths = [n for p, d in ctype.params.items() if d.shape
+               for n in fusable_forms.length_names(p, len(d.shape))]
     analysis = fusable_forms.analyse(value, form, list(ctype.inputs), list(ctype.outputs),
-                                     list(ctype.params),
-                                     arrays=[n for n, d in ctype.params.items() if d.shape])
+                                     [*ctype.params, *tables, *lengths],
+                                     arrays=[*(n for n, d in ctype.params.items() if d.shape),
+                                             *tables])
     start = doc.pos(*path, "value")
     raw, style = doc.sources.get(path + ("value",), (None, None))
     for p in analysis.problems:
@@ -174,7 +181,7 @@ def _load_fusable(doc, rep, base, ctype: ComponentType, fspec) -> None:
     border = fspec.get("border", "clamp")
     if form == "stencil":
         radius = fspec.get("radius")
-        int_params = _int_params(ctype)
+        int_params = _int_params(ctype) + lengths
         if not _count(radius, int_params):
             rep.error(doc.pos(*path, "radius") if "radius" in fspec else doc.key_pos(*path),
                       f"stencil '{ctype.name}' needs 'radius': a number of pixels (0 or "
@@ -196,7 +203,7 @@ def _load_fusable(doc, rep, base, ctype: ComponentType, fspec) -> None:
                       "snippet's loops unrolled, e.g. reads: (2 * r + 1) * (2 * r + 1)")
             return
     else:
-        for key in ("radius", "border", "reads"):
+        for key in ("radius", "border", "reads", "tables"):
             if key in fspec:
                 rep.error(doc.key_pos(*path, key), f"'{key}' is only for the stencil form",
                           f"remove '{key}' or use 'form: stencil'")
@@ -204,7 +211,8 @@ def _load_fusable(doc, rep, base, ctype: ComponentType, fspec) -> None:
         return
     ctype.fusable = fusable_forms.FusableDecl(form, value, analysis.tree, analysis.names,
                                               radius, border,
-                                              fspec.get("reads") if form == "stencil" else None)
+                                              fspec.get("reads") if form == "stencil" else None,
+                                              tables)
 
 
 def _count(value, int_params, least: int = 0) -> bool:
@@ -221,3 +229,28 @@ def _count(value, int_params, least: int = 0) -> bool:
     except sizeexpr.SizeExprError:
         return False
     return True
+
+
+def _load_tables(doc, rep, path, ctype: ComponentType,
+                 fspec) -> dict[str, tuple[str, tuple[str, ...]]] | None:
+    """A stencil's 'tables:' (name: 'function(parameter, ...)'), checked: each name new
+    to the snippet, each function one of gpucompgen's table functions, each argument an
+    int or float parameter; None after reporting why one cannot be."""
+    if "tables" not in fspec:
+        return {}
+    spec = _expect_map(doc, rep, path + ("tables",), fspec["tables"], "tables")
+    types = {p: d.type for p, d in ctype.params.items() if not d.shape}
+    found = {}
+    for name, text in spec.items():
+        problem = name_problem(name, "table name")
+        if problem is None and (name in ctype.params or name in ctype.inputs
+                                or name in ctype.outputs):
+            problem = f"table '{name}' has the name of a parameter or port of '{ctype.name}'"
+        call = problem or fusable_forms.table_call(text, types)
+        if isinstance(call, str):
+            rep.error(doc.pos(*path, "tables", name), f"fusable tables of '{ctype.name}': "
+                      f"{call}", f"e.g. tables: {{kx: 'gaussian_q8(ksize, sigma)'}}; table "
+                      f"functions: {', '.join(fusable_forms.TABLES)}")
+            return None
+        found[name] = call
+    return found

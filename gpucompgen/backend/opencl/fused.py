@@ -226,6 +226,8 @@ def group_of_one(ctype, params: dict, shapes: dict[str, tuple[int, int]], member
 
     ins = {p: port(p, "in", d) for p, d in ctype.inputs.items()}
     outs = {p: port(p, "out", d) for p, d in ctype.outputs.items()}
+    params = {**{p: d.default for p, d in ctype.params.items() if d.default is not None},
+              **params}  # a parameter not given takes its default, as in a model
     node = ComponentNode(member, None, ins, outs, type=ctype, params=params, placement="gpu")
     return GroupNode(name, None, {f"{member}_{p}": q for p, q in ins.items()}, outs,
                      members=[node], feeds={f"{member}_{p}": Endpoint(member, p) for p in ins})
@@ -478,10 +480,9 @@ def _member(m, feeds: dict[Endpoint, str], producer: dict[Endpoint, Endpoint], i
             body = f"((unsigned)(y_) < {h}u && (unsigned)(x_) < {w}u ? {body} : 0)"
         macros.append(pname)
         lines.append(f"#define {pname}(y_, x_, c_) {body}")
-    arrays = {p: d for p, d in m.type.params.items() if d.shape}
-    if arrays and not interior:  # once, before the member's first version
-        lines[1:1] = [line for p, d in arrays.items()
-                      for line in _constant_table(f"_m{index[m.name]}_{p}", d, m.params[p])]
+    tables, locals_ = _tables(m, index[m.name])
+    if not interior:  # once, before the member's first version
+        lines[1:1] = tables
     attribute = " __attribute__((always_inline))" if inline else ""
     lines.append(f"static inline{attribute} {ctype} {_function(m.name, index, interior)}(_PARAMS, "
                  "const int y, const int x, const int c)")
@@ -489,18 +490,17 @@ def _member(m, feeds: dict[Endpoint, str], producer: dict[Endpoint, Endpoint], i
     for pname, port in {**m.inputs, **m.outputs}.items():
         lines.append(f"    const int {pname}_height = {port.data.height}, "
                      f"{pname}_width = {port.data.width};")
+    lines += locals_
     for pname, pdecl in m.type.params.items():
         c = "float" if pdecl.element == "float" else "int"
-        if pdecl.shape:  # the snippet reads the program's table by the parameter's name
-            inner = "".join(f"[{d}]" for d in _dims(m.params[pname])[1:])
-            lines.append(f"    __constant const {c} (*{pname}){inner} = "
-                         f"_m{index[m.name]}_{pname};" if inner else
-                         f"    __constant const {c} *{pname} = _m{index[m.name]}_{pname};")
+        if pdecl.shape:
             continue
         if pname in decl.radius_names():
             # the window is fixed at build time (the interior's margin is): a constant, so
             # that the compiler unrolls a loop over it
-            lines.append(f"    const int {pname} = {int(m.params[pname])};")
+            value = m.params[pname]
+            lines.append(f"    const {c} {pname} = "
+                         f"{_float_literal(value) if c == 'float' else int(value)};")
             continue
         lines.append(f"    const {c} {pname} = {names[f'{m.name}.{pname}']};")
     # printed from the parsed snippet; built-in calls swapped for their inline versions
@@ -517,6 +517,30 @@ def _member(m, feeds: dict[Endpoint, str], producer: dict[Endpoint, Endpoint], i
     return lines
 
 
+def _tables(m, i: int) -> tuple[list[str], list[str]]:
+    """A member's arrays: its array parameters and the tables its stencil computes from
+    parameters, as program-scope __constant tables and the lines of its function that
+    name them (and the arrays' lengths the snippet names)."""
+    decl = m.type.fusable
+    arrays = {p: (d.element, m.params[p]) for p, d in m.type.params.items() if d.shape}
+    tables = decl.tables_of(m.params) if decl.form == "stencil" else {}
+    arrays.update((t, ("int", v)) for t, v in tables.items())
+    program = [line for p, (element, v) in arrays.items()
+               for line in _constant_table(f"_m{i}_{p}", element, v)]
+    local = []
+    for pname, (element, value) in arrays.items():
+        # the snippet reads the program's table by the parameter's (or table's) name
+        c = "float" if element == "float" else "int"
+        inner = "".join(f"[{d}]" for d in _dims(value)[1:])
+        local.append(f"    __constant const {c} (*{pname}){inner} = _m{i}_{pname};" if inner
+                     else f"    __constant const {c} *{pname} = _m{i}_{pname};")
+    lengths = {n: v for n, v in decl.lengths_of(m.params).items() if n in decl.names}
+    if lengths:
+        local.append("    const int " + ", ".join(f"{n} = {v}" for n, v in lengths.items())
+                     + ";")
+    return program, local
+
+
 def _dims(value) -> list[int]:
     """The lengths of a (rectangular) nested tuple, outermost first."""
     dims = []
@@ -526,10 +550,10 @@ def _dims(value) -> list[int]:
     return dims
 
 
-def _constant_table(name: str, decl, value) -> list[str]:
+def _constant_table(name: str, element: str, value) -> list[str]:
     """An array parameter's value as a program-scope __constant table, 12 values a line
     (floats printed so that they read back as the same float32)."""
-    c = "float" if decl.element == "float" else "int"
+    c = "float" if element == "float" else "int"
 
     def flat(v):
         return [x for item in v for x in flat(item)] if isinstance(v, tuple) else [v]
