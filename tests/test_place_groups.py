@@ -278,3 +278,27 @@ def test_drawn_chains_are_placed_at_the_least_estimate_plan_reports(
     # on the device together)
     priced = {frozenset(g[0]) for g in chain.groups if g[1]}
     assert {frozenset(m.name for m in g.members) for g in system.groups} <= priced
+
+
+def test_a_window_of_windows_is_priced_at_every_read_it_makes(tmp_path):
+    """The estimate of a stencil counts what its snippet reads with its loops unrolled: a
+    5x5 opening (an erosion at each of the dilation's 25 taps: 625 reads an element) costs
+    about 25 times its own 5x5 erosion's 25 reads, not the same (it ran 27x OpenCV on this
+    machine's PoCL while the window-only estimate priced it as an erosion)."""
+    path = tmp_path / "m.yaml"
+    path.write_text(
+        f"system: opening\ntypes: [{SINKS}]\ncomponents:\n"
+        "  camera: {type: Camera, params: {width: 640, height: 360}}\n"
+        "  gray: {type: RgbToGray}\n"
+        "  ero: {type: MorphologyEx, params: {op: 0, ksize: 5}}\n"
+        "  opening: {type: MorphologyEx, params: {op: 2, ksize: 5}}\n"
+        "  sink: {type: Sink_uint8x1}\n  sink2: {type: Sink_uint8x1}\n"
+        "connections:\n  - camera.image -> gray.src\n  - gray.dst -> ero.src\n"
+        "  - gray.dst -> opening.src\n  - ero.dst -> sink.image\n"
+        "  - opening.dst -> sink2.image\n")
+    system = _passes(path, fusion="off")
+    ero = fuse_mod.kernel_features(system, ["ero"])
+    opening = fuse_mod.kernel_features(system, ["opening"])
+    assert ero["loads"] == 640 * 360 * (25 + 1)  # the stated reads: window and centre
+    assert opening["loads"] == 640 * 360 * (625 + 1)
+    assert fuse_mod.kernel_s(system, ["opening"]) > 10 * fuse_mod.kernel_s(system, ["ero"])
