@@ -159,6 +159,18 @@ def _load_fusable(doc, rep, base, ctype: ComponentType, fspec) -> None:
                   "statements ending in 'return ...;') for output element (y, x, c)",
                   "e.g. value: \"image(image_height - 1 - y, x, c)\"")
         return
+    given = fusable_forms.port_names(list(ctype.inputs), list(ctype.outputs))
+    taken = [(("params", n), "parameter") for n in ctype.params if n in given]
+    taken += [((key, n), "port") for key, ports in (("inputs", ctype.inputs),
+                                                     ("outputs", ctype.outputs))
+              for n in ports if n in given]
+    for where, what in taken:
+        rep.error(doc.key_pos(*base, *where), f"{what} '{where[1]}' of '{ctype.name}' has "
+                  f"the name its fusable snippet gets for {given[where[1]]}",
+                  f"rename the {what}: a snippet names each port's height, width and "
+                  "element type <port>_height, <port>_width, <port>_t")
+    if taken:
+        return
     analysis = fusable_forms.analyse(value, form, list(ctype.inputs), list(ctype.outputs),
                                      list(ctype.params),
                                      arrays=[n for n, d in ctype.params.items() if d.shape])
@@ -169,7 +181,8 @@ def _load_fusable(doc, rep, base, ctype: ComponentType, fspec) -> None:
         where = "" if at is not None else f" (at character {p.offset + 1} of the snippet)"
         rep.error(at or start, f"fusable snippet of '{ctype.name}': {p.message}{where}",
                   p.hint or "a snippet uses y, x, c, its ports as <port>(y, x, c), "
-                  "<port>_height, <port>_width, its parameters and its own locals")
+                  "<port>_height, <port>_width, <port>_t (element type), its parameters "
+                  "and its own locals")
     radius: int | str = 0
     border = fspec.get("border", "clamp")
     if form == "stencil":

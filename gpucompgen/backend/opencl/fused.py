@@ -444,6 +444,14 @@ def _member(m, feeds: dict[Endpoint, str], producer: dict[Endpoint, Endpoint], i
     for pname, port in {**m.inputs, **m.outputs}.items():
         lines.append(f"    const int {pname}_height = {port.data.height}, "
                      f"{pname}_width = {port.data.width};")
+        # the port's element type and its least and greatest values, where the snippet
+        # names them
+        if decl.names.get(f"{pname}_t") == "type":
+            lines.append(f"    typedef {DTYPES[port.dtype][1]} {pname}_t;")
+        limits = [f"{pname}_{end} = {_limit(port.dtype, end)}" for end in ("min", "max")
+                  if decl.names.get(f"{pname}_{end}") == "limit"]
+        if limits:
+            lines.append(f"    const {DTYPES[port.dtype][1]} {', '.join(limits)};")
     for pname, pdecl in m.type.params.items():
         c = "float" if pdecl.element == "float" else "int"
         if pdecl.shape:  # the snippet reads the program's table by the parameter's name
@@ -469,6 +477,19 @@ def _member(m, feeds: dict[Endpoint, str], producer: dict[Endpoint, Endpoint], i
     lines += [f"#undef {p}" for p in macros]
     lines.append("")
     return lines
+
+
+def _limit(dtype: str, end: str) -> str:
+    """The least ('min') or greatest ('max') value of an element type, as a C literal."""
+    import numpy as np
+
+    if dtype == "float32":
+        return ("-" if end == "min" else "") + _float_literal(np.finfo(np.float32).max)
+    info = np.iinfo(DTYPES[dtype][0])
+    value = int(info.min if end == "min" else info.max)
+    if value == -(1 << 31):
+        return "(-2147483647 - 1)"
+    return f"{value}u" if value >= 1 << 31 else str(value)
 
 
 def _dims(value) -> list[int]:
