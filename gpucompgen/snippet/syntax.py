@@ -457,10 +457,11 @@ class _Parser:
         elif self.tok.kind == "id" and self.tok.text in self.types:
             name = self.take().text
         else:
+            ports = ", ".join(self.port_types) or "none here"
             raise self.error(f"expected a type, found {self.shown(self.tok)}",
                              "types: bool, char, uchar, short, ushort, int, uint, long, "
                              "ulong, float, half, double, size_t, vectors like uchar4 and "
-                             "a port's element type <port>_t")
+                             f"the ports' element types <port>_t ({ports})")
         if self.at("const"):
             raise self.error("write 'const' before the type", f"const {name}")
         return TypeName(name, const, at=t.offset)
