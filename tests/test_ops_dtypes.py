@@ -225,8 +225,8 @@ TWO_INPUTS = {
 def test_two_input_operations_on_photographs(type_name, dtype, frames, gpu):
     if type_name.startswith("Bitwise") and dtype == "float32":
         pytest.skip("bitwise operations take integer types")
-    for i, (a, b) in enumerate(frames[dtype]):
-        a, b = (a, b) if i == 0 else (_gray(a), _gray(b))
+    for i, pair in enumerate(frames[dtype]):
+        a, b = pair if i == 0 else (_gray(pair[0]), _gray(pair[1]))
         check(type_name, [a, b], {}, TWO_INPUTS[type_name](a, b), gpu, f"{dtype} photo {i}")
 
 
@@ -283,8 +283,8 @@ WEIGHTS = [{"alpha": 0.7, "beta": -1.3, "gamma": 5.5}, {"alpha": 0.25, "beta": 0
 
 @pytest.mark.parametrize("dtype", WIDE)
 def test_add_weighted_on_photographs(dtype, frames, gpu):
-    for i, (a, b) in enumerate(frames[dtype]):
-        a, b = (a, b) if i == 0 else (_gray(a), _gray(b))
+    for i, pair in enumerate(frames[dtype]):
+        a, b = pair if i == 0 else (_gray(pair[0]), _gray(pair[1]))
         params = WEIGHTS[i]
         opencv = cv2.addWeighted(a, params["alpha"], b, params["beta"], params["gamma"])
         if dtype == "int16":
@@ -309,6 +309,8 @@ CHAIN: dict[str, tuple[str, dict, tuple[str, ...]]] = {
     "mask": ("Threshold", {"thresh": 100, "maxval": 255, "thresh_type": 0}, ("gray",)),
     "erode_s": ("Erode", {}, ("dx",)),
     "dilate_f": ("Dilate", {}, ("mag",)),
+    "erode_f": ("Erode", {}, ("mag",)),
+    "dilate_s": ("Dilate", {}, ("gdx",)),
     "median_s": ("MedianBlur", {}, ("gdx",)),
     "median_f": ("MedianBlur", {}, ("mag",)),
     "thresh_s": ("Threshold", {"thresh": -100.5, "maxval": 40000.0, "thresh_type": 1}, ("dx",)),
@@ -384,5 +386,6 @@ def test_fused_equals_unfused_equals_cpu(tmp_path, cl_context):
     require_opencl()
     from test_ops_yuv import assert_fused_equal, fused_builds
 
-    generic = {t for t, _, _ in CHAIN.values()} - {"Sobel", "RgbToGray", "Magnitude"}
+    generic = {t for t, _, _ in CHAIN.values()} - {"Sobel", "RgbToGray", "Magnitude",
+                                                   "ExtractChannel"}
     assert_fused_equal(fused_builds(tmp_path, "dtypes_fused", CHAIN, cl_context), generic)
