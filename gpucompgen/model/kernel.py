@@ -133,6 +133,23 @@ def _load_gpu(doc, rep, base, ctype: ComponentType, spec) -> None:
                         max_threads, square)
 
 
+def _names_taken(doc, rep, base, ctype: ComponentType) -> bool:
+    """Whether a parameter or port has a name the type's snippet gets for a port
+    (<port>_height, <port>_t, <port>_max, ...): each is an error at its place."""
+    given = fusable_forms.port_names(list(ctype.inputs), list(ctype.outputs))
+    taken = [(("params", n), "parameter") for n in ctype.params if n in given]
+    taken += [((key, n), "port") for key, ports in (("inputs", ctype.inputs),
+                                                     ("outputs", ctype.outputs))
+              for n in ports if n in given]
+    for where, what in taken:
+        rep.error(doc.key_pos(*base, *where), f"{what} '{where[1]}' of '{ctype.name}' has "
+                  f"the name its fusable snippet gets for {given[where[1]]}",
+                  f"rename the {what}: a snippet names each port's height, width, "
+                  "element type and its bounds <port>_height, <port>_width, <port>_t, "
+                  "<port>_min, <port>_max")
+    return bool(taken)
+
+
 def _load_fusable(doc, rep, base, ctype: ComponentType, fspec) -> None:
     """The type's fusable form (gpucompgen/fusable.py), checked as far as possible without
     a device."""
@@ -159,17 +176,7 @@ def _load_fusable(doc, rep, base, ctype: ComponentType, fspec) -> None:
                   "statements ending in 'return ...;') for output element (y, x, c)",
                   "e.g. value: \"image(image_height - 1 - y, x, c)\"")
         return
-    given = fusable_forms.port_names(list(ctype.inputs), list(ctype.outputs))
-    taken = [(("params", n), "parameter") for n in ctype.params if n in given]
-    taken += [((key, n), "port") for key, ports in (("inputs", ctype.inputs),
-                                                     ("outputs", ctype.outputs))
-              for n in ports if n in given]
-    for where, what in taken:
-        rep.error(doc.key_pos(*base, *where), f"{what} '{where[1]}' of '{ctype.name}' has "
-                  f"the name its fusable snippet gets for {given[where[1]]}",
-                  f"rename the {what}: a snippet names each port's height, width and "
-                  "element type <port>_height, <port>_width, <port>_t")
-    if taken:
+    if _names_taken(doc, rep, base, ctype):
         return
     analysis = fusable_forms.analyse(value, form, list(ctype.inputs), list(ctype.outputs),
                                      list(ctype.params),

@@ -81,10 +81,8 @@ def names_in(tree: Node) -> set[str]:
             found.add(node.name)
         elif isinstance(node, Call):
             found.add(node.func)
-        elif isinstance(node, Declarator):
-            found.add(node.name)
-        elif isinstance(node, TypeName) and node.name not in TYPE_WORDS \
-                and " " not in node.name:  # a port's element type, <port>_t
+        elif isinstance(node, Declarator) or isinstance(node, TypeName) and node.name not in TYPE_WORDS \
+                and " " not in node.name:
             found.add(node.name)
         if isinstance(node, Node):
             for value in vars(node).values():

@@ -441,17 +441,7 @@ def _member(m, feeds: dict[Endpoint, str], producer: dict[Endpoint, Endpoint], i
     lines.append(f"{inline} {ctype} {_function(m.name, index, interior)}(_PARAMS, "
                  "const int y, const int x, const int c)")
     lines.append("{")
-    for pname, port in {**m.inputs, **m.outputs}.items():
-        lines.append(f"    const int {pname}_height = {port.data.height}, "
-                     f"{pname}_width = {port.data.width};")
-        # the port's element type and its least and greatest values, where the snippet
-        # names them
-        if decl.names.get(f"{pname}_t") == "type":
-            lines.append(f"    typedef {DTYPES[port.dtype][1]} {pname}_t;")
-        limits = [f"{pname}_{end} = {_limit(port.dtype, end)}" for end in ("min", "max")
-                  if decl.names.get(f"{pname}_{end}") == "limit"]
-        if limits:
-            lines.append(f"    const {DTYPES[port.dtype][1]} {', '.join(limits)};")
+    lines += _port_constants(m)
     for pname, pdecl in m.type.params.items():
         c = "float" if pdecl.element == "float" else "int"
         if pdecl.shape:  # the snippet reads the program's table by the parameter's name
@@ -476,6 +466,23 @@ def _member(m, feeds: dict[Endpoint, str], producer: dict[Endpoint, Endpoint], i
     lines.append("}")
     lines += [f"#undef {p}" for p in macros]
     lines.append("")
+    return lines
+
+
+def _port_constants(m) -> list[str]:
+    """What the snippet is given of each port: its sizes, and its element type and that
+    type's least and greatest values where the snippet names them (src_t, src_min)."""
+    names, lines = m.type.fusable.names, []
+    for pname, port in {**m.inputs, **m.outputs}.items():
+        lines.append(f"    const int {pname}_height = {port.data.height}, "
+                     f"{pname}_width = {port.data.width};")
+        ctype = DTYPES[port.dtype][1]
+        if names.get(f"{pname}_t") == "type":
+            lines.append(f"    typedef {ctype} {pname}_t;")
+        limits = [f"{pname}_{end} = {_limit(port.dtype, end)}" for end in ("min", "max")
+                  if names.get(f"{pname}_{end}") == "limit"]
+        if limits:
+            lines.append(f"    const {ctype} {', '.join(limits)};")
     return lines
 
 
