@@ -193,15 +193,20 @@ class Variant:
         return deltas, result.components["sink"].kept
 
 
-def tuned(model: Path, frames: int, backend: str = "opencl") -> None:
-    """What `gpucompgen tune MODEL` does: measure, write tune/<system>.yaml beside it."""
+def tuned(model: Path, frames: int, backend: str = "opencl", text: str | None = None) -> str:
+    """What `gpucompgen tune MODEL` does: measure, write tune/<system>.yaml beside it; returns
+    the profile.  Given the profile text of the same pipeline (tune measures components and
+    candidate groups, whatever the model's placement line), writes that instead: both
+    variants after tune then read one measurement, and the benchmark tunes once."""
     from gpucompgen.model import load_system
     from gpucompgen.tune import default_profile_path, tune
 
-    text, _ = tune(model, frames=frames, backend=backend)
+    if text is None:
+        text, _ = tune(model, frames=frames, backend=backend)
     path = default_profile_path(model, load_system(model))
     path.parent.mkdir(exist_ok=True)
     path.write_text(text)
+    return text
 
 
 def halide_note() -> str:
@@ -262,7 +267,7 @@ def main(argv=None) -> int:
     print(f"{label} device: {api.device_name(api.context_device(context))}; "
           f"cv2 {cv2.__version__}, {cv2.getNumThreads()} threads; {halide_note()}")
     print(f"load average before: {load()}")
-    programs, frames_of, placed = {}, {}, []
+    programs, frames_of, placed, profiles = {}, {}, [], {}
     with tempfile.TemporaryDirectory() as temporary:
         tmp = Path(temporary)
         for width, height in sizes:
@@ -277,7 +282,9 @@ def main(argv=None) -> int:
                     model = folder / "model.yaml"
                     model.write_text(model_text(name, width, height, path, line))
                     if variant.endswith("after tune"):  # the profile the build then reads
-                        tuned(model, args.tune_frames, args.backend)
+                        profiles[name, width, height] = tuned(
+                            model, args.tune_frames, args.backend,
+                            profiles.get((name, width, height)))
                     result = compile_model(model, folder / "out", device="auto",
                                            fusion=fusion, backend=args.backend)
                     write(result, folder / "out")

@@ -85,8 +85,8 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 #       estimate: 0.089 ms a frame as one kernel, 0.277 ms apart (3.1x; constants for a cpu
 #       device)
 #     not fused: gray.dst -> blur.src:
-#       cost model: with gray the group's kernel takes an estimated 0.247 ms a frame,
-#       against 0.069 ms with gray apart (it would run 25 times per output element of the
+#       cost model: with gray the group's kernel takes an estimated 0.274 ms a frame,
+#       against 0.071 ms with gray apart (it would run 28 times per output element of the
 #       group; constants for a cpu device)
 #     not fused: blur.dst -> dx.src:
 #       read by several consumers: blur.dst is also read by the CPU (canny.src, through
@@ -316,10 +316,7 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
     })
     rgb_to_gray_program = runtime.build_program(context, LIB_DIR / 'gray.cl', 'gray (RgbToGray)')
     gaussian_blur_gray_program = runtime.build_program(
-        context, LIB_DIR / 'blur.cl', 'blur (GaussianBlurGray)',
-        defines={  # the kernel's constants, its members' parameters: -D NAME=VALUE
-            '_m0_ksize': np.int32(3),
-        })
+        context, LIB_DIR / 'blur.cl', 'blur (GaussianBlurGray)')
     sobel_gray_dx_program = runtime.build_program(
         context, LIB_DIR / 'dx.cl', 'dx (SobelGrayDx)',
         defines={  # the kernel's constants, its members' parameters: -D NAME=VALUE

@@ -10,7 +10,11 @@ and PyTorch Inductor's ``Pointwise(inner_fn)``, whose loads are index expression
                                                      # statements ending in 'return ...;'
       # stencil only: radius: 2 (or an int parameter, or an expression of them such
       # as 'ksize // 2'), border: clamp (or reflect101, reflect, constant, or an int
-      # parameter holding OpenCV's border code)
+      # parameter holding OpenCV's border code); reads: how many input elements an
+      # output element reads with the snippet's loops unrolled, where a stencil's
+      # snippet nests windows (a number, an int parameter or an expression of them);
+      # tables: {kx: 'gaussian_q8(ksize, sigma)'} (tables the snippet reads, computed
+      # from parameters)
 
 pointwise   reads every input only at (y, x) (any channel)
 index_map   reads each input at one position computed from y, x, c, sizes and parameters
@@ -19,7 +23,12 @@ stencil     reads a window of 'radius' around (y, x); reads outside the input fo
             'border', applied by the accessor: clamp (the nearest edge pixel, OpenCV's
             BORDER_REPLICATE), reflect101, reflect, constant (0), or the name of an int
             parameter whose value is OpenCV's code for one of them (OPENCV_BORDERS),
-            fixed at build time like the radius
+            fixed at build time like the radius; 'tables' name arrays the snippet reads
+            (kx[i]) that one of gpucompgen's table functions (library/kernel_tables.py:
+            an OpenCV kernel's fixed-point weights) computes from parameters when the
+            kernel is generated: those parameters are fixed at build time too
+An array parameter's lengths are names of the snippet and of the radius: <name>_length
+(one dimension), <name>_rows and <name>_cols (two or three), fixed at build time.
 
 The snippet is read once, at check time, by the snippet language (gpucompgen/snippet/:
 a C lexer, a whitelist grammar, name resolution), and kept parsed in the type; kernels
@@ -35,7 +44,9 @@ from dataclasses import dataclass, field
 
 from . import sizeexpr
 from .errors import Pos
-from .snippet import MAX_SNIPPET, Snippet, analyse, port_names, print_lines
+from .library.kernel_tables import TABLES
+from .snippet import MAX_SNIPPET, Snippet, analyse, is_builtin, port_names, print_lines
+from .snippet.syntax import Call, DoWhile, For, Node, While
 
 FORMS = ("pointwise", "index_map", "stencil")
 # the nearest edge pixel (BORDER_REPLICATE); OpenCV's BORDER_REFLECT_101 (gfedcb|abcdefgh),
@@ -43,8 +54,54 @@ FORMS = ("pointwise", "index_map", "stencil")
 BORDERS = ("clamp", "reflect101", "reflect", "constant")
 # OpenCV's border codes, for a border chosen by a parameter ('border: border_type')
 OPENCV_BORDERS = {0: "constant", 1: "clamp", 2: "reflect", 4: "reflect101"}
-__all__ = ["BORDERS", "FORMS", "MAX_SNIPPET", "OPENCV_BORDERS", "FusableDecl", "analyse",
-           "port_names", "snippet_position"]
+__all__ = ["BORDERS", "FORMS", "MAX_SNIPPET", "OPENCV_BORDERS", "TABLES", "FusableDecl",
+           "analyse", "array_lengths", "length_names", "port_names", "snippet_position",
+           "table_call"]
+
+
+def length_names(name: str, dims: int) -> tuple[str, ...]:
+    """The names of an array parameter's lengths: <name>_length for one dimension,
+    <name>_rows and <name>_cols for two or more."""
+    return (f"{name}_length",) if dims == 1 else (f"{name}_rows", f"{name}_cols")
+
+
+def array_lengths(params: Mapping[str, object]) -> dict[str, int]:
+    """The lengths of the array values among params, by length_names."""
+    found = {}
+    for name, value in params.items():
+        if not isinstance(value, (tuple, list)):
+            continue
+        if value and isinstance(value[0], (tuple, list)):
+            found[f"{name}_rows"], found[f"{name}_cols"] = len(value), len(value[0])
+        else:
+            found[f"{name}_length"] = len(value)
+    return found
+
+
+def table_call(text: object, params: Mapping[str, str]) -> tuple[str, tuple[str, ...]] | str:
+    """A 'tables:' entry ('gaussian_q8(ksize, sigma)') as its function and argument
+    names, or why it cannot be: the function one of TABLES, each argument an int or float
+    parameter (params: name -> type)."""
+    known = ", ".join(TABLES)
+    try:
+        call = ast.parse(str(text).strip(), mode="eval").body if isinstance(text, str) \
+            else None
+    except (SyntaxError, ValueError, RecursionError, MemoryError):
+        call = None
+    if not (isinstance(call, ast.Call) and isinstance(call.func, ast.Name)) or call.keywords:
+        return f"a table is a call of a table function ({known}) on parameters, not {text!r}"
+    if call.func.id not in TABLES:
+        return f"{call.func.id!r} is no table function: there are {known}"
+    _, least, most = TABLES[call.func.id]
+    if not least <= len(call.args) <= most:
+        return f"{call.func.id}() takes {least} to {most} parameters, not {len(call.args)}"
+    names = []
+    for arg in call.args:
+        if not isinstance(arg, ast.Name) or params.get(arg.id) not in ("int", "float"):
+            return (f"argument {ast.unparse(arg)!r} of {call.func.id}() is not an int or "
+                    "float parameter")
+        names.append(arg.id)
+    return call.func.id, tuple(names)
 
 
 @dataclass(frozen=True)
@@ -61,15 +118,19 @@ class FusableDecl:
     # int parameters ('ksize // 2', 'iterations * (ksize - 1)'): fixed at build time
     border: str = "clamp"  # stencil: one of BORDERS, or an int parameter holding
     # OpenCV's code of one (OPENCV_BORDERS): fixed at build time, like the radius
+    reads: int | str | None = None  # stencil: input elements an output element reads
+    # with the loops unrolled, where the window count (reads_of) would be wrong: a
+    # snippet that nests windows (MorphologyEx's opening: a window of windows)
+    # stencil: arrays the snippet reads, each a table function of TABLES and the
+    # parameters it is called with ('kx': ('gaussian_q8', ('ksize', 'sigma'))): computed
+    # when the kernel is generated, so those parameters are fixed at build time
+    tables: Mapping[str, tuple[str, tuple[str, ...]]] = field(default_factory=dict)
 
     def radius_of(self, params: Mapping[str, object]) -> int:
         """The stencil's radius for these parameter values (0 for another form)."""
         if self.form != "stencil":
             return 0
-        if isinstance(self.radius, int):
-            return self.radius
-        tree = ast.parse(self.radius.strip(), mode="eval")
-        return max(0, int(sizeexpr.evaluate(tree, {}, params)))
+        return _int_of(self.radius, params)
 
     def border_of(self, params: Mapping[str, object]) -> str:
         """The stencil's border rule (one of BORDERS) for these parameter values."""
@@ -81,13 +142,25 @@ class FusableDecl:
                              f"{sorted(OPENCV_BORDERS)}")
         return OPENCV_BORDERS[code]
 
+    @staticmethod
+    def lengths_of(params: Mapping[str, object]) -> dict[str, int]:
+        """The lengths of the array parameters (array_lengths): constants of a kernel."""
+        return array_lengths(params)
+
+    def tables_of(self, params: Mapping[str, object]) -> dict[str, tuple]:
+        """The tables the snippet reads, computed for these parameter values."""
+        return {name: TABLES[function][0](*(params[a] for a in args))
+                for name, (function, args) in self.tables.items()}
+
     def radius_names(self) -> set[str]:
-        """The parameters that fix the window: those the radius depends on, and the one
-        that picks the border rule (constants of a generated kernel, fixed at build time:
-        its interior and its accessors are written for them)."""
+        """The parameters that fix the window: those the radius depends on, the one
+        that picks the border rule and those the tables are computed from (constants of a
+        generated kernel, fixed at build time: its interior, its accessors and its tables
+        are written for them)."""
         if self.form != "stencil":
             return set()
         names = set() if self.border in BORDERS else {self.border}
+        names |= {a for _, args in self.tables.values() for a in args}
         if isinstance(self.radius, int):
             return names
         tree = ast.parse(self.radius.strip(), mode="eval")
@@ -113,6 +186,50 @@ class FusableDecl:
         if self.form != "stencil":
             return 1
         return (2 * self.radius_of(params) + 1) ** 2
+
+    def reads_of(self, params: Mapping[str, object]) -> int:
+        """Input elements one evaluation of the snippet reads with its loops unrolled
+        (what a kernel that inlines it repeats, and what its compile time follows): the
+        declared 'reads' where the type states it, else its accessor calls, a call inside
+        n loops counted (2 radius + 1)^n times for a stencil (a loop walks the window's
+        side), once for other forms."""
+        if self.reads is not None:
+            return max(1, _int_of(self.reads, params))
+        side = 2 * self.radius_of(params) + 1 if self.form == "stencil" else 1
+        return max(1, unrolled_calls(self.tree, side))
+
+
+_LOOPS = (For, While, DoWhile)
+
+
+def unrolled_calls(tree, side: int) -> int:
+    """Accessor calls (calls of anything but a built-in) in the snippet, each inside n
+    loops counted side^n times."""
+    def walk(node, weight: int) -> int:
+        found = weight if isinstance(node, Call) and not is_builtin(node.func) else 0
+        if isinstance(node, _LOOPS):
+            weight *= side
+        if isinstance(node, Node):
+            children = vars(node).values()
+        elif isinstance(node, tuple):
+            children = node
+        else:
+            return found
+        return found + sum(walk(child, weight) for child in children)
+
+    return walk(tree, 1)
+
+
+def _int_of(value: int | str, params: Mapping[str, object]) -> int:
+    """A number, an int parameter or an expression of them, for these values (0 at
+    least)."""
+    if isinstance(value, int):
+        return value
+    tree = ast.parse(value.strip(), mode="eval")
+    try:
+        return max(0, int(sizeexpr.evaluate(tree, {}, {**params, **array_lengths(params)})))
+    except sizeexpr.SizeExprError:  # beyond any size: a count beyond every bound
+        return sizeexpr.MAX_SIDE + 1
 
 
 def snippet_position(start: Pos, raw: str | None, style: str | None, value: str,

@@ -59,7 +59,7 @@ def member_names(name: str, role: str) -> list[str]:
         return [name]
     return [name, f"{name}_size", f"{name}_gpu", f"{name}_copied"]
 
-__all__ = ["KERNEL_RESERVED", "fold", "member_names", "name_problem", "snake"]
+__all__ = ["KERNEL_RESERVED", "fold", "member_names", "name_hint", "name_problem", "snake"]
 
 _RESERVED = (frozenset(keyword.kwlist) | frozenset(keyword.softkwlist) | frozenset(dir(builtins))
              | KERNEL_RESERVED | {"self"})
@@ -87,6 +87,20 @@ def name_problem(name: object, what: str, top_level: bool = False) -> str | None
             top_level and (name in GENERATED_RESERVED or GENERATED_PATTERN.match(name))):
         return f"{what} {name!r} is a reserved word in Python, OpenCL or generated code"
     return None
+
+
+def name_hint(name: object, default: str) -> str:
+    """What to do about a name name_problem refused: shorten a long one, rename a reserved
+    one; else default (what a good name looks like)."""
+    if isinstance(name, str) and NAME_RE.match(name):
+        if len(name) > MAX_NAME:
+            return (f"shorten it to {MAX_NAME} characters or fewer, e.g. "
+                    f"{name[:MAX_NAME].rstrip('_')!r}")
+        for other in (f"my_{name}", f"{name}_1"):
+            if name_problem(other, "name", top_level=True) is None:
+                return f"rename it, e.g. {other!r}"
+        return "rename it"
+    return default
 
 
 def fold(name: str) -> str:

@@ -202,6 +202,8 @@ def forms(ctype: ComponentType) -> list[tuple[str, str]]:
         f = ctype.fusable
         shape = (f"; window radius {f.radius}, border {f.border}" if f.form == "stencil"
                  else "")
+        shape += "".join(f"; table {t} = {fn}({', '.join(args)})"
+                         for t, (fn, args) in f.tables.items())
         code = f.value.strip().splitlines()
         head = f"{f.form.replace('_', ' ')}{shape}:"
         # a one-line snippet beside its form; statements one per line below it

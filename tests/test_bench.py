@@ -142,7 +142,7 @@ def test_pipelines_benchmark_outputs_equal_opencv_in_every_variant(tmp_path):
     device and the load."""
     require_opencl()
     out = _benchmark(tmp_path, "pipelines.py", "--sizes", "33x17", "--rounds", "1",
-                     "--frames", "2")
+                     "--frames", "2", "--tune-frames", "1")
     assert "OpenCL device:" in out and "load average before:" in out
     for name in ("lanes", "colour", "edges", "motion", "pointwise"):
         assert f"| {name} | 33x17 |" in out

@@ -335,9 +335,12 @@ def test_library_snippets_pass_the_check_and_compile(cl_context):
                     Data(Size(7, 5, d.channels), d.dtype))
 
     for name, t in fusable_types.items():
+        lengths = [n for p, d in t.params.items() if d.shape
+                   for n in fusable.length_names(p, len(d.shape))]
         assert not fusable.analyse(t.fusable.value, t.fusable.form, list(t.inputs),
-                                   list(t.outputs), list(t.params),
-                                   arrays=[p for p, d in t.params.items() if d.shape]).problems
+                                   list(t.outputs), [*t.params, *t.fusable.tables, *lengths],
+                                   arrays=[*(p for p, d in t.params.items() if d.shape),
+                                           *t.fusable.tables]).problems
         ports = {p: port(p, "in", d) for p, d in t.inputs.items()}
         outs = {p: port(p, "out", d) for p, d in t.outputs.items()}
         member = ComponentNode("member", None, ports, outs, type=t,

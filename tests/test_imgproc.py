@@ -418,6 +418,20 @@ def test_bilinear_resize_every_path_of_the_kernel(type_name, kernels):
                                           err_msg=f"{width}x{height} -> {params} {setting}")
 
 
+def test_bilinear_resize_cpu_form_in_bands_equals_the_kernel_on_a_large_output(kernels):
+    """The CPU form computes a band of output rows at a time (its temporaries bounded
+    whatever the output's size): on an output of several bands, enlarging, every band
+    equals the kernel, and an out= array gets the same bytes."""
+    rng = np.random.default_rng(7)
+    image = rng.integers(0, 256, (61, 47, 3), dtype=np.uint8)
+    params = {"width": 1201, "height": 997, "interpolation": 1}  # 290 rows a band
+    cpu = cpu_kernels.CPU_IMPLEMENTATIONS["Resize"](image, **params)
+    np.testing.assert_array_equal(kernels.run("Resize", [image], params, SETTINGS[0]), cpu)
+    out = np.empty_like(cpu)
+    assert cpu_kernels.CPU_IMPLEMENTATIONS["Resize"](image, **params, out=out) is out
+    np.testing.assert_array_equal(out, cpu)
+
+
 # -- the CPU functions' own checks -------------------------------------------------------
 def test_cpu_functions_reject_bad_inputs():
     image = np.zeros((4, 5, 3), np.uint8)

@@ -553,31 +553,37 @@ def program_outputs(tmp_path_factory, cl_context):
 ENDS = sorted(set(CHAIN) - {s for _, _, inputs in CHAIN.values() for s in inputs})
 
 
-@pytest.fixture(scope="module")
-def fused_outputs(tmp_path_factory, cl_context):
-    """{variant: (build, {end: frames})}: the chain with only its ends kept, built fused
-    (launches made so dear that every legal group forms), unfused and on the CPU."""
-    require_opencl()
+def fused_unfused_cpu(folder, context, system: str, chain: dict, ends) -> dict:
+    """{variant: (build, {end: frames})}: chain with only its ends kept, built in folder
+    fused (launches made so dear that every legal group forms), unfused and on the CPU,
+    each run for FRAMES frames."""
     from gpucompgen.build import compile_model, write
     from gpucompgen.passes.fuse import FUSION_COSTS
 
-    folder = tmp_path_factory.mktemp("ops_fused")
     write_keep_types(folder)
     found = {}
     for variant, placement, fusion in (("fused", "gpu", "auto"), ("unfused", "gpu", "off"),
                                        ("cpu", "cpu", "auto")):
-        model = folder / f"ops_{variant}.yaml"
-        model.write_text(chain_model("ops_fused", CHAIN, placement, keep=ENDS))
+        model = folder / f"{system}_{variant}.yaml"
+        model.write_text(chain_model(system, chain, placement, keep=ends))
         out = folder / f"out_{variant}"
         with pytest.MonkeyPatch.context() as patch:
             patch.setattr("gpucompgen.passes.fuse.FUSION_COSTS",
                           {k: {**v, "launch_s": 1e6} for k, v in FUSION_COSTS.items()})
             built = compile_model(model, out, fusion=fusion)
         write(built, out)
-        program = load_generated(out / "ops_fused.py", f"ops_fused_{variant}")
-        result = program.run(frames=FRAMES, context=cl_context)
-        found[variant] = (built, {n: result.components[f"keep_{n}"].frames for n in ENDS})
+        program = load_generated(out / f"{system}.py", f"{system}_{variant}")
+        result = program.run(frames=FRAMES, context=context)
+        found[variant] = (built, {n: result.components[f"keep_{n}"].frames for n in ends})
     return found
+
+
+@pytest.fixture(scope="module")
+def fused_outputs(tmp_path_factory, cl_context):
+    """The chain fused, unfused and on the CPU (fused_unfused_cpu)."""
+    require_opencl()
+    return fused_unfused_cpu(tmp_path_factory.mktemp("ops_fused"), cl_context, "ops_fused",
+                             CHAIN, ENDS)
 
 
 def test_fused_equals_unfused_equals_cpu_equals_opencv(fused_outputs):

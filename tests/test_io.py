@@ -463,6 +463,48 @@ def test_video_codecs_are_named_and_display_needs_one(tmp_path, monkeypatch):
         io.open_sink(str(tmp_path / "missing" / "out.mp4")).open()
 
 
+GRAY_VIEW = """\
+system: grayview
+platform: {device: portable}
+components:
+  camera: {type: Camera, params: {folder: shots}}
+  gray: {type: RgbToGray}
+  view: {type: FrameSink, params: {output: gray_out/}}
+  colour: {type: FrameSink, params: {output: rgb_out/}}
+connections:
+  - camera.image -> gray.src
+  - gray.dst -> view.image
+  - camera.image -> colour.image
+"""
+
+
+def test_a_frame_sink_takes_a_gray_frame_as_well_as_rgb(tmp_path):
+    """A mask or an edge map is looked at without converting it to RGB first: the
+    FrameSink takes one or three channels, and the PNG written is OpenCV's gray."""
+    import subprocess
+    import sys
+
+    from conftest import require_opencl
+
+    require_opencl()
+    shots = frames(3, 20, 36)
+    (tmp_path / "shots").mkdir()
+    for i, f in enumerate(shots):
+        Image.fromarray(f).save(tmp_path / "shots" / f"{i}.png")
+    (tmp_path / "m.yaml").write_text(GRAY_VIEW)
+    proc = subprocess.run([sys.executable, "-m", "gpucompgen", "run", "m.yaml"],
+                          capture_output=True, text=True, timeout=300, check=False,
+                          cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    _, gray = read_all(io.open_source(str(tmp_path / "gray_out" / "*.png")))
+    _, rgb = read_all(io.open_source(str(tmp_path / "rgb_out" / "*.png")))
+    assert len(gray) == len(rgb) == 3
+    for i, f in enumerate(shots):
+        np.testing.assert_array_equal(rgb[i], f)
+        # a gray PNG reads back as RGB with three equal channels
+        np.testing.assert_array_equal(gray[i][..., 1], cv2.cvtColor(f, cv2.COLOR_RGB2GRAY))
+
+
 # -- sizes from the input, when the model is checked --------------------------------------
 
 SIZED = """\

@@ -393,6 +393,12 @@ def test_every_library_snippet_compiles_printed_with_every_name_renamed(cl_conte
                   f"{''.join(f'[{n}]' for n in np.shape(d.default))} = "
                   f"{{{', '.join(map(str, np.ravel(d.default)))}}};"
                   for p, d in t.params.items() if d.shape]  # an array: Lut's table, a matrix
+        defaults = {p: d.default for p, d in t.params.items()}
+        tables = f.tables_of(defaults) if f.form == "stencil" else {}
+        lines += [f"    const int {name}_{n}[{len(v)}] = {{{', '.join(map(str, v))}}};"
+                  for n, v in tables.items()]  # GaussianBlur's weights
+        lines += [f"    const int {name}_{n} = {v};"  # an array's lengths the snippet names
+                  for n, v in f.lengths_of(defaults).items() if n in f.names]
         lines += [f"    {line}" for line in f.lines(rename)]
         lines += ["}"] + [f"#undef {name}_{p}" for p in t.inputs]
         functions.append("\n".join(lines))

@@ -64,49 +64,163 @@ def test_a_border_parameter_is_a_constant_of_the_build():
     assert "_reflect((y_), 5)" in fused.group_kernel(group, "test")
 
 
-@pytest.mark.parametrize("border_type", BORDER_CODES)
-@pytest.mark.parametrize("channels", [1, 3])
+# (frame, window) pairs: windows wider than the frame (reflected more than once), rows and
+# columns of one pixel, a frame with an interior; one build each (sizes are constants)
+BORDER_CASES = (((1, 1), 3), ((3, 1), 5), ((2, 3), 9), ((5, 7), 3), ((9, 4), 9),
+                ((12, 11), 5))
+
+
+@pytest.mark.parametrize("border_type,channels", [(b, 1) for b in BORDER_CODES]
+                         + [(0, 3), (2, 3)])
 def test_every_border_rule_equals_numpy_pad(cl_context, cl_queue, border_type, channels):
+    """The rules over one channel, and over three (channel-flat: a read k pixels away is
+    3k elements away) for the constant rule and a reflection."""
     require_opencl()
     rng = np.random.default_rng(border_type * 10 + channels)
     blur = library_types()["Blur"]
-    for h, w in ((1, 1), (2, 3), (3, 1), (5, 7), (9, 4), (12, 11)):
+    for (h, w), ksize in BORDER_CASES:
         shape = (h, w) if channels == 1 else (h, w, channels)
         image = rng.integers(0, 256, shape, dtype=np.uint8)
-        for ksize in (3, 5, 9):
-            params = {"ksize": ksize, "border_type": border_type}
-            got = run_generated(cl_context, cl_queue, blur, params, [image], shape,
-                                (4, 1, 2, 1))
-            np.testing.assert_array_equal(got, _blur_reference(image, ksize, border_type),
-                                          err_msg=f"{shape} {params}")
+        params = {"ksize": ksize, "border_type": border_type}
+        got = run_generated(cl_context, cl_queue, blur, params, [image], shape, (4, 1, 2, 1))
+        np.testing.assert_array_equal(got, _blur_reference(image, ksize, border_type),
+                                      err_msg=f"{shape} {params}")
 
 
-def test_rows_together_only_for_small_stencil_groups_on_a_cpu():
-    types = library_types()
+def _group(name, params, h=20, w=30):
+    t = library_types()[name]
+    t = t.specialized("uint8", 1) if t.generic else t
+    return fused.group_of_one(t, params, {"src": (h, w), "dst": (h, w)})
 
-    def group(name, params, h=20, w=30):
-        t = types[name]
-        t = t.specialized("uint8", 1) if t.generic else t
-        return fused.group_of_one(t, params, {"src": (h, w), "dst": (h, w)})
 
-    assert fused.rows_together(group("Erode", {}), "runs") == fused.ROWS_TOGETHER
-    assert fused.rows_together(group("Erode", {}), "strided") == 1  # a GPU
-    assert fused.rows_together(group("Threshold", {"thresh": 1, "maxval": 2,
-                                                   "thresh_type": 0}), "runs") == 1
-    big = {"op": 2, "shape": 0, "ksize": 7, "iterations": 1}  # 13 x 13 reads an element
-    assert fused.rows_together(group("MorphologyEx", big), "runs") == 1
-    text = fused.group_kernel(group("Erode", {}), "test")
-    assert f"_p += {fused.ROWS_TOGETHER} * _n" in text
+def _morph(op, ksize, shape=0, iterations=1):
+    return {"op": op, "shape": shape, "ksize": ksize, "iterations": iterations}
+
+
+def test_rows_together_for_small_windows_and_bodies_on_a_cpu():
+    together = fused.ROWS_TOGETHER
+    assert fused.rows_together(_group("Erode", {}), "runs") == together
+    assert fused.rows_together(_group("Erode", {}), "strided") == 1  # a GPU
+    assert fused.rows_together(_group("Threshold", {"thresh": 1, "maxval": 2,
+                                                    "thresh_type": 0}), "runs") == 1
+    # 5x5 windows, and an opening of 3x3 (9 x 9 reads): together, forced inline
+    for name, params in (("Blur", {"ksize": 5, "border_type": 4}),
+                         ("GaussianBlur", {"ksize": 5}), ("MorphologyEx", _morph(4, 5)),
+                         ("MorphologyEx", _morph(2, 3, shape=2))):
+        group = _group(name, params)
+        assert fused.rows_together(group, "runs") == together, (name, params)
+        text = fused.group_kernel(group, "test")
+        assert f"_p += {together} * _n" in text and "always_inline" in text
+    # a 7x7 window (more than 25 taps); an opening of 5x5 (25 x 25 reads: 4 rows of it
+    # took 35 s to compile): one row, the latter not forced inline
+    assert fused.rows_together(_group("Blur", {"ksize": 7, "border_type": 4}), "runs") == 1
+    big = _group("MorphologyEx", _morph(2, 5))
+    assert fused.rows_together(big, "runs") == 1
+    assert "always_inline" not in fused.group_kernel(big, "test")
+
+
+def _valid_params(ctype):
+    """Every value a user may give a stencil's int parameters (each from its minimum to
+    its maximum; the others at their defaults) that the type's requirements accept."""
+    import itertools
+
+    from gpucompgen import sizeexpr
+
+    ints = {p: d for p, d in ctype.params.items() if d.type == "int" and not d.shape}
+    free = sorted(p for p, d in ints.items() if d.minimum is not None and
+                  d.maximum is not None and d.maximum - d.minimum <= 40)
+    ranges = [range(int(ints[p].minimum), int(ints[p].maximum) + 1) for p in free]
+    base = {p: d.default for p, d in ctype.params.items()}
+    for values in itertools.product(*ranges):
+        params = {**base, **dict(zip(free, values))}
+        numbers = {p: v for p, v in params.items() if p in ints}
+        if all(sizeexpr.evaluate(tree, {"src": (64, 64)}, numbers)
+               for tree, _ in ctype.requires):
+            yield params
+
+
+def test_what_the_compiler_is_given_to_unroll_stays_bounded_for_every_parameter_value():
+    """The compile-time criterion: for every library stencil and every parameter value a
+    user may give (Blur's ksize up to 31, MorphologyEx's op, shape, ksize up to 15 and
+    iterations up to 4), the kernel forces inline only bodies whose rows read at most
+    MAX_UNROLLED_READS elements with their loops unrolled, and asks to unroll the loops
+    only of members reading at most MAX_UNROLLED_LOOPS so.  Bounds measured on PoCL 3.0
+    (fused.py): 4 rows of 81 reads built in about 2 s, of 625 reads in 35 s.  The reads
+    counted here are checked against the snippets' own counts in the next test."""
+    checked = 0
+    for name, ctype in sorted(library_types().items()):
+        if ctype.alias_of or ctype.fusable is None or ctype.fusable.form != "stencil":
+            continue
+        for params in _valid_params(ctype):
+            group = _group(name, params, 24, 40)
+            text = fused.group_kernel(group, "test")
+            reads = fused.unrolled_reads(group)
+            if "always_inline" in text:
+                assert fused.rows_together(group, "runs") * reads <= \
+                    fused.MAX_UNROLLED_READS, (name, params)
+            if "#pragma unroll" in text:
+                assert ctype.fusable.reads_of(params) <= fused.MAX_UNROLLED_LOOPS
+            checked += 1
+    assert checked > 300  # MorphologyEx: 7 ops x 3 shapes x 8 sizes, iterations (rect)
+
+
+# a snippet run as one element of a kernel whose accessors count their calls
+_COUNTING = """
+#define src(y_, x_, c_) (++*_reads, (uchar)(((y_) * 7 + (x_) * 3) & 255))
+static int _count(__global int *_reads)
+{{
+    const int y = 40, x = 40, c = 0;
+    const int src_height = 81, src_width = 81, dst_height = 81, dst_width = 81;
+{params}
+{body}
+}}
+__kernel void count(__global int *_out, __global int *_reads)
+{{
+    *_reads = 0;
+    _out[0] = _count(_reads);
+}}
+"""
 
 
 @pytest.mark.parametrize("name,params", [
-    ("Erode", {}), ("Blur", {"ksize": 3, "border_type": 4}),
-    ("MorphologyEx", {"op": 4, "shape": 1, "ksize": 3, "iterations": 1})])
+    ("Blur", {"ksize": 3, "border_type": 4}), ("Blur", {"ksize": 31, "border_type": 4}),
+    ("GaussianBlur", {"ksize": 3}), ("MedianBlur", {}), ("Erode", {}),
+    *[("MorphologyEx", _morph(op, k, shape, it)) for op, k, shape, it in (
+        (0, 3, 0, 1), (1, 5, 2, 1), (4, 15, 0, 4), (2, 3, 0, 1), (3, 5, 2, 1),
+        (5, 3, 1, 1), (6, 3, 0, 3), (2, 15, 0, 1))]])
+def test_the_reads_a_stencil_states_bound_what_its_snippet_reads(cl_context, cl_queue,
+                                                                  name, params):
+    """reads_of (the declared 'reads', or the counted window) is at least what the
+    snippet reads when it runs (its accessor counting its calls), and within 2.5x of it
+    for a rectangular window: the bound the generator's compile-time criterion rests on,
+    checked against the snippet itself."""
+    import pyopencl as cl
+
+    require_opencl()
+    decl = library_types()[name].fusable
+    lines = [f"    const int {p} = {int(v)};" for p, v in params.items()]
+    body = "\n".join("    " + line for line in decl.lines())
+    program = cl.Program(cl_context, _COUNTING.format(params="\n".join(lines),
+                                                      body=body)).build()
+    out, reads = (cl.Buffer(cl_context, cl.mem_flags.READ_WRITE, 4) for _ in range(2))
+    program.count(cl_queue, (1,), None, out, reads)
+    counted = np.zeros(1, np.int32)
+    cl.enqueue_copy(cl_queue, counted, reads)
+    cl_queue.finish()
+    declared = decl.reads_of(params)
+    assert counted[0] <= declared, (name, params, counted[0], declared)
+    if params.get("shape", 0) == 0:
+        assert declared <= 2.5 * counted[0], (name, params, counted[0], declared)
+
+
+@pytest.mark.parametrize("name,params", [
+    ("Blur", {"ksize": 5, "border_type": 4}), ("MorphologyEx", _morph(2, 3, 2))])
 def test_rows_together_compute_what_one_row_at_a_time_computes(
         cl_context, cl_queue, monkeypatch, name, params):
-    """Heights around the groups of rows, work-groups' tiles, 1 and 3 channels:
-    the kernel that computes rows together equals the one that computes a row at a time
-    (generated with ROWS_TOGETHER 1), element for element."""
+    """Heights around the groups of rows, work-groups' tiles, 1 and 3 channels: the kernel
+    that computes rows together equals the one that computes a row at a time (generated
+    with ROWS_TOGETHER 1), element for element: a 5x5 window, and a window of windows
+    (an elliptic opening)."""
     require_opencl()
 
     t = library_types()[name]
@@ -119,7 +233,9 @@ def test_rows_together_compute_what_one_row_at_a_time_computes(
         for together in (default, 1):
             monkeypatch.setattr(fused, "ROWS_TOGETHER", together)
             conftest._GENERATED.clear()
-            for setting in ((8, 1, 1, 1), (5, 2, 3, 1), (32, 8, 8, 1)):
+            # PoCL compiles a kernel again for each work-group size: two of them (one
+            # thread a work-group; six sharing tiles of 5 rows, groups of 4 split)
+            for setting in ((8, 1, 1, 1), (5, 2, 3, 1)):
                 results.append(run_generated(cl_context, cl_queue, t, params, [image],
                                              shape, setting))
         for r in results[1:]:

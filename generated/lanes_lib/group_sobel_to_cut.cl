@@ -226,24 +226,46 @@ static inline __attribute__((always_inline)) uchar _f3_cut_in(_PARAMS, const int
 // threads one after another: a row is the longest loop, which the compiler vectorizes).
 // Elements 1 or more from every edge read inside the frame: the interior version, without
 // border rules, computes them.
+// A work-item computes 4 interior rows in one loop: the compiler shares the reads their
+// windows have in common.
 __kernel void sobel_to_cut(_PARAMS, const int _tile)
 {
     const int _y0 = get_group_id(1) * _tile;
     const int _y1 = min(_y0 + _tile, 200);
     const int _k = get_local_id(1) * get_local_size(0) + get_local_id(0);
     const int _n = get_local_size(0) * get_local_size(1);
-    for (int _y = _y0 + _k; _y < _y1; _y += _n) {
-        __global uchar *_row = _out + (size_t)_y * 301;
-        if (_y >= 1 && _y < 199) {
-            for (int _x = 0; _x < 1; _x++)
-                _row[_x] = _f3_cut(_ARGS, _y, _x, 0);
-            for (int _x = 1; _x < 300; _x++)
+    for (int _p = _y0 + 4 * _k; _p < _y1; _p += 4 * _n) {
+        if (_p >= 1 && _p + 3 < min(_y1, 199)) {
+            // rows _p to _p + 3, every one in the interior
+            const int _y = _p;
+            __global uchar *_row = _out + (size_t)_y * 301;
+            for (int _r = 0; _r < 4; _r++) {
+                for (int _x = 0; _x < 1; _x++)
+                    _row[_r * 301 + _x] = _f3_cut(_ARGS, _y + _r, _x, 0);
+                for (int _x = 300; _x < 301; _x++)
+                    _row[_r * 301 + _x] = _f3_cut(_ARGS, _y + _r, _x, 0);
+            }
+            for (int _x = 1; _x < 300; _x++) {
                 _row[_x] = _f3_cut_in(_ARGS, _y, _x, 0);
-            for (int _x = 300; _x < 301; _x++)
-                _row[_x] = _f3_cut(_ARGS, _y, _x, 0);
-        } else {
-            for (int _x = 0; _x < 301; _x++)
-                _row[_x] = _f3_cut(_ARGS, _y, _x, 0);
+                _row[301 + _x] = _f3_cut_in(_ARGS, _y + 1, _x, 0);
+                _row[602 + _x] = _f3_cut_in(_ARGS, _y + 2, _x, 0);
+                _row[903 + _x] = _f3_cut_in(_ARGS, _y + 3, _x, 0);
+            }
+            continue;
+        }
+        for (int _y = _p; _y < min(_p + 4, _y1); _y++) {
+            __global uchar *_row = _out + (size_t)_y * 301;
+            if (_y >= 1 && _y < 199) {
+                for (int _x = 0; _x < 1; _x++)
+                    _row[_x] = _f3_cut(_ARGS, _y, _x, 0);
+                for (int _x = 1; _x < 300; _x++)
+                    _row[_x] = _f3_cut_in(_ARGS, _y, _x, 0);
+                for (int _x = 300; _x < 301; _x++)
+                    _row[_x] = _f3_cut(_ARGS, _y, _x, 0);
+            } else {
+                for (int _x = 0; _x < 301; _x++)
+                    _row[_x] = _f3_cut(_ARGS, _y, _x, 0);
+            }
         }
     }
 }

@@ -215,13 +215,25 @@ def resize(src: np.ndarray, *, width: int, height: int, interpolation: int,
     planes = src.reshape(src.shape[:2] + (n,))
     y0, y1, wy = _linear(height, planes.shape[0])
     x0, x1, wx = _linear(width, planes.shape[1])
-    p = planes.astype(np.int64)
+    # int32 is exact (255 x 2048 x 2048 + 2^21 < 2^31); a band of output rows at a time,
+    # so that the temporaries stay a few MB whatever the output's size (a 16384 x 16384
+    # output at once took 10 GB of int64 and 78 s)
+    p = planes.astype(np.int32)
     wx0, wx1 = (1 << RESIZE_BITS) - wx[:, None], wx[:, None]
-    top = p[y0][:, x0] * wx0 + p[y0][:, x1] * wx1
-    bottom = p[y1][:, x0] * wx0 + p[y1][:, x1] * wx1
-    wy0, wy1 = (1 << RESIZE_BITS) - wy[:, None, None], wy[:, None, None]
-    values = (top * wy0 + bottom * wy1 + (1 << (2 * RESIZE_BITS - 1))) >> (2 * RESIZE_BITS)
-    return _store(values.reshape(shape), out, "Resize", "dst")
+    wx0, wx1 = wx0.astype(np.int32), wx1.astype(np.int32)
+    result = _output(out, shape, "Resize", "dst")
+    rows = result.reshape((height, width, n))
+    band = max(1, (1 << 20) // (width * n))
+    for top_row in range(0, height, band):
+        span = slice(top_row, top_row + band)
+        ra, rb = p[y0[span]], p[y1[span]]
+        top = ra[:, x0] * wx0 + ra[:, x1] * wx1
+        bottom = rb[:, x0] * wx0 + rb[:, x1] * wx1
+        wy0 = ((1 << RESIZE_BITS) - wy[span, None, None]).astype(np.int32)
+        wy1 = wy[span, None, None].astype(np.int32)
+        rows[span] = (top * wy0 + bottom * wy1 + (1 << (2 * RESIZE_BITS - 1))) \
+            >> (2 * RESIZE_BITS)
+    return result
 
 
 def _linear(dst: int, src: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -262,18 +274,28 @@ def rotate180(src: np.ndarray, *, out: np.ndarray | None = None) -> np.ndarray:
                       dst=_output(out, src.shape, "Rotate180", "dst", src.dtype))
 
 
-def gaussian_blur(src: np.ndarray, *, ksize: int,
+def gaussian_blur(src: np.ndarray, *, ksize: int, ksize_y: int = 0, sigma: float = 0.0,
+                  sigma_y: float = 0.0, border_type: int = 4,
                   out: np.ndarray | None = None) -> np.ndarray:
-    """GaussianBlur / GaussianBlurGray: cv2.GaussianBlur(image, (ksize, ksize), 0).
+    """GaussianBlur / GaussianBlurGray: cv2.GaussianBlur(src, (ksize, ksize_y or ksize),
+    sigma, sigmaY=sigma_y, borderType=border_type).
 
-    ksize 3 or 5: OpenCV's binomial weights (1 2 1)/4 or (1 4 6 4 1)/16 along both axes
-    (its bit-exact fixed-point blur), borders BORDER_REFLECT_101 (OpenCV's default).
+    Window sides odd, 1..31 (ksize_y 0: ksize); sigma 0 from the side, sigma_y 0 sigma;
+    border 0 CONSTANT, 1 REPLICATE, 2 REFLECT, 4 REFLECT_101 (OpenCV's default).  OpenCV
+    computes 8-bit images in fixed point (weights in 1/256), bit-exact.
     """
     _channels("GaussianBlur", "src", src)
-    ksize = int(ksize)
-    if ksize not in (3, 5):
-        raise ValueError(f"GaussianBlur: ksize must be 3 or 5, not {ksize}")
-    return cv2.GaussianBlur(src, (ksize, ksize), 0,
+    width, height = int(ksize), int(ksize_y) or int(ksize)
+    for name, side in (("ksize", width), ("ksize_y", height)):
+        if side < 1 or side > 31 or side % 2 == 0:
+            raise ValueError(f"GaussianBlur: {name} must be odd, 1..31, not {side}")
+    if not (0 <= sigma <= 1000 and 0 <= sigma_y <= 1000):
+        raise ValueError(f"GaussianBlur: sigma and sigma_y must be 0..1000, not {sigma} "
+                         f"and {sigma_y}")
+    if int(border_type) not in (0, 1, 2, 4):
+        raise ValueError(f"GaussianBlur: border_type must be 0, 1, 2 or 4, not {border_type}")
+    return cv2.GaussianBlur(src, (width, height), float(sigma), sigmaY=float(sigma_y),
+                            borderType=int(border_type),
                             dst=_output(out, src.shape, "GaussianBlur", "dst"))
 
 

@@ -122,6 +122,24 @@ def blur(src: np.ndarray, *, ksize: int, border_type: int,
                     borderType=border)
 
 
+def filter_2d(src: np.ndarray, *, weights, delta: float = 0.0, border_type: int = 4,
+              out: np.ndarray | None = None) -> np.ndarray:
+    """Filter2D: cv2.filter2D(src, -1, np.float32(weights), delta=delta,
+    borderType=border_type): the correlation with the kernel weights (rows x cols, 1..15
+    each, anchored at (cols / 2, rows / 2)) plus delta, rounded and saturated to uint8."""
+    _image("Filter2D", "src", src)
+    weights = np.array(weights, np.float32)
+    if weights.ndim != 2 or not (1 <= weights.shape[0] <= 15 and 1 <= weights.shape[1] <= 15):
+        raise ValueError(f"Filter2D: weights must be rows x cols, 1..15 each, not "
+                         f"{'x'.join(map(str, weights.shape))}")
+    border = int(border_type)
+    if border not in BORDERS:
+        raise ValueError(f"Filter2D: border_type must be one of {sorted(BORDERS)}, "
+                         f"not {border}")
+    return cv2.filter2D(src, -1, weights, dst=_output(out, src.shape, "Filter2D", "dst"),
+                        delta=float(delta), borderType=border)
+
+
 def laplacian(src: np.ndarray, *, ksize: int, out: np.ndarray | None = None) -> np.ndarray:
     """Laplacian / LaplacianGray: cv2.Laplacian(src, cv2.CV_16S, ksize=ksize), borders
     BORDER_REFLECT_101; ksize 1 ([0 1 0; 1 -4 1; 0 1 0]) or 3 ([2 0 2; 0 -8 0; 2 0 2])."""
@@ -200,6 +218,7 @@ CPU_OPS = {
         ("BitwiseNot", bitwise_not), ("BitwiseAndMask", bitwise_and_mask),
         ("Blur", blur), ("Laplacian", laplacian), ("Scharr", scharr), ("Lut", lut),
         ("MorphologyEx", morphology_ex))},
+    "Filter2D": filter_2d,
 }
 
 # last, so that either module may be imported first: cpu_kernels imports CPU_OPS at its

@@ -14,8 +14,6 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from .cpu_ops import _image
-
 WARP_INVERSE_MAP = 16  # cv2.WARP_INVERSE_MAP
 BORDER_MODES = (0, 1)  # cv2.BORDER_CONSTANT, cv2.BORDER_REPLICATE
 
@@ -91,6 +89,10 @@ def remap(src: np.ndarray, map1: np.ndarray, map2: np.ndarray, *, interpolation:
     flags, border_mode, value = _checked("Remap", interpolation, border_mode, border_value)
     if flags > 1:
         raise ValueError(f"Remap: interpolation must be 0 or 1, not {interpolation}")
+    if np.shares_memory(maps[0], maps[1]):
+        # one frame feeding both ports: OpenCV 5.0's remap misreads two maps that are one
+        # array (positions one pixel off; a copy gives its own right answer)
+        maps[1] = maps[1].copy()
     return _finish(cv2.remap(src, maps[0], maps[1], flags, borderMode=border_mode,
                              borderValue=value), src, out)
 
@@ -109,3 +111,8 @@ def undistort(src: np.ndarray, *, camera_matrix, dist_coeffs,
 
 WARP_OPS = {"WarpAffine": warp_affine, "WarpPerspective": warp_perspective,
             "Remap": remap, "Undistort": undistort}
+
+# last, as in cpu_ops.py, so that any of the library's CPU modules may be imported first (a
+# generated program whose only CPU-placed library type is a warp imports this one first):
+# cpu_ops imports cpu_kernels, which imports WARP_OPS from here
+from .cpu_ops import _image

@@ -10,7 +10,7 @@ from typing import Any
 
 from ..errors import Diagnostic, Pos, Reporter, did_you_mean
 from ..loader import Document
-from ..names import fold, name_problem, snake
+from ..names import fold, name_hint, name_problem, snake
 from .decls import MAX_COMPONENTS, PLACEMENTS, ComponentType, Instance
 from .fields import _expect_map, _named, _unknown_keys
 from .params import _array_problem, _value_fits, _value_problem_at, param_value, py_yaml
@@ -247,7 +247,7 @@ def _load_instance(doc: Document, rep: Reporter, cname: str, written: Any, order
     cpath = ("components", cname)
     problem = name_problem(cname, "component name", top_level=True)
     if problem:
-        rep.error(doc.key_pos(*cpath), problem, "use a name such as 'camera1'")
+        rep.error(doc.key_pos(*cpath), problem, name_hint(cname, "use a name such as 'camera1'"))
         return None
     if fold(cname) in folded:
         rep.error(doc.key_pos(*cpath),

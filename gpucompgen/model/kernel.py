@@ -20,7 +20,7 @@ KERNEL_KEYS = ("file", "function", "grid", "cover")
 GPU_KEYS = ("tiles", "block_z", "prefer", "max_threads", "square")
 
 
-FUSABLE_KEYS = ("form", "value", "radius", "border")
+FUSABLE_KEYS = ("form", "value", "radius", "border", "reads", "tables")
 
 
 def _check_signature(doc, rep, base, ctype: ComponentType, kspec: dict) -> None:
@@ -178,9 +178,16 @@ def _load_fusable(doc, rep, base, ctype: ComponentType, fspec) -> None:
         return
     if _names_taken(doc, rep, base, ctype):
         return
+    tables = _load_tables(doc, rep, path, ctype, fspec) if form == "stencil" else {}
+    if tables is None:
+        return
+    # an array parameter's lengths: names of the snippet and of the radius
+    lengths = [n for p, d in ctype.params.items() if d.shape
+               for n in fusable_forms.length_names(p, len(d.shape))]
     analysis = fusable_forms.analyse(value, form, list(ctype.inputs), list(ctype.outputs),
-                                     list(ctype.params),
-                                     arrays=[n for n, d in ctype.params.items() if d.shape])
+                                     [*ctype.params, *tables, *lengths],
+                                     arrays=[*(n for n, d in ctype.params.items() if d.shape),
+                                             *tables])
     start = doc.pos(*path, "value")
     raw, style = doc.sources.get(path + ("value",), (None, None))
     for p in analysis.problems:
@@ -194,15 +201,8 @@ def _load_fusable(doc, rep, base, ctype: ComponentType, fspec) -> None:
     border = fspec.get("border", "clamp")
     if form == "stencil":
         radius = fspec.get("radius")
-        int_params = _int_params(ctype)
-        expression = None
-        if isinstance(radius, str) and not _named(radius, int_params):
-            try:  # an expression of int parameters, e.g. 'ksize // 2'
-                expression = sizeexpr.parse(radius, set(), set(int_params))
-            except sizeexpr.SizeExprError:
-                expression = None
-        if not (isinstance(radius, int) and not isinstance(radius, bool) and radius >= 0) \
-                and not _named(radius, int_params) and expression is None:
+        int_params = _int_params(ctype) + lengths
+        if not _count(radius, int_params):
             rep.error(doc.pos(*path, "radius") if "radius" in fspec else doc.key_pos(*path),
                       f"stencil '{ctype.name}' needs 'radius': a number of pixels (0 or "
                       f"more), an int parameter or an expression of them, not {radius!r}",
@@ -215,12 +215,62 @@ def _load_fusable(doc, rep, base, ctype: ComponentType, fspec) -> None:
                       "int parameter", "clamp: reads outside the input take the nearest edge "
                       "pixel; an int parameter holds OpenCV's border code (0, 1, 2 or 4)")
             return
+        reads = fspec.get("reads")
+        if reads is not None and not _count(reads, int_params, least=1):
+            rep.error(doc.pos(*path, "reads"), f"stencil '{ctype.name}': 'reads' must be a "
+                      "number (1 or more), an int parameter or an expression of them, not "
+                      f"{reads!r}", "the input elements an output element reads with the "
+                      "snippet's loops unrolled, e.g. reads: (2 * r + 1) * (2 * r + 1)")
+            return
     else:
-        for key in ("radius", "border"):
+        for key in ("radius", "border", "reads", "tables"):
             if key in fspec:
                 rep.error(doc.key_pos(*path, key), f"'{key}' is only for the stencil form",
                           f"remove '{key}' or use 'form: stencil'")
     if analysis.problems:
         return
     ctype.fusable = fusable_forms.FusableDecl(form, value, analysis.tree, analysis.names,
-                                              radius, border)
+                                              radius, border,
+                                              fspec.get("reads") if form == "stencil" else None,
+                                              tables)
+
+
+def _count(value, int_params, least: int = 0) -> bool:
+    """Whether value is a number (least or more), an int parameter or an expression of
+    int parameters (a stencil's radius, its reads)."""
+    if isinstance(value, int) and not isinstance(value, bool):
+        return value >= least
+    if not isinstance(value, str):
+        return False
+    if _named(value, int_params):
+        return True
+    try:  # an expression of int parameters, e.g. 'ksize // 2'
+        sizeexpr.parse(value, set(), set(int_params))
+    except sizeexpr.SizeExprError:
+        return False
+    return True
+
+
+def _load_tables(doc, rep, path, ctype: ComponentType,
+                 fspec) -> dict[str, tuple[str, tuple[str, ...]]] | None:
+    """A stencil's 'tables:' (name: 'function(parameter, ...)'), checked: each name new
+    to the snippet, each function one of gpucompgen's table functions, each argument an
+    int or float parameter; None after reporting why one cannot be."""
+    if "tables" not in fspec:
+        return {}
+    spec = _expect_map(doc, rep, path + ("tables",), fspec["tables"], "tables")
+    types = {p: d.type for p, d in ctype.params.items() if not d.shape}
+    found = {}
+    for name, text in spec.items():
+        problem = name_problem(name, "table name")
+        if problem is None and (name in ctype.params or name in ctype.inputs
+                                or name in ctype.outputs):
+            problem = f"table '{name}' has the name of a parameter or port of '{ctype.name}'"
+        call = problem or fusable_forms.table_call(text, types)
+        if isinstance(call, str):
+            rep.error(doc.pos(*path, "tables", name), f"fusable tables of '{ctype.name}': "
+                      f"{call}", f"e.g. tables: {{kx: 'gaussian_q8(ksize, sigma)'}}; table "
+                      f"functions: {', '.join(fusable_forms.TABLES)}")
+            return None
+        found[name] = call
+    return found

@@ -18,8 +18,9 @@ from .fields import _expect_map, _kind, _named, _text, _unknown_keys
 # path in it is relative to the model file, and the frame size is read from its header
 PARAM_TYPES = {"int": int, "float": float, "bool": bool, "str": str, "path": str, "input": str}
 # array parameters: 'int' or 'float' and one to three dimensions, each a length N or a
-# range of lengths A..B ('int[256]', 'float[2][3]', 'int[3..64][2]'): a lookup table, a
-# structuring element, a warp matrix, a polygon
+# range of lengths A..B ('int[256]', 'float[2][3]', 'int[3..64][2]', 'float[1..15][1..15]'):
+# a lookup table, a structuring element, a warp matrix, a polygon, a filter's kernel;
+# rectangular (the rows of one value have one length)
 ARRAY_TYPE_PATTERN = r"(int|float)((?:\[\d{1,6}(?:\.\.\d{1,6})?\]){1,3})"
 ARRAY_TYPE = re.compile(ARRAY_TYPE_PATTERN)
 MAX_ARRAY_ELEMENTS = 65536  # of one array parameter (a 256 x 256 table)
@@ -53,8 +54,6 @@ def array_shape(ptype: str) -> tuple[tuple[tuple[int, int], ...], str]:
         if lo < 1 or hi < lo:
             return (), (f"dimension [{dim}] must be a length of 1 or more, or a range "
                         "A..B with 1 <= A <= B")
-        if shape and hi != lo:  # rows of one length: a rectangular table
-            return (), f"only the first dimension may be a range of lengths, not [{dim}]"
         shape.append((lo, hi))
     if math.prod(hi for _, hi in shape) > MAX_ARRAY_ELEMENTS:
         return (), f"it may hold more than {MAX_ARRAY_ELEMENTS:,} values"
@@ -80,6 +79,11 @@ def _array_problem(value: Any, decl: ParamDecl, kernel: bool,
     if not lo <= len(value) <= hi:
         length = f"{lo}" if lo == hi else f"{lo} to {hi}"
         return f"{what}has {len(value)} values where {decl.type} takes {length}", index
+    rows = {len(v) for v in value if isinstance(v, (list, tuple))}
+    ranged = depth + 1 < len(decl.shape) and len(set(decl.shape[depth + 1])) > 1
+    if ranged and len(rows) > 1:  # rows of one length: a rectangular table
+        lengths = " and ".join(map(str, sorted(rows)))
+        return f"{what}has rows of {lengths} values: all must have one length", index
     for i, item in enumerate(value):
         found = _array_problem(item, decl, kernel, index + (i,))
         if found:

@@ -8,7 +8,7 @@ from pathlib import Path
 
 from ..errors import Pos, Reporter
 from ..loader import Document, load_file
-from ..names import MODULE_NAMES, name_problem
+from ..names import MODULE_NAMES, name_hint, name_problem
 from .components import _deprecation_notes, load_components
 from .connections import load_connections
 from .decls import SystemModel
@@ -67,7 +67,8 @@ def _system_name(doc: Document, rep: Reporter, root: dict) -> str:
                    f"'{name}' that generated programs import")
     if problem:
         rep.error(doc.pos("system") if "system" in root else doc.pos(), problem,
-                  "start the model with 'system: my_system'")
+                  "start the model with 'system: my_system'" if name in MODULE_NAMES
+                  else name_hint(name, "start the model with 'system: my_system'"))
         name = "system"
     return name
 

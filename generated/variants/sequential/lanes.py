@@ -66,12 +66,12 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 #       estimate: 0.041 ms a frame as one kernel, 0.102 ms apart (2.5x; constants for a cpu
 #       device)
 #     not fused: gray.dst -> blur.src:
-#       cost model: with gray the group's kernel takes an estimated 0.247 ms a frame,
-#       against 0.069 ms with gray apart (it would run 25 times per output element of the
+#       cost model: with gray the group's kernel takes an estimated 0.274 ms a frame,
+#       against 0.071 ms with gray apart (it would run 28 times per output element of the
 #       group; constants for a cpu device)
 #     not fused: blur.dst -> sobel.src:
-#       cost model: with blur the group's kernel takes an estimated 0.521 ms a frame,
-#       against 0.085 ms with blur apart (it would run 18 times per output element of the
+#       cost model: with blur the group's kernel takes an estimated 0.567 ms a frame,
+#       against 0.087 ms with blur apart (it would run 18 times per output element of the
 #       group; constants for a cpu device)
 
 from __future__ import annotations
@@ -212,10 +212,7 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
     })
     rgb_to_gray_program = runtime.build_program(context, LIB_DIR / 'gray.cl', 'gray (RgbToGray)')
     gaussian_blur_gray_program = runtime.build_program(
-        context, LIB_DIR / 'blur.cl', 'blur (GaussianBlurGray)',
-        defines={  # the kernel's constants, its members' parameters: -D NAME=VALUE
-            '_m0_ksize': np.int32(5),
-        })
+        context, LIB_DIR / 'blur.cl', 'blur (GaussianBlurGray)')
     fused_sobel_to_cut_program = runtime.build_program(
         context, LIB_DIR / 'group_sobel_to_cut.cl', 'sobel_to_cut (FusedSobelToCut)',
         defines={  # the kernel's constants, its members' parameters: -D NAME=VALUE

@@ -290,10 +290,7 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
     })
     rgb_to_gray_program = runtime.build_program(context, LIB_DIR / 'gray.cl', 'gray (RgbToGray)')
     gaussian_blur_gray_program = runtime.build_program(
-        context, LIB_DIR / 'blur.cl', 'blur (GaussianBlurGray)',
-        defines={  # the kernel's constants, its members' parameters: -D NAME=VALUE
-            '_m0_ksize': np.int32(5),
-        })
+        context, LIB_DIR / 'blur.cl', 'blur (GaussianBlurGray)')
     sobel_gray_program = runtime.build_program(
         context, LIB_DIR / 'sobel.cl', 'sobel (SobelGray)',
         defines={  # the kernel's constants, its members' parameters: -D NAME=VALUE

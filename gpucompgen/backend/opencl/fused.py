@@ -43,6 +43,14 @@ OpenCL devices):
   frame, load 9 to 13: GaussianBlurGray k5 0.255 -> 0.144 ms, MedianBlurGray 0.100 ->
   0.064, MorphologyExGray open k3 0.247 -> 0.189).  The members' functions are
   always_inline: called that many times, PoCL otherwise kept them calls, and scalar.
+  The rows' borders are computed a row at a time (one call site of the border version).
+- Bounded compile time.  What the compiler is given follows the reads a kernel inlines
+  with every loop unrolled (``unrolled_reads``: each member's ``reads_of``, a producer's
+  counted at every read of its consumer), not the window: rows together and forced
+  inline only where the rows' inlined bodies read at most MAX_UNROLLED_READS elements
+  (and every window is at most MAX_TAPS_TOGETHER, 5x5, where rows together pay); a
+  member's loops unrolled only where it reads at most MAX_UNROLLED_LOOPS.  A snippet that
+  nests windows states its reads (MorphologyEx's opening: a window of windows).
 - Work split from device facts (schedule()): work-groups cover ``tile`` whole rows.  On
   a CPU device a work-item takes whole rows, the work-group's items in turn: a CPU runs
   a work-group's items one after another on one core, so splitting a row among them
@@ -64,15 +72,29 @@ from ...snippet import accessor_calls, is_name, is_shifted, uses_outside_calls
 MAX_UNROLLED_CHANNELS = 4  # a pixel of at most this many channels: one store statement each
 # On a CPU a work-item computes this many rows of a stencil group's interior in one loop, so
 # that the compiler shares the reads their windows have in common (loads, and whatever the
-# snippets compute from them alike: Erode's row minima), where the group reads at most
-# MAX_TAPS_TOGETHER elements of its inputs an element (the body is inlined that many times).
+# snippets compute from them alike: Erode's row minima), where every stencil member's
+# window is at most MAX_TAPS_TOGETHER elements (5x5): beyond, what the rows share outgrows
+# the registers (BlurGray k9 at 640x360: 0.71 ms a row at a time, 9.5 ms 4 rows together;
+# k7 alike either way).
 ROWS_TOGETHER = 4
-# Beyond this many reads an output element, a stencil group computes one row at a time and
-# its members are left to the compiler to inline or call: forced inline, an unrolled
-# window copied at every call made compile time explode (MorphologyEx gradient k9: 2.9 s
-# left to PoCL, 35 s forced with 4 rows together; open k15: 20 s against 193 s; even a
-# 3x3 elliptic opening, 25 reads, took 224 s on the loaded CI machine): 3x3 windows only
-MAX_TAPS_TOGETHER = 9
+MAX_TAPS_TOGETHER = 25
+# What the compiler is given to inline and unroll, in input reads (unrolled_reads: the
+# members' reads with their loops unrolled, a producer's counted at every read of its
+# consumer): rows together, and the members' functions forced inline, where the rows'
+# inlined bodies read at most this many elements (4 rows of a 5x5 window, 100, or of a 3x3
+# opening's 9 x 9, 324); else one row, forced inline where that row's body stays within
+# it.  Compile time follows the inlined reads, not the window: a 640x360
+# frame, PoCL 3.0 (LLVM 14), build and first launch at load 6 to 7 (docs/benchmarks.md):
+# 4 x 25 reads 1.4 to 2.2 s, 4 x 81 (an opening 3x3) 3.5 to 4.4 s, 4 x 225 (GaussianBlur
+# k3 fused into an Erode) 6.3 s, 4 x 625 (an opening 5x5) 35 s and a kernel 36 times
+# slower (1.85 -> 66 ms).
+MAX_UNROLLED_READS = 400
+# A member's loops are unrolled (#pragma unroll) where it reads at most this many
+# elements with them unrolled; beyond, the compiler decides: a 31x31 Blur (961 reads) builds
+# in about 9 s at load 7, an opening of 15x15 (50,625 reads) in 20 s unrolled (measured
+# at merge), about 2 s not (and runs 8.7 s a 640x360 frame: a window of windows that
+# large needs two passes).
+MAX_UNROLLED_LOOPS = 1024
 
 BORDER_RULES = {
     "reflect101": [
@@ -204,6 +226,8 @@ def group_of_one(ctype, params: dict, shapes: dict[str, tuple[int, int]], member
 
     ins = {p: port(p, "in", d) for p, d in ctype.inputs.items()}
     outs = {p: port(p, "out", d) for p, d in ctype.outputs.items()}
+    params = {**{p: d.default for p, d in ctype.params.items() if d.default is not None},
+              **params}  # a parameter not given takes its default, as in a model
     node = ComponentNode(member, None, ins, outs, type=ctype, params=params, placement="gpu")
     return GroupNode(name, None, {f"{member}_{p}": q for p, q in ins.items()}, outs,
                      members=[node], feeds={f"{member}_{p}": Endpoint(member, p) for p in ins})
@@ -275,14 +299,35 @@ def _radius(m) -> int:
     return m.type.fusable.radius_of(m.params)
 
 
+def unrolled_reads(group: GroupNode) -> int:
+    """Input elements one output element of the group reads with every member inlined and
+    its loops unrolled: the root's reads, each read of a producer in the group counted as
+    that producer's own (an upper bound where a member reads several producers)."""
+    producers: dict[str, list[str]] = {}
+    for e in group.internal:
+        producers.setdefault(e.target.component, []).append(e.source.component)
+    count: dict[str, int] = {}
+    for m in group.members:  # in run order: producers first
+        inner = max((count[p] for p in producers.get(m.name, ())), default=1)
+        count[m.name] = m.type.fusable.reads_of(m.params) * inner
+    return count[group.root.name]
+
+
 def rows_together(group: GroupNode, how: str) -> int:
     """How many rows of the group's interior a work-item computes in one loop: ROWS_TOGETHER
-    on a CPU ('runs') for a stencil group of at most MAX_TAPS_TOGETHER reads an element,
-    else 1."""
+    on a CPU ('runs') for a stencil group of windows of at most MAX_TAPS_TOGETHER elements
+    whose rows' inlined bodies read at most MAX_UNROLLED_READS elements, else 1."""
     if how != "runs" or margin(group) is None:
         return 1
-    taps = sum(m.type.fusable.taps(m.params) for m in group.members)
-    return ROWS_TOGETHER if taps <= MAX_TAPS_TOGETHER else 1
+    small = all(m.type.fusable.taps(m.params) <= MAX_TAPS_TOGETHER for m in group.members)
+    fits = ROWS_TOGETHER * unrolled_reads(group) <= MAX_UNROLLED_READS
+    return ROWS_TOGETHER if small and fits else 1
+
+
+def forced_inline(group: GroupNode, how: str) -> bool:
+    """Whether the members' functions are always_inline: where the body a work-item's
+    loop inlines, its rows together, reads at most MAX_UNROLLED_READS elements."""
+    return rows_together(group, how) * unrolled_reads(group) <= MAX_UNROLLED_READS
 
 
 def group_kernel(group: GroupNode, header: str, device=None) -> str:
@@ -332,10 +377,12 @@ def group_kernel(group: GroupNode, header: str, device=None) -> str:
     versions = [(False, flat)] if edge is None else [(False, False), (True, flat)]
     used: set[str] = set()
     members = []
+    # forced inline where the bodies stay small (see _member)
+    forced = forced_inline(group, schedule(device))
     for interior, flat_version in versions:
         for m in group.members:
             members += _member(m, feeds, producer, index, names, flat_version, interior,
-                               used, root=m.name == group.root.name)
+                               used, inline=forced)
     helpers = [line for name in HELPERS if name in used for line in HELPERS[name]]
     if helpers:
         lines += ["// built-ins the snippets call, inline (see fused.py: HELPERS)", *helpers, ""]
@@ -393,14 +440,15 @@ def _function(name: str, index, interior: bool) -> str:
 
 
 def _member(m, feeds: dict[Endpoint, str], producer: dict[Endpoint, Endpoint], index,
-            names, flat: bool, interior: bool, used: set[str], root: bool = False) -> list[str]:
+            names, flat: bool, interior: bool, used: set[str], inline: bool) -> list[str]:
     """A member's snippet as a function, between the macros of its input accessors.
 
-    Forced inline (always_inline), which the row loop needs to vectorize: PoCL's inliner
-    left WarpAffine's bilinear snippet (cost 410 > 337) a call per element, 29 ms a
-    320x240 frame, 0.8 ms inlined, and left stencil members called once per row of the
-    rows-together loop (about 20x slower).  Not a stencil reading more than
-    MAX_TAPS_TOGETHER elements an output (see there): compile time exploded."""
+    inline: forced inline (always_inline), which the row loop needs to vectorize: PoCL's
+    inliner left WarpAffine's bilinear snippet (cost 410 > 337) a call per element, 29 ms
+    a 320x240 frame, 0.8 ms inlined, and left stencil members called once per row of the
+    rows-together loop (about 20x slower).  Not a group beyond MAX_UNROLLED_READS
+    (forced_inline): compile time exploded.  A member's loops are unrolled where it reads
+    at most MAX_UNROLLED_LOOPS elements so."""
     decl = m.type.fusable
     ctype = DTYPES[next(iter(m.outputs.values())).dtype][1]
     what = "interior: no border rule" if interior else "every element"
@@ -432,33 +480,31 @@ def _member(m, feeds: dict[Endpoint, str], producer: dict[Endpoint, Endpoint], i
             body = f"((unsigned)(y_) < {h}u && (unsigned)(x_) < {w}u ? {body} : 0)"
         macros.append(pname)
         lines.append(f"#define {pname}(y_, x_, c_) {body}")
-    arrays = {p: d for p, d in m.type.params.items() if d.shape}
-    if arrays and not interior:  # once, before the member's first version
-        lines[1:1] = [line for p, d in arrays.items()
-                      for line in _constant_table(f"_m{index[m.name]}_{p}", d, m.params[p])]
-    inline = "static inline" if decl.taps(m.params) > MAX_TAPS_TOGETHER else \
-        "static inline __attribute__((always_inline))"
-    lines.append(f"{inline} {ctype} {_function(m.name, index, interior)}(_PARAMS, "
+    tables, locals_ = _tables(m, index[m.name])
+    if not interior:  # once, before the member's first version
+        lines[1:1] = tables
+    attribute = " __attribute__((always_inline))" if inline else ""
+    lines.append(f"static inline{attribute} {ctype} {_function(m.name, index, interior)}(_PARAMS, "
                  "const int y, const int x, const int c)")
     lines.append("{")
     lines += _port_constants(m)
+    lines += locals_
     for pname, pdecl in m.type.params.items():
         c = "float" if pdecl.element == "float" else "int"
-        if pdecl.shape:  # the snippet reads the program's table by the parameter's name
-            inner = "".join(f"[{d}]" for d in _dims(m.params[pname])[1:])
-            lines.append(f"    __constant const {c} (*{pname}){inner} = "
-                         f"_m{index[m.name]}_{pname};" if inner else
-                         f"    __constant const {c} *{pname} = _m{index[m.name]}_{pname};")
+        if pdecl.shape:
             continue
         if pname in decl.radius_names():
             # the window is fixed at build time (the interior's margin is): a constant, so
             # that the compiler unrolls a loop over it
-            lines.append(f"    const int {pname} = {int(m.params[pname])};")
+            value = m.params[pname]
+            lines.append(f"    const {c} {pname} = "
+                         f"{_float_literal(value) if c == 'float' else int(value)};")
             continue
         lines.append(f"    const {c} {pname} = {names[f'{m.name}.{pname}']};")
     # printed from the parsed snippet; built-in calls swapped for their inline versions
+    unroll = decl.reads_of(m.params) <= MAX_UNROLLED_LOOPS
     for line in inline_builtins("\n".join(decl.lines()), used).splitlines():
-        if line.lstrip().startswith("for ("):
+        if unroll and line.lstrip().startswith("for ("):
             # sizes and a stencil's radius are constants: a loop over a window unrolls
             # (PoCL left BoxBlur's 3x3 loop rolled: 9 ms a 1280x720 frame, unrolled 0.6)
             lines.append(f"    {line[:len(line) - len(line.lstrip())]}#pragma unroll")
@@ -499,6 +545,30 @@ def _limit(dtype: str, end: str) -> str:
     return f"{value}u" if value >= 1 << 31 else str(value)
 
 
+def _tables(m, i: int) -> tuple[list[str], list[str]]:
+    """A member's arrays: its array parameters and the tables its stencil computes from
+    parameters, as program-scope __constant tables and the lines of its function that
+    name them (and the arrays' lengths the snippet names)."""
+    decl = m.type.fusable
+    arrays = {p: (d.element, m.params[p]) for p, d in m.type.params.items() if d.shape}
+    tables = decl.tables_of(m.params) if decl.form == "stencil" else {}
+    arrays.update((t, ("int", v)) for t, v in tables.items())
+    program = [line for p, (element, v) in arrays.items()
+               for line in _constant_table(f"_m{i}_{p}", element, v)]
+    local = []
+    for pname, (element, value) in arrays.items():
+        # the snippet reads the program's table by the parameter's (or table's) name
+        c = "float" if element == "float" else "int"
+        inner = "".join(f"[{d}]" for d in _dims(value)[1:])
+        local.append(f"    __constant const {c} (*{pname}){inner} = _m{i}_{pname};" if inner
+                     else f"    __constant const {c} *{pname} = _m{i}_{pname};")
+    lengths = {n: v for n, v in decl.lengths_of(m.params).items() if n in decl.names}
+    if lengths:
+        local.append("    const int " + ", ".join(f"{n} = {v}" for n, v in lengths.items())
+                     + ";")
+    return program, local
+
+
 def _dims(value) -> list[int]:
     """The lengths of a (rectangular) nested tuple, outermost first."""
     dims = []
@@ -508,10 +578,10 @@ def _dims(value) -> list[int]:
     return dims
 
 
-def _constant_table(name: str, decl, value) -> list[str]:
+def _constant_table(name: str, element: str, value) -> list[str]:
     """An array parameter's value as a program-scope __constant table, 12 values a line
     (floats printed so that they read back as the same float32)."""
-    c = "float" if decl.element == "float" else "int"
+    c = "float" if element == "float" else "int"
 
     def flat(v):
         return [x for item in v for x in flat(item)] if isinstance(v, tuple) else [v]
@@ -609,11 +679,20 @@ def _kernel(group: GroupNode, out_name: str, out_port, names, flat: bool,
             """Row _y (and the rows - 1 next ones, all interior rows) at depth levels."""
             if edge is None:
                 return block(loop.format(a=0, b=per_row), border, depth)
-            parts = [*block(loop.format(a=0, b=left * k), border, depth, True, rows),
-                     *block(loop.format(a=left * k, b=right * k), inner, depth, False, rows),
-                     *block(loop.format(a=right * k, b=per_row), border, depth, True, rows)]
             if rows > 1:
-                return parts
+                # the rows' borders a row at a time (a few columns each: one call site of
+                # the border version, not one a row), then their interiors together
+                pad = "    " * depth
+                ends = [line.replace("_row[", f"_row[_r * {stride} + ").replace(
+                    "(_ARGS, _y,", "(_ARGS, _y + _r,") for line in [
+                        *block(loop.format(a=0, b=left * k), border, depth + 1, True),
+                        *block(loop.format(a=right * k, b=per_row), border, depth + 1, True)]]
+                return [f"{pad}for (int _r = 0; _r < {rows}; _r++) {{", *ends, pad + "}",
+                        *block(loop.format(a=left * k, b=right * k), inner, depth, False,
+                               rows)]
+            parts = [*block(loop.format(a=0, b=left * k), border, depth, True),
+                     *block(loop.format(a=left * k, b=right * k), inner, depth),
+                     *block(loop.format(a=right * k, b=per_row), border, depth, True)]
             pad = "    " * (depth - 1)
             return [f"{pad}if (_y >= {edge} && _y < {h - edge}) {{", *parts,
                     f"{pad}}} else {{",

@@ -146,7 +146,7 @@ static inline __attribute__((overloadable)) float _max(const float a, const floa
 
 // clean: MorphologyEx (stencil, radius (ksize // 2) * iterations * (1 + min(1, max(0, op - 1)) - max(0, 1 - (op - 4) * (op - 4))), border clamp); every element
 #define src(y_, x_, c_) _in0[(size_t)_clamp((y_), 480) * 640 + _clamp((x_), 640)]
-static inline uchar _f0_clean(_PARAMS, const int y, const int x, const int c)
+static inline __attribute__((always_inline)) uchar _f0_clean(_PARAMS, const int y, const int x, const int c)
 {
     const int src_height = 480, src_width = 640;
     const int dst_height = 480, dst_width = 640;
@@ -162,7 +162,10 @@ static inline uchar _f0_clean(_PARAMS, const int y, const int x, const int c)
     uchar outer = erode_first ? 0 : 255;
     #pragma unroll
     for (int dy = -r; dy <= r; dy++) {
-        const int w = shape == 0 ? r : shape == 1 ? (dy == 0 ? r : 0) : (int)rint(sqrt((float)(side * side - dy * dy)));
+        int w = shape == 0 ? r : shape == 1 ? (dy == 0 ? r : 0) : 0;
+        #pragma unroll
+        for (int k = 1; k <= side && shape == 2; k++)
+            w += (2 * k - 1) * (2 * k - 1) < 4 * (side * side - dy * dy);
         if (!nested) {
             uchar row_lo = src(y + dy, x - w, c);
             uchar row_hi = row_lo;
@@ -181,7 +184,10 @@ static inline uchar _f0_clean(_PARAMS, const int y, const int x, const int c)
             uchar inner = erode_first ? 255 : 0;
             #pragma unroll
             for (int ey = -r; ey <= r; ey++) {
-                const int ew = shape == 0 ? r : shape == 1 ? (ey == 0 ? r : 0) : (int)rint(sqrt((float)(side * side - ey * ey)));
+                int ew = shape == 0 ? r : shape == 1 ? (ey == 0 ? r : 0) : 0;
+                #pragma unroll
+                for (int k = 1; k <= side && shape == 2; k++)
+                    ew += (2 * k - 1) * (2 * k - 1) < 4 * (side * side - ey * ey);
                 uchar row = src(y + dy + ey, x + dx - ew, c);
                 #pragma unroll
                 for (int ex = 1 - ew; ex <= ew; ex++)
@@ -209,7 +215,7 @@ static inline uchar _f0_clean(_PARAMS, const int y, const int x, const int c)
 
 // clean: MorphologyEx (stencil, radius (ksize // 2) * iterations * (1 + min(1, max(0, op - 1)) - max(0, 1 - (op - 4) * (op - 4))), border clamp); interior: no border rule
 #define src(y_, x_, c_) _in0[(size_t)(y_) * 640 + (x_)]
-static inline uchar _f0_clean_in(_PARAMS, const int y, const int x, const int c)
+static inline __attribute__((always_inline)) uchar _f0_clean_in(_PARAMS, const int y, const int x, const int c)
 {
     const int src_height = 480, src_width = 640;
     const int dst_height = 480, dst_width = 640;
@@ -225,7 +231,10 @@ static inline uchar _f0_clean_in(_PARAMS, const int y, const int x, const int c)
     uchar outer = erode_first ? 0 : 255;
     #pragma unroll
     for (int dy = -r; dy <= r; dy++) {
-        const int w = shape == 0 ? r : shape == 1 ? (dy == 0 ? r : 0) : (int)rint(sqrt((float)(side * side - dy * dy)));
+        int w = shape == 0 ? r : shape == 1 ? (dy == 0 ? r : 0) : 0;
+        #pragma unroll
+        for (int k = 1; k <= side && shape == 2; k++)
+            w += (2 * k - 1) * (2 * k - 1) < 4 * (side * side - dy * dy);
         if (!nested) {
             uchar row_lo = src(y + dy, x - w, c);
             uchar row_hi = row_lo;
@@ -244,7 +253,10 @@ static inline uchar _f0_clean_in(_PARAMS, const int y, const int x, const int c)
             uchar inner = erode_first ? 255 : 0;
             #pragma unroll
             for (int ey = -r; ey <= r; ey++) {
-                const int ew = shape == 0 ? r : shape == 1 ? (ey == 0 ? r : 0) : (int)rint(sqrt((float)(side * side - ey * ey)));
+                int ew = shape == 0 ? r : shape == 1 ? (ey == 0 ? r : 0) : 0;
+                #pragma unroll
+                for (int k = 1; k <= side && shape == 2; k++)
+                    ew += (2 * k - 1) * (2 * k - 1) < 4 * (side * side - ey * ey);
                 uchar row = src(y + dy + ey, x + dx - ew, c);
                 #pragma unroll
                 for (int ex = 1 - ew; ex <= ew; ex++)
@@ -275,24 +287,46 @@ static inline uchar _f0_clean_in(_PARAMS, const int y, const int x, const int c)
 // threads one after another: a row is the longest loop, which the compiler vectorizes).
 // Elements 2 or more from every edge read inside the frame: the interior version, without
 // border rules, computes them.
+// A work-item computes 4 interior rows in one loop: the compiler shares the reads their
+// windows have in common.
 __kernel void clean(_PARAMS, const int _tile)
 {
     const int _y0 = get_group_id(1) * _tile;
     const int _y1 = min(_y0 + _tile, 480);
     const int _k = get_local_id(1) * get_local_size(0) + get_local_id(0);
     const int _n = get_local_size(0) * get_local_size(1);
-    for (int _y = _y0 + _k; _y < _y1; _y += _n) {
-        __global uchar *_row = _out + (size_t)_y * 640;
-        if (_y >= 2 && _y < 478) {
-            for (int _x = 0; _x < 2; _x++)
-                _row[_x] = _f0_clean(_ARGS, _y, _x, 0);
-            for (int _x = 2; _x < 638; _x++)
+    for (int _p = _y0 + 4 * _k; _p < _y1; _p += 4 * _n) {
+        if (_p >= 2 && _p + 3 < min(_y1, 478)) {
+            // rows _p to _p + 3, every one in the interior
+            const int _y = _p;
+            __global uchar *_row = _out + (size_t)_y * 640;
+            for (int _r = 0; _r < 4; _r++) {
+                for (int _x = 0; _x < 2; _x++)
+                    _row[_r * 640 + _x] = _f0_clean(_ARGS, _y + _r, _x, 0);
+                for (int _x = 638; _x < 640; _x++)
+                    _row[_r * 640 + _x] = _f0_clean(_ARGS, _y + _r, _x, 0);
+            }
+            for (int _x = 2; _x < 638; _x++) {
                 _row[_x] = _f0_clean_in(_ARGS, _y, _x, 0);
-            for (int _x = 638; _x < 640; _x++)
-                _row[_x] = _f0_clean(_ARGS, _y, _x, 0);
-        } else {
-            for (int _x = 0; _x < 640; _x++)
-                _row[_x] = _f0_clean(_ARGS, _y, _x, 0);
+                _row[640 + _x] = _f0_clean_in(_ARGS, _y + 1, _x, 0);
+                _row[1280 + _x] = _f0_clean_in(_ARGS, _y + 2, _x, 0);
+                _row[1920 + _x] = _f0_clean_in(_ARGS, _y + 3, _x, 0);
+            }
+            continue;
+        }
+        for (int _y = _p; _y < min(_p + 4, _y1); _y++) {
+            __global uchar *_row = _out + (size_t)_y * 640;
+            if (_y >= 2 && _y < 478) {
+                for (int _x = 0; _x < 2; _x++)
+                    _row[_x] = _f0_clean(_ARGS, _y, _x, 0);
+                for (int _x = 2; _x < 638; _x++)
+                    _row[_x] = _f0_clean_in(_ARGS, _y, _x, 0);
+                for (int _x = 638; _x < 640; _x++)
+                    _row[_x] = _f0_clean(_ARGS, _y, _x, 0);
+            } else {
+                for (int _x = 0; _x < 640; _x++)
+                    _row[_x] = _f0_clean(_ARGS, _y, _x, 0);
+            }
         }
     }
 }

@@ -87,23 +87,17 @@ __kernel void dx_kernel(_PARAMS, const int _tile)
             // rows _p to _p + 3, every one in the interior
             const int _y = _p;
             __global short *_row = _out + (size_t)_y * 301;
-            for (int _x = 0; _x < 1; _x++) {
-                _row[_x] = _f0_dx(_ARGS, _y, _x, 0);
-                _row[301 + _x] = _f0_dx(_ARGS, _y + 1, _x, 0);
-                _row[602 + _x] = _f0_dx(_ARGS, _y + 2, _x, 0);
-                _row[903 + _x] = _f0_dx(_ARGS, _y + 3, _x, 0);
+            for (int _r = 0; _r < 4; _r++) {
+                for (int _x = 0; _x < 1; _x++)
+                    _row[_r * 301 + _x] = _f0_dx(_ARGS, _y + _r, _x, 0);
+                for (int _x = 300; _x < 301; _x++)
+                    _row[_r * 301 + _x] = _f0_dx(_ARGS, _y + _r, _x, 0);
             }
             for (int _x = 1; _x < 300; _x++) {
                 _row[_x] = _f0_dx_in(_ARGS, _y, _x, 0);
                 _row[301 + _x] = _f0_dx_in(_ARGS, _y + 1, _x, 0);
                 _row[602 + _x] = _f0_dx_in(_ARGS, _y + 2, _x, 0);
                 _row[903 + _x] = _f0_dx_in(_ARGS, _y + 3, _x, 0);
-            }
-            for (int _x = 300; _x < 301; _x++) {
-                _row[_x] = _f0_dx(_ARGS, _y, _x, 0);
-                _row[301 + _x] = _f0_dx(_ARGS, _y + 1, _x, 0);
-                _row[602 + _x] = _f0_dx(_ARGS, _y + 2, _x, 0);
-                _row[903 + _x] = _f0_dx(_ARGS, _y + 3, _x, 0);
             }
             continue;
         }

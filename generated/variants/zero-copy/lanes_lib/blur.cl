@@ -6,13 +6,6 @@
 // group input.  Sizes are constants: the system fixed them at build time.
 // Kernel arguments, in the calling convention's order: _in0 = src, _out = blur_dst.
 
-// Parameters: constants of the build, so that the compiler folds them (a rule chosen by a
-// parameter is chosen once, not per element).  The program builds this file with -D
-// NAME=VALUE, its values after --set; below, the model's values, for a build without them.
-#ifndef _m0_ksize
-#define _m0_ksize 5
-#endif
-
 // OpenCV's BORDER_REFLECT_101 (gfedcb|abcdefgh|gfedcba) of position p in 0..n-1
 static inline int _reflect101(int p, const int n)
 {
@@ -31,41 +24,121 @@ static inline int _reflect101(int p, const int n)
     _in0, \
     _out
 
-// blur: GaussianBlurGray (stencil, radius 2, border reflect101); every element
+// built-ins the snippets call, inline (see fused.py: HELPERS)
+static inline __attribute__((overloadable)) uchar _min(const uchar a, const uchar b) { return a < b ? a : b; }
+static inline __attribute__((overloadable)) char _min(const char a, const char b) { return a < b ? a : b; }
+static inline __attribute__((overloadable)) ushort _min(const ushort a, const ushort b) { return a < b ? a : b; }
+static inline __attribute__((overloadable)) short _min(const short a, const short b) { return a < b ? a : b; }
+static inline __attribute__((overloadable)) uint _min(const uint a, const uint b) { return a < b ? a : b; }
+static inline __attribute__((overloadable)) int _min(const int a, const int b) { return a < b ? a : b; }
+static inline __attribute__((overloadable)) float _min(const float a, const float b) { return a < b ? a : b; }
+static inline __attribute__((overloadable)) uchar _max(const uchar a, const uchar b) { return a > b ? a : b; }
+static inline __attribute__((overloadable)) char _max(const char a, const char b) { return a > b ? a : b; }
+static inline __attribute__((overloadable)) ushort _max(const ushort a, const ushort b) { return a > b ? a : b; }
+static inline __attribute__((overloadable)) short _max(const short a, const short b) { return a > b ? a : b; }
+static inline __attribute__((overloadable)) uint _max(const uint a, const uint b) { return a > b ? a : b; }
+static inline __attribute__((overloadable)) int _max(const int a, const int b) { return a > b ? a : b; }
+static inline __attribute__((overloadable)) float _max(const float a, const float b) { return a > b ? a : b; }
+
+// blur: GaussianBlurGray (stencil, radius max(ksize, ksize_y) // 2, border reflect101); every element
+__constant int _m0_kx[5] = {
+    1, 4, 6, 4, 1
+};
+__constant int _m0_ky[5] = {
+    1, 4, 6, 4, 1
+};
 #define src(y_, x_, c_) _in0[(size_t)_reflect101((y_), 200) * 301 + _reflect101((x_), 301)]
-static inline uchar _f0_blur(_PARAMS, const int y, const int x, const int c)
+static inline __attribute__((always_inline)) uchar _f0_blur(_PARAMS, const int y, const int x, const int c)
 {
     const int src_height = 200, src_width = 301;
     const int dst_height = 200, dst_width = 301;
-    const int ksize = _m0_ksize;
-    const int w0 = ksize == 5 ? 1 : 0, w1 = ksize == 5 ? 4 : 1, w2 = ksize == 5 ? 6 : 2;
-    const int shift = ksize == 5 ? 8 : 4;
-    const int h0 = w0 * (src(y - 2, x - 2, c) + src(y - 2, x + 2, c)) + w1 * (src(y - 2, x - 1, c) + src(y - 2, x + 1, c)) + src(y - 2, x, c) * w2;
-    const int h1 = w0 * (src(y - 1, x - 2, c) + src(y - 1, x + 2, c)) + w1 * (src(y - 1, x - 1, c) + src(y - 1, x + 1, c)) + src(y - 1, x, c) * w2;
-    const int h2 = w0 * (src(y, x - 2, c) + src(y, x + 2, c)) + w1 * (src(y, x - 1, c) + src(y, x + 1, c)) + src(y, x, c) * w2;
-    const int h3 = w0 * (src(y + 1, x - 2, c) + src(y + 1, x + 2, c)) + w1 * (src(y + 1, x - 1, c) + src(y + 1, x + 1, c)) + src(y + 1, x, c) * w2;
-    const int h4 = w0 * (src(y + 2, x - 2, c) + src(y + 2, x + 2, c)) + w1 * (src(y + 2, x - 1, c) + src(y + 2, x + 1, c)) + src(y + 2, x, c) * w2;
-    const int sum = w0 * (h0 + h4) + w1 * (h1 + h3) + w2 * h2;
-    return (sum + (1 << (shift - 1))) >> shift;
+    __constant const int *kx = _m0_kx;
+    __constant const int *ky = _m0_ky;
+    const int ksize = 5;
+    const int ksize_y = 0;
+    const float sigma = 0.0f;
+    const float sigma_y = 0.0f;
+    const int border_type = 4;
+    const int rx = ksize / 2, ry = (ksize_y > 0 ? ksize_y : ksize) / 2;
+    int sum = 0;
+    if (_max(rx, ry) <= 2) {
+        const int x1 = _min(1, rx), x2 = _min(2, rx), y1 = _min(1, ry), y2 = _min(2, ry);
+        const int a1 = rx >= 1 ? kx[rx + 1] : 0, a2 = rx >= 2 ? kx[rx + 2] : 0;
+        const int b1 = ry >= 1 ? ky[ry + 1] : 0, b2 = ry >= 2 ? ky[ry + 2] : 0;
+        const int h0 = kx[rx] * src(y - y2, x, c) + a1 * (src(y - y2, x - x1, c) + src(y - y2, x + x1, c)) + a2 * (src(y - y2, x - x2, c) + src(y - y2, x + x2, c));
+        const int h1 = kx[rx] * src(y - y1, x, c) + a1 * (src(y - y1, x - x1, c) + src(y - y1, x + x1, c)) + a2 * (src(y - y1, x - x2, c) + src(y - y1, x + x2, c));
+        const int h2 = kx[rx] * src(y, x, c) + a1 * (src(y, x - x1, c) + src(y, x + x1, c)) + a2 * (src(y, x - x2, c) + src(y, x + x2, c));
+        const int h3 = kx[rx] * src(y + y1, x, c) + a1 * (src(y + y1, x - x1, c) + src(y + y1, x + x1, c)) + a2 * (src(y + y1, x - x2, c) + src(y + y1, x + x2, c));
+        const int h4 = kx[rx] * src(y + y2, x, c) + a1 * (src(y + y2, x - x1, c) + src(y + y2, x + x1, c)) + a2 * (src(y + y2, x - x2, c) + src(y + y2, x + x2, c));
+        sum = ky[ry] * h2 + b1 * (h1 + h3) + b2 * (h0 + h4);
+    }
+    else {
+        #pragma unroll
+        for (int dy = -ry; dy <= ry; dy++) {
+            int row = kx[rx] * src(y + dy, x, c);
+            #pragma unroll
+            for (int dx = 1; dx <= rx; dx++)
+                row += kx[rx + dx] * (src(y + dy, x - dx, c) + src(y + dy, x + dx, c));
+            sum += ky[ry + dy] * row;
+        }
+    }
+    int sx = kx[rx], sy = ky[ry];
+    #pragma unroll
+    for (int i = 1; i <= rx; i++)
+        sx += 2 * kx[rx + i];
+    #pragma unroll
+    for (int i = 1; i <= ry; i++)
+        sy += 2 * ky[ry + i];
+    const uint total = sx * sy;
+    return ((uint)sum + total / 2) / total;
 }
 #undef src
 
-// blur: GaussianBlurGray (stencil, radius 2, border reflect101); interior: no border rule
+// blur: GaussianBlurGray (stencil, radius max(ksize, ksize_y) // 2, border reflect101); interior: no border rule
 #define src(y_, x_, c_) _in0[(size_t)(y_) * 301 + (x_)]
-static inline uchar _f0_blur_in(_PARAMS, const int y, const int x, const int c)
+static inline __attribute__((always_inline)) uchar _f0_blur_in(_PARAMS, const int y, const int x, const int c)
 {
     const int src_height = 200, src_width = 301;
     const int dst_height = 200, dst_width = 301;
-    const int ksize = _m0_ksize;
-    const int w0 = ksize == 5 ? 1 : 0, w1 = ksize == 5 ? 4 : 1, w2 = ksize == 5 ? 6 : 2;
-    const int shift = ksize == 5 ? 8 : 4;
-    const int h0 = w0 * (src(y - 2, x - 2, c) + src(y - 2, x + 2, c)) + w1 * (src(y - 2, x - 1, c) + src(y - 2, x + 1, c)) + src(y - 2, x, c) * w2;
-    const int h1 = w0 * (src(y - 1, x - 2, c) + src(y - 1, x + 2, c)) + w1 * (src(y - 1, x - 1, c) + src(y - 1, x + 1, c)) + src(y - 1, x, c) * w2;
-    const int h2 = w0 * (src(y, x - 2, c) + src(y, x + 2, c)) + w1 * (src(y, x - 1, c) + src(y, x + 1, c)) + src(y, x, c) * w2;
-    const int h3 = w0 * (src(y + 1, x - 2, c) + src(y + 1, x + 2, c)) + w1 * (src(y + 1, x - 1, c) + src(y + 1, x + 1, c)) + src(y + 1, x, c) * w2;
-    const int h4 = w0 * (src(y + 2, x - 2, c) + src(y + 2, x + 2, c)) + w1 * (src(y + 2, x - 1, c) + src(y + 2, x + 1, c)) + src(y + 2, x, c) * w2;
-    const int sum = w0 * (h0 + h4) + w1 * (h1 + h3) + w2 * h2;
-    return (sum + (1 << (shift - 1))) >> shift;
+    __constant const int *kx = _m0_kx;
+    __constant const int *ky = _m0_ky;
+    const int ksize = 5;
+    const int ksize_y = 0;
+    const float sigma = 0.0f;
+    const float sigma_y = 0.0f;
+    const int border_type = 4;
+    const int rx = ksize / 2, ry = (ksize_y > 0 ? ksize_y : ksize) / 2;
+    int sum = 0;
+    if (_max(rx, ry) <= 2) {
+        const int x1 = _min(1, rx), x2 = _min(2, rx), y1 = _min(1, ry), y2 = _min(2, ry);
+        const int a1 = rx >= 1 ? kx[rx + 1] : 0, a2 = rx >= 2 ? kx[rx + 2] : 0;
+        const int b1 = ry >= 1 ? ky[ry + 1] : 0, b2 = ry >= 2 ? ky[ry + 2] : 0;
+        const int h0 = kx[rx] * src(y - y2, x, c) + a1 * (src(y - y2, x - x1, c) + src(y - y2, x + x1, c)) + a2 * (src(y - y2, x - x2, c) + src(y - y2, x + x2, c));
+        const int h1 = kx[rx] * src(y - y1, x, c) + a1 * (src(y - y1, x - x1, c) + src(y - y1, x + x1, c)) + a2 * (src(y - y1, x - x2, c) + src(y - y1, x + x2, c));
+        const int h2 = kx[rx] * src(y, x, c) + a1 * (src(y, x - x1, c) + src(y, x + x1, c)) + a2 * (src(y, x - x2, c) + src(y, x + x2, c));
+        const int h3 = kx[rx] * src(y + y1, x, c) + a1 * (src(y + y1, x - x1, c) + src(y + y1, x + x1, c)) + a2 * (src(y + y1, x - x2, c) + src(y + y1, x + x2, c));
+        const int h4 = kx[rx] * src(y + y2, x, c) + a1 * (src(y + y2, x - x1, c) + src(y + y2, x + x1, c)) + a2 * (src(y + y2, x - x2, c) + src(y + y2, x + x2, c));
+        sum = ky[ry] * h2 + b1 * (h1 + h3) + b2 * (h0 + h4);
+    }
+    else {
+        #pragma unroll
+        for (int dy = -ry; dy <= ry; dy++) {
+            int row = kx[rx] * src(y + dy, x, c);
+            #pragma unroll
+            for (int dx = 1; dx <= rx; dx++)
+                row += kx[rx + dx] * (src(y + dy, x - dx, c) + src(y + dy, x + dx, c));
+            sum += ky[ry + dy] * row;
+        }
+    }
+    int sx = kx[rx], sy = ky[ry];
+    #pragma unroll
+    for (int i = 1; i <= rx; i++)
+        sx += 2 * kx[rx + i];
+    #pragma unroll
+    for (int i = 1; i <= ry; i++)
+        sy += 2 * ky[ry + i];
+    const uint total = sx * sy;
+    return ((uint)sum + total / 2) / total;
 }
 #undef src
 
@@ -75,24 +148,46 @@ static inline uchar _f0_blur_in(_PARAMS, const int y, const int x, const int c)
 // vectorizes).
 // Elements 2 or more from every edge read inside the frame: the interior version, without
 // border rules, computes them.
+// A work-item computes 4 interior rows in one loop: the compiler shares the reads their
+// windows have in common.
 __kernel void blur(_PARAMS, const int _tile)
 {
     const int _y0 = get_group_id(1) * _tile;
     const int _y1 = min(_y0 + _tile, 200);
     const int _k = get_local_id(1) * get_local_size(0) + get_local_id(0);
     const int _n = get_local_size(0) * get_local_size(1);
-    for (int _y = _y0 + _k; _y < _y1; _y += _n) {
-        __global uchar *_row = _out + (size_t)_y * 301;
-        if (_y >= 2 && _y < 198) {
-            for (int _x = 0; _x < 2; _x++)
-                _row[_x] = _f0_blur(_ARGS, _y, _x, 0);
-            for (int _x = 2; _x < 299; _x++)
+    for (int _p = _y0 + 4 * _k; _p < _y1; _p += 4 * _n) {
+        if (_p >= 2 && _p + 3 < min(_y1, 198)) {
+            // rows _p to _p + 3, every one in the interior
+            const int _y = _p;
+            __global uchar *_row = _out + (size_t)_y * 301;
+            for (int _r = 0; _r < 4; _r++) {
+                for (int _x = 0; _x < 2; _x++)
+                    _row[_r * 301 + _x] = _f0_blur(_ARGS, _y + _r, _x, 0);
+                for (int _x = 299; _x < 301; _x++)
+                    _row[_r * 301 + _x] = _f0_blur(_ARGS, _y + _r, _x, 0);
+            }
+            for (int _x = 2; _x < 299; _x++) {
                 _row[_x] = _f0_blur_in(_ARGS, _y, _x, 0);
-            for (int _x = 299; _x < 301; _x++)
-                _row[_x] = _f0_blur(_ARGS, _y, _x, 0);
-        } else {
-            for (int _x = 0; _x < 301; _x++)
-                _row[_x] = _f0_blur(_ARGS, _y, _x, 0);
+                _row[301 + _x] = _f0_blur_in(_ARGS, _y + 1, _x, 0);
+                _row[602 + _x] = _f0_blur_in(_ARGS, _y + 2, _x, 0);
+                _row[903 + _x] = _f0_blur_in(_ARGS, _y + 3, _x, 0);
+            }
+            continue;
+        }
+        for (int _y = _p; _y < min(_p + 4, _y1); _y++) {
+            __global uchar *_row = _out + (size_t)_y * 301;
+            if (_y >= 2 && _y < 198) {
+                for (int _x = 0; _x < 2; _x++)
+                    _row[_x] = _f0_blur(_ARGS, _y, _x, 0);
+                for (int _x = 2; _x < 299; _x++)
+                    _row[_x] = _f0_blur_in(_ARGS, _y, _x, 0);
+                for (int _x = 299; _x < 301; _x++)
+                    _row[_x] = _f0_blur(_ARGS, _y, _x, 0);
+            } else {
+                for (int _x = 0; _x < 301; _x++)
+                    _row[_x] = _f0_blur(_ARGS, _y, _x, 0);
+            }
         }
     }
 }

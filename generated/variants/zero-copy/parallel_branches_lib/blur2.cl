@@ -22,7 +22,7 @@ static inline int _clamp(const int p, const int n)
 
 // blur2: BoxBlur (stencil, radius radius, border clamp); every element
 #define src(y_, x_, c_) _in0[3 * ((size_t)_clamp((y_), 480) * 640 + _clamp((x_), 640)) + (c_)]
-static inline uchar _f0_blur2(_PARAMS, const int y, const int x, const int c)
+static inline __attribute__((always_inline)) uchar _f0_blur2(_PARAMS, const int y, const int x, const int c)
 {
     const int src_height = 480, src_width = 640;
     const int dst_height = 480, dst_width = 640;
@@ -40,7 +40,7 @@ static inline uchar _f0_blur2(_PARAMS, const int y, const int x, const int c)
 
 // blur2: BoxBlur (stencil, radius radius, border clamp); interior: no border rule
 #define src(y_, x_, c_) _in0[(size_t)(y_) * 1920 + (x + ((x_) - x) * 3)]
-static inline uchar _f0_blur2_in(_PARAMS, const int y, const int x, const int c)
+static inline __attribute__((always_inline)) uchar _f0_blur2_in(_PARAMS, const int y, const int x, const int c)
 {
     const int src_height = 480, src_width = 640;
     const int dst_height = 480, dst_width = 640;
@@ -62,24 +62,46 @@ static inline uchar _f0_blur2_in(_PARAMS, const int y, const int x, const int c)
 // compiler vectorizes).
 // Elements 2 or more from every edge read inside the frame: the interior version, without
 // border rules, computes them.
+// A work-item computes 4 interior rows in one loop: the compiler shares the reads their
+// windows have in common.
 __kernel void blur2(_PARAMS, const int _tile)
 {
     const int _y0 = get_group_id(1) * _tile;
     const int _y1 = min(_y0 + _tile, 480);
     const int _k = get_local_id(1) * get_local_size(0) + get_local_id(0);
     const int _n = get_local_size(0) * get_local_size(1);
-    for (int _y = _y0 + _k; _y < _y1; _y += _n) {
-        __global uchar *_row = _out + (size_t)_y * 1920;
-        if (_y >= 2 && _y < 478) {
-            for (int _x = 0; _x < 6; _x++)
-                _row[_x] = _f0_blur2(_ARGS, _y, _x / 3, _x % 3);
-            for (int _x = 6; _x < 1914; _x++)
+    for (int _p = _y0 + 4 * _k; _p < _y1; _p += 4 * _n) {
+        if (_p >= 2 && _p + 3 < min(_y1, 478)) {
+            // rows _p to _p + 3, every one in the interior
+            const int _y = _p;
+            __global uchar *_row = _out + (size_t)_y * 1920;
+            for (int _r = 0; _r < 4; _r++) {
+                for (int _x = 0; _x < 6; _x++)
+                    _row[_r * 1920 + _x] = _f0_blur2(_ARGS, _y + _r, _x / 3, _x % 3);
+                for (int _x = 1914; _x < 1920; _x++)
+                    _row[_r * 1920 + _x] = _f0_blur2(_ARGS, _y + _r, _x / 3, _x % 3);
+            }
+            for (int _x = 6; _x < 1914; _x++) {
                 _row[_x] = _f0_blur2_in(_ARGS, _y, _x, 0);
-            for (int _x = 1914; _x < 1920; _x++)
-                _row[_x] = _f0_blur2(_ARGS, _y, _x / 3, _x % 3);
-        } else {
-            for (int _x = 0; _x < 1920; _x++)
-                _row[_x] = _f0_blur2(_ARGS, _y, _x / 3, _x % 3);
+                _row[1920 + _x] = _f0_blur2_in(_ARGS, _y + 1, _x, 0);
+                _row[3840 + _x] = _f0_blur2_in(_ARGS, _y + 2, _x, 0);
+                _row[5760 + _x] = _f0_blur2_in(_ARGS, _y + 3, _x, 0);
+            }
+            continue;
+        }
+        for (int _y = _p; _y < min(_p + 4, _y1); _y++) {
+            __global uchar *_row = _out + (size_t)_y * 1920;
+            if (_y >= 2 && _y < 478) {
+                for (int _x = 0; _x < 6; _x++)
+                    _row[_x] = _f0_blur2(_ARGS, _y, _x / 3, _x % 3);
+                for (int _x = 6; _x < 1914; _x++)
+                    _row[_x] = _f0_blur2_in(_ARGS, _y, _x, 0);
+                for (int _x = 1914; _x < 1920; _x++)
+                    _row[_x] = _f0_blur2(_ARGS, _y, _x / 3, _x % 3);
+            } else {
+                for (int _x = 0; _x < 1920; _x++)
+                    _row[_x] = _f0_blur2(_ARGS, _y, _x / 3, _x % 3);
+            }
         }
     }
 }
