@@ -133,6 +133,19 @@ def _load_gpu(doc, rep, base, ctype: ComponentType, spec) -> None:
                         max_threads, square)
 
 
+def _snippet_problems(doc, rep, path, ctype: ComponentType, value: str, problems) -> None:
+    """Each problem of the snippet at its place in the YAML string."""
+    start = doc.pos(*path, "value")
+    raw, style = doc.sources.get(path + ("value",), (None, None))
+    for p in problems:
+        at = fusable_forms.snippet_position(start, raw, style, value, p.offset)
+        where = "" if at is not None else f" (at character {p.offset + 1} of the snippet)"
+        rep.error(at or start, f"fusable snippet of '{ctype.name}': {p.message}{where}",
+                  p.hint or "a snippet uses y, x, c, its ports as <port>(y, x, c), "
+                  "<port>_height, <port>_width, <port>_t (element type), its parameters "
+                  "and its own locals")
+
+
 def _names_taken(doc, rep, base, ctype: ComponentType) -> bool:
     """Whether a parameter or port has a name the type's snippet gets for a port
     (<port>_height, <port>_t, <port>_max, ...): each is an error at its place."""
@@ -188,15 +201,7 @@ def _load_fusable(doc, rep, base, ctype: ComponentType, fspec) -> None:
                                      [*ctype.params, *tables, *lengths],
                                      arrays=[*(n for n, d in ctype.params.items() if d.shape),
                                              *tables])
-    start = doc.pos(*path, "value")
-    raw, style = doc.sources.get(path + ("value",), (None, None))
-    for p in analysis.problems:
-        at = fusable_forms.snippet_position(start, raw, style, value, p.offset)
-        where = "" if at is not None else f" (at character {p.offset + 1} of the snippet)"
-        rep.error(at or start, f"fusable snippet of '{ctype.name}': {p.message}{where}",
-                  p.hint or "a snippet uses y, x, c, its ports as <port>(y, x, c), "
-                  "<port>_height, <port>_width, <port>_t (element type), its parameters "
-                  "and its own locals")
+    _snippet_problems(doc, rep, path, ctype, value, analysis.problems)
     radius: int | str = 0
     border = fspec.get("border", "clamp")
     if form == "stencil":
