@@ -45,7 +45,7 @@ from dataclasses import dataclass, field
 from . import sizeexpr
 from .errors import Pos
 from .library.kernel_tables import TABLES
-from .snippet import MAX_SNIPPET, Snippet, analyse, is_builtin, print_lines
+from .snippet import MAX_SNIPPET, Snippet, analyse, is_builtin, port_names, print_lines
 from .snippet.syntax import Call, DoWhile, For, Node, While
 
 FORMS = ("pointwise", "index_map", "stencil")
@@ -55,7 +55,8 @@ BORDERS = ("clamp", "reflect101", "reflect", "constant")
 # OpenCV's border codes, for a border chosen by a parameter ('border: border_type')
 OPENCV_BORDERS = {0: "constant", 1: "clamp", 2: "reflect", 4: "reflect101"}
 __all__ = ["BORDERS", "FORMS", "MAX_SNIPPET", "OPENCV_BORDERS", "TABLES", "FusableDecl",
-           "analyse", "array_lengths", "length_names", "snippet_position", "table_call"]
+           "analyse", "array_lengths", "length_names", "port_names", "snippet_position",
+           "table_call"]
 
 
 def length_names(name: str, dims: int) -> tuple[str, ...]:
@@ -110,8 +111,9 @@ class FusableDecl:
     tree: Snippet  # the snippet as parsed: what kernels are printed from
     names: Mapping[str, str] = field(default_factory=dict, compare=False)
     # every name the snippet uses -> 'coordinate' (y, x, c), 'accessor' (an input port
-    # read as port(y, x, c)), 'size' (port_height, port_width), 'param', 'local',
-    # 'builtin' or 'constant' (built-ins are never renamed)
+    # read as port(y, x, c)), 'size' (port_height, port_width), 'type' (port_t, the
+    # port's element type), 'param', 'local', 'builtin' or 'constant' (built-ins are
+    # never renamed)
     radius: int | str = 0  # stencil: a number, or an int parameter or an expression of
     # int parameters ('ksize // 2', 'iterations * (ksize - 1)'): fixed at build time
     border: str = "clamp"  # stencil: one of BORDERS, or an int parameter holding

@@ -71,7 +71,8 @@ def listing(types: Mapping[str, ComponentType]) -> list[str]:
         lines.append("")
     lines.append(f"{len(types)} component types; 'gpucompgen types NAME' shows one in full.")
     lines.append("Ports in OpenCV's notation: 8UC3 is uint8, 3 channels; 1|3 either, as fed;")
-    lines.append("an output without C has its input's channels.")
+    lines.append("* any element type or channel count; an output without C has its input's")
+    lines.append("channels, 'same' its input's element type and channels.")
     return lines
 
 
@@ -85,6 +86,8 @@ def signature(ctype: ComponentType) -> str:
     8UC3' (a source), '2 x 8UC1|3' (a second input like the first)."""
     def port(p: PortDecl) -> str:
         dtype = "" if p.dtype_of else "|".join(DEPTHS[d] for d in p.dtypes or (p.dtype,))
+        if len(p.dtypes) == len(DEPTHS):  # 'dtype: any'
+            dtype = "*"
         if p.channels_of:
             channels = ""
         elif p.channels_param:
@@ -244,9 +247,11 @@ def _either(values) -> str:
 
 
 def dtypes_text(port: PortDecl) -> str:
-    """'uint8', 'uint8, int16 or float32', 'the dtype of src'."""
+    """'uint8', 'uint8, int16 or float32', 'any dtype', 'the dtype of src'."""
     if port.dtype_of:
         return f"the dtype of {port.dtype_of}"
+    if len(port.dtypes) == len(DEPTHS):
+        return "any dtype"
     return _either(port.dtypes or [port.dtype])
 
 

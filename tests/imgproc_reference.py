@@ -20,6 +20,7 @@ INTER_NEAREST, INTER_LINEAR = 0, 1
 # RGB2GRAY in fixed point, 16 fractional bits (OpenCV's 15-bit coefficients doubled)
 GRAY_R, GRAY_G, GRAY_B, GRAY_SHIFT = 19596, 38470, 7470, 16
 HSV_SHIFT = 12  # RGB2HSV's division tables: round(255 << 12 / v), round(180 << 12 / 6 diff)
+WIDE = (np.uint8, np.int16, np.float32)  # the element types of the generic operations
 
 
 def rgb_to_gray(image: np.ndarray, *, out: np.ndarray | None = None) -> np.ndarray:
@@ -99,19 +100,33 @@ def threshold(image: np.ndarray, *, thresh: int, maxval: int, thresh_type: int,
     """Threshold / ThresholdGray: cv2.threshold(image, thresh, maxval, thresh_type)[1],
     bit-exact, every channel on its own; thresh_type is OpenCV's code: 0 BINARY
     (p > thresh ? maxval : 0), 1 BINARY_INV, 2 TRUNC (min(p, thresh)), 3 TOZERO
-    (p > thresh ? p : 0), 4 TOZERO_INV."""
-    _planes("Threshold", "image", image)
-    thresh, maxval, kind = int(thresh), int(maxval), int(thresh_type)
+    (p > thresh ? p : 0), 4 TOZERO_INV.
+
+    thresh and maxval are float32.  uint8 and int16 (OpenCV's thresh_8u, thresh_16s): p is
+    compared with floor(thresh); maxval is rounded half to even and saturated to the type;
+    TRUNC writes floor(thresh) saturated, 0 where thresh is below the type's range (OpenCV
+    fills the frame with 0).  float32: thresh and maxval as they are.
+    """
+    _planes("Threshold", "image", image, WIDE)
+    thresh, maxval, kind = float(np.float32(thresh)), float(np.float32(maxval)), int(thresh_type)
     if kind not in range(5):
         raise ValueError(f"Threshold: thresh_type must be 0..4, not {kind}")
+    if image.dtype == np.float32:
+        cut, top = thresh, maxval
+    else:
+        info = np.iinfo(image.dtype)
+        thresh = float(np.floor(thresh))
+        top = int(np.clip(np.rint(maxval), info.min, info.max))
+        cut = 0 if thresh < info.min else int(np.clip(thresh, info.min, info.max))
     above = image > thresh
     zero = np.zeros_like(image)
-    values = {THRESH_BINARY: np.where(above, np.uint8(maxval), zero),
-              THRESH_BINARY_INV: np.where(above, zero, np.uint8(maxval)),
-              THRESH_TRUNC: np.where(above, np.uint8(max(thresh, 0)), image),
+    top, cut = np.array(top, image.dtype), np.array(cut, image.dtype)
+    values = {THRESH_BINARY: np.where(above, top, zero),
+              THRESH_BINARY_INV: np.where(above, zero, top),
+              THRESH_TRUNC: np.where(above, cut, image),
               THRESH_TOZERO: np.where(above, image, zero),
               THRESH_TOZERO_INV: np.where(above, zero, image)}[kind]
-    return _store(values, out, "Threshold", "thresholded")
+    return _store(values, out, "Threshold", "thresholded", image.dtype)
 
 
 def convert_scale(image: np.ndarray, *, alpha: float, beta: float,
@@ -129,12 +144,19 @@ def add_weighted(src1: np.ndarray, src2: np.ndarray, *, alpha: float, beta: floa
                  gamma: float, out: np.ndarray | None = None) -> np.ndarray:
     """AddWeighted / AddWeightedGray: cv2.addWeighted(src1, alpha, src2, beta, gamma).
 
-    fma(src1, alpha, fma(src2, beta, gamma)) in float32 (as OpenCV's vector code and the
-    kernel compute it), rounded half to even and saturated to 0..255.
+    uint8 and int16: fma(src1, alpha, fma(src2, beta, gamma)) in float32 (as OpenCV's
+    vector code and the kernel compute it), rounded half to even and saturated to the
+    type.  float32: (src1 * alpha + src2 * beta) + gamma, each operation rounded to
+    float32 (the kernel's; OpenCV computes in double).
     """
-    _same_shape("AddWeighted", src1, src2)
+    _same_shape("AddWeighted", src1, src2, WIDE)
+    if src1.dtype == np.float32:
+        alpha, beta, gamma = (np.float32(v) for v in (alpha, beta, gamma))
+        return _store((src1 * alpha + src2 * beta) + gamma, out, "AddWeighted", "blended",
+                      np.float32)
     inner = _fma32(src2, beta, gamma)
-    return _store(_saturate(_fma32(src1, alpha, inner)), out, "AddWeighted", "blended")
+    return _store(_saturate(_fma32(src1, alpha, inner), src1.dtype), out, "AddWeighted",
+                  "blended", src1.dtype)
 
 
 def _fma32(a: np.ndarray, b: float, c) -> np.ndarray:
@@ -160,9 +182,14 @@ def _fma32(a: np.ndarray, b: float, c) -> np.ndarray:
 
 def absdiff(src1: np.ndarray, src2: np.ndarray, *,
             out: np.ndarray | None = None) -> np.ndarray:
-    """AbsDiff / AbsDiffGray: cv2.absdiff(src1, src2), bit-exact: |src1 - src2|."""
-    _same_shape("AbsDiff", src1, src2)
-    return _store(np.maximum(src1, src2) - np.minimum(src1, src2), out, "AbsDiff", "diff")
+    """AbsDiff / AbsDiffGray: cv2.absdiff(src1, src2), bit-exact: |src1 - src2|, int16
+    saturated to 32767, float32 rounded once."""
+    _same_shape("AbsDiff", src1, src2, WIDE)
+    if src1.dtype == np.float32:
+        return _store(np.abs(src1 - src2), out, "AbsDiff", "diff", np.float32)
+    wide = np.abs(src1.astype(np.int64) - src2.astype(np.int64))
+    return _store(np.minimum(wide, np.iinfo(src1.dtype).max), out, "AbsDiff", "diff",
+                  src1.dtype)
 
 
 def resize(image: np.ndarray, *, width: int, height: int, interpolation: int,
@@ -186,14 +213,14 @@ def _nearest(dst: int, src: int) -> np.ndarray:
 
 def flip_horizontal(image: np.ndarray, *, out: np.ndarray | None = None) -> np.ndarray:
     """FlipHorizontal / FlipHorizontalGray: cv2.flip(image, 1), bit-exact."""
-    _planes("FlipHorizontal", "image", image)
-    return _store(image[:, ::-1], out, "FlipHorizontal", "flipped")
+    _planes("FlipHorizontal", "image", image, WIDE)
+    return _store(image[:, ::-1], out, "FlipHorizontal", "flipped", image.dtype)
 
 
 def rotate180(image: np.ndarray, *, out: np.ndarray | None = None) -> np.ndarray:
     """Rotate180 / Rotate180Gray: cv2.rotate(image, cv2.ROTATE_180), bit-exact."""
-    _planes("Rotate180", "image", image)
-    return _store(image[::-1, ::-1], out, "Rotate180", "rotated")
+    _planes("Rotate180", "image", image, WIDE)
+    return _store(image[::-1, ::-1], out, "Rotate180", "rotated", image.dtype)
 
 
 GAUSSIAN_WEIGHTS = {3: (1, 2, 1), 5: (1, 4, 6, 4, 1)}  # OpenCV's fixed kernels, sigma 0
@@ -263,12 +290,12 @@ def median_blur(image: np.ndarray, *, out: np.ndarray | None = None) -> np.ndarr
 
 def _window(image, type_name, port, reduce, out=None) -> np.ndarray:
     """reduce over the 3x3 window of every pixel, edges repeated."""
-    planes = _planes(type_name, "image", image)
+    planes = _planes(type_name, "image", image, WIDE)
     height, width = planes.shape[:2]
     padded = np.pad(planes, ((1, 1), (1, 1), (0, 0)), mode="edge")
     stack = np.stack([padded[dy:dy + height, dx:dx + width]
                       for dy in range(3) for dx in range(3)])
-    return _store(_unplanes(reduce(stack, axis=0), image), out, type_name, port)
+    return _store(_unplanes(reduce(stack, axis=0), image), out, type_name, port, image.dtype)
 
 
 def _reflect101(index: np.ndarray, n: int) -> np.ndarray:
@@ -295,16 +322,19 @@ def _separable(planes: np.ndarray, kx, ky, reflect101: bool) -> np.ndarray:
     return sum(w * across[i:i + height] for i, w in enumerate(ky) if w)
 
 
-def _saturate(values: np.ndarray) -> np.ndarray:
-    """float32 -> uint8 as OpenCV's saturate_cast: round half to even, clamp to 0..255."""
-    return np.clip(np.rint(values), 0, 255).astype(np.uint8)
+def _saturate(values: np.ndarray, dtype=np.uint8) -> np.ndarray:
+    """float32 -> uint8 (or int16) as OpenCV's saturate_cast: round half to even, clamp to
+    the type's range."""
+    info = np.iinfo(dtype)
+    return np.clip(np.rint(values), info.min, info.max).astype(dtype)
 
 
 def _planes(type_name: str, port: str, array: np.ndarray, dtypes=(np.uint8,)) -> np.ndarray:
     """A one-channel (height x width) or three-channel image as height x width x c."""
     if not isinstance(array, np.ndarray) or array.dtype not in dtypes:
         dtype = getattr(array, "dtype", type(array).__name__)
-        raise TypeError(f"{type_name}: '{port}' must be a uint8 numpy array, not {dtype}")
+        names = " or ".join(np.dtype(d).name for d in dtypes)
+        raise TypeError(f"{type_name}: '{port}' must be a {names} numpy array, not {dtype}")
     if array.ndim == 2 and 0 not in array.shape:
         return array[..., None]
     if array.ndim != 3 or array.shape[2] != 3 or 0 in array.shape:
@@ -316,10 +346,11 @@ def _unplanes(values: np.ndarray, like: np.ndarray) -> np.ndarray:
     return values[..., 0] if like.ndim == 2 else values
 
 
-def _same_shape(type_name: str, src1: np.ndarray, src2: np.ndarray) -> None:
-    _planes(type_name, "src1", src1)
-    _planes(type_name, "src2", src2)
-    if src1.shape != src2.shape:
+def _same_shape(type_name: str, src1: np.ndarray, src2: np.ndarray,
+                dtypes=(np.uint8,)) -> None:
+    _planes(type_name, "src1", src1, dtypes)
+    _planes(type_name, "src2", src2, dtypes)
+    if src1.shape != src2.shape or src1.dtype != src2.dtype:
         raise ValueError(f"{type_name}: src1 and src2 must have the same size, not "
                          f"{src1.shape} and {src2.shape}")
 
@@ -336,9 +367,9 @@ def _output(out, shape, type_name, port):
     return np.empty(shape, np.uint8) if out is None else out
 
 
-def _store(values, out, type_name, port):
+def _store(values, out, type_name, port, dtype=np.uint8):
     if out is None:
-        return np.ascontiguousarray(values, dtype=np.uint8)
+        return np.ascontiguousarray(values, dtype=dtype)
     np.copyto(out, values, casting="unsafe")
     return out
 

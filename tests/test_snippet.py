@@ -356,7 +356,8 @@ def test_every_library_snippet_parses_and_prints_the_same_tree():
     assert len(snippets) >= 20
     for name, t in snippets.items():
         tree = t.fusable.tree
-        assert parse(print_text(tree)) == tree, name
+        types = {f"{p}_t": p for p in [*t.inputs, *t.outputs]}  # src_t: src's element type
+        assert parse(print_text(tree), types) == tree, name
 
 
 def test_every_library_snippet_compiles_printed_with_every_name_renamed(cl_context):
@@ -381,6 +382,10 @@ def test_every_library_snippet_compiles_printed_with_every_name_renamed(cl_conte
         lines.append("{")
         lines += [f"    const int {name}_{p}_{d} = 5;" for p in [*t.inputs, *t.outputs]
                   for d in ("height", "width")]
+        for p in [*t.inputs, *t.outputs]:  # each port's element type and its bounds
+            rename.update({f"{p}_{d}": f"{name}_{p}_{d}" for d in ("t", "min", "max")})
+            lines += [f"    typedef uchar {name}_{p}_t;",
+                      f"    const uchar {name}_{p}_min = 0, {name}_{p}_max = 255;"]
         lines += [f"    const {'float' if d.type == 'float' else 'int'} {name}_{p} = "
                   f"{d.default if not isinstance(d.default, bool) else int(d.default)};"
                   for p, d in t.params.items() if not d.shape]

@@ -38,9 +38,10 @@ def test_listing_names_every_library_type_once_with_its_kind(capsys):
                      r"(eight\.|\S*\.\.\.)$", out, re.MULTILINE)
     assert re.search(r"^  Sobel +flexible   8UC1\|3 -> 16S +First derivative", out, re.MULTILINE)
     assert re.search(r"^  ConvertScale +flexible   8U\|16S\|32F C1\|3 -> 8U ", out, re.MULTILINE)
-    assert re.search(r"^  AbsDiff +flexible   2 x 8UC1\|3 -> 8U ", out, re.MULTILINE)
-    assert re.search(r"^  ErodeGray +flexible   8UC1 -> 8UC1 +deprecated: Erode with 1 channel$",
-                     out, re.MULTILINE)
+    assert re.search(r"^  AbsDiff +flexible   2 x 8U\|16S\|32F C1\|3 -> same ", out, re.MULTILINE)
+    assert re.search(r"^  ErodeGray +flexible   8U\|16S\|32F C1 -> C1 +deprecated: Erode with 1 "
+                     r"channel$", out, re.MULTILINE)
+    assert re.search(r"^  FlipHorizontal +flexible   \* C1\|3 -> same ", out, re.MULTILINE)
     assert re.search(r"^  MaskWriter +standard   8UC3, 8UC1 -> +Sink", out, re.MULTILINE)
     assert re.search(r"^  Camera +standard   -> 8UC3 +Camera source\.$", out, re.MULTILINE)
 
@@ -67,27 +68,26 @@ def test_one_flexible_type_in_full_with_every_form(capsys):
                      out, re.MULTILINE)
     assert "cv2.threshold(src, thresh, maxval, thresh_type)" in " ".join(out.split())
     # a flexible type's ports live where it runs; a generic one's channels follow its input
-    assert ("  src           memory where placed, uint8, 1 or 3 channels, any size (old name: "
-            "image)") in lines
-    assert ("  dst           memory where placed, uint8, the channels of src, height src.height, "
-            "width src.width") in lines
-    assert "                (old name: thresholded)" in lines
-    assert "  thresh        int, default 127, range 0..255" in lines
+    assert ("  src           memory where placed, uint8, int16 or float32, 1 or 3 channels, any "
+            "size (old name:") in lines
+    assert ("  dst           memory where placed, the dtype of src, the channels of src, height "
+            "src.height, width") in lines
+    assert "                src.width (old name: thresholded)" in lines
+    assert "  thresh        float, default 127.0" in lines
     assert "  thresh_type   int, default 0, range 0..4" in lines
     assert "4 TOZERO_INV" in out
     forms = lines[lines.index("Forms:") + 1:lines.index("Example:") - 1]
+    snippet = library_types()["Threshold"].fusable.value
     assert " ".join(" ".join(forms).split()) == (
         "GPU kernel generated from the fusable form below, for a component alone as for a "
         "fused group; the system chooses its settings CPU function threshold() in cpu_kernels.py, called with the input "
         "arrays and the parameters as keywords; runs where the model places the component "
-        "(placement: cpu, --place) fusable pointwise: const int p = src(y, x, c); const "
-        "bool above = p > thresh; return thresh_type == 0 ? (above ? maxval : 0) : "
-        "thresh_type == 1 ? (above ? 0 : maxval) : thresh_type == 2 ? (above ? thresh : p) : "
-        "thresh_type == 3 ? (above ? p : 0) : (above ? 0 : p);")
+        "(placement: cpu, --place) fusable pointwise: " + " ".join(snippet.split()))
     # a snippet of several lines is printed as written, under its form
     at = forms.index("  fusable       pointwise:")
-    assert forms[at + 1:at + 3] == ["                  const int p = src(y, x, c);",
-                                    "                  const bool above = p > thresh;"]
+    assert forms[at + 1:at + 3] == ["                  const bool whole = (src_t)0.5f == (src_t)0;",
+                                    "                  const float t = whole ? floor(thresh) : "
+                                    "thresh;"]
     assert forms[0].startswith("  GPU kernel    ") and any(
         f.startswith("  CPU function  threshold() in cpu_kernels.py") for f in forms)
 
@@ -176,9 +176,9 @@ def test_one_type_in_full_ends_with_an_example_connection(capsys):
     _, out, _ = run(capsys, "AbsDiffGray")  # a deprecated name: the example writes the type
     assert out.splitlines()[out.splitlines().index("Example:"):] == [
         "Example:", "  components:", "    abs_diff: {type: AbsDiff}", "  connections:",
-        "    - <producer>.<port> -> abs_diff.src1  # uint8, 1 channel",
+        "    - <producer>.<port> -> abs_diff.src1  # uint8, int16 or float32, 1 channel",
         "    - <producer>.<port> -> abs_diff.src2  # the dtype of src1, 1 channel",
-        "    - abs_diff.dst -> <consumer>.<port>   # uint8, 1 channel"]
+        "    - abs_diff.dst -> <consumer>.<port>   # the dtype of src1, 1 channel"]
 
 
 def test_fusable_forms_are_listed_with_their_snippets(capsys):

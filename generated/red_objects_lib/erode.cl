@@ -34,10 +34,11 @@ static inline __attribute__((overloadable)) float _min(const float a, const floa
 static inline __attribute__((always_inline)) uchar _f0_erode(_PARAMS, const int y, const int x, const int c)
 {
     const int src_height = 200, src_width = 301;
+    typedef uchar src_t;
     const int dst_height = 200, dst_width = 301;
-    const uchar r0 = _min(_min(src(y - 1, x - 1, c), src(y - 1, x, c)), src(y - 1, x + 1, c));
-    const uchar r1 = _min(_min(src(y, x - 1, c), src(y, x, c)), src(y, x + 1, c));
-    const uchar r2 = _min(_min(src(y + 1, x - 1, c), src(y + 1, x, c)), src(y + 1, x + 1, c));
+    const src_t r0 = _min(_min(src(y - 1, x - 1, c), src(y - 1, x, c)), src(y - 1, x + 1, c));
+    const src_t r1 = _min(_min(src(y, x - 1, c), src(y, x, c)), src(y, x + 1, c));
+    const src_t r2 = _min(_min(src(y + 1, x - 1, c), src(y + 1, x, c)), src(y + 1, x + 1, c));
     return _min(_min(r0, r1), r2);
 }
 #undef src
@@ -47,10 +48,11 @@ static inline __attribute__((always_inline)) uchar _f0_erode(_PARAMS, const int 
 static inline __attribute__((always_inline)) uchar _f0_erode_in(_PARAMS, const int y, const int x, const int c)
 {
     const int src_height = 200, src_width = 301;
+    typedef uchar src_t;
     const int dst_height = 200, dst_width = 301;
-    const uchar r0 = _min(_min(src(y - 1, x - 1, c), src(y - 1, x, c)), src(y - 1, x + 1, c));
-    const uchar r1 = _min(_min(src(y, x - 1, c), src(y, x, c)), src(y, x + 1, c));
-    const uchar r2 = _min(_min(src(y + 1, x - 1, c), src(y + 1, x, c)), src(y + 1, x + 1, c));
+    const src_t r0 = _min(_min(src(y - 1, x - 1, c), src(y - 1, x, c)), src(y - 1, x + 1, c));
+    const src_t r1 = _min(_min(src(y, x - 1, c), src(y, x, c)), src(y, x + 1, c));
+    const src_t r2 = _min(_min(src(y + 1, x - 1, c), src(y + 1, x, c)), src(y + 1, x + 1, c));
     return _min(_min(r0, r1), r2);
 }
 #undef src

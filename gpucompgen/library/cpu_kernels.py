@@ -24,12 +24,17 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
+# the element types of the library's generic operations (docs/library.md): OpenCV's
+# uint8, int16 and float32 frames; an index map (a flip) moves elements of any type
+DTYPES3 = (np.uint8, np.int16, np.float32)
+ANY_DTYPE = (np.uint8, np.int8, np.uint16, np.int16, np.int32, np.uint32, np.float32)
+
 
 def vertical_mirror(src: np.ndarray, *, out: np.ndarray | None = None) -> np.ndarray:
     """VerticalMirror (vertical_mirror.cl): row y of the output is row height-1-y of image:
-    cv2.flip(src, 0)."""
-    _channels("VerticalMirror", "src", src)
-    return cv2.flip(src, 0, dst=_output(out, src.shape, "VerticalMirror", "dst"))
+    cv2.flip(src, 0), any element type."""
+    _channels("VerticalMirror", "src", src, ANY_DTYPE)
+    return cv2.flip(src, 0, dst=_output(out, src.shape, "VerticalMirror", "dst", src.dtype))
 
 
 def image_merger(left: np.ndarray, right: np.ndarray, *,
@@ -140,13 +145,15 @@ def threshold(src: np.ndarray, *, thresh: int, maxval: int, thresh_type: int,
     """Threshold / ThresholdGray: cv2.threshold(image, thresh, maxval, thresh_type)[1],
     every channel on its own; thresh_type is OpenCV's code: 0 BINARY (p > thresh ?
     maxval : 0), 1 BINARY_INV, 2 TRUNC (min(p, thresh)), 3 TOZERO (p > thresh ? p : 0),
-    4 TOZERO_INV."""
-    _channels("Threshold", "src", src)
+    4 TOZERO_INV.  uint8, int16 or float32 frames, OpenCV's rules for each (an integer
+    frame compares with floor(thresh), maxval rounded and saturated); thresh and maxval
+    are float32, as the kernel's parameters."""
+    _channels("Threshold", "src", src, DTYPES3)
     kind = int(thresh_type)
     if kind not in range(5):
         raise ValueError(f"Threshold: thresh_type must be 0..4, not {kind}")
-    return cv2.threshold(src, int(thresh), int(maxval), kind,
-                         dst=_output(out, src.shape, "Threshold", "dst"))[1]
+    return cv2.threshold(src, float(np.float32(thresh)), float(np.float32(maxval)), kind,
+                         dst=_output(out, src.shape, "Threshold", "dst", src.dtype))[1]
 
 
 def convert_scale(src: np.ndarray, *, alpha: float, beta: float,
@@ -162,19 +169,27 @@ def convert_scale(src: np.ndarray, *, alpha: float, beta: float,
 def add_weighted(src1: np.ndarray, src2: np.ndarray, *, alpha: float, beta: float,
                  gamma: float, out: np.ndarray | None = None) -> np.ndarray:
     """AddWeighted / AddWeightedGray: cv2.addWeighted(src1, alpha, src2, beta, gamma):
-    fma(src1, alpha, fma(src2, beta, gamma)) in float32, rounded half to even and
-    saturated to 0..255."""
-    _same_shape("AddWeighted", src1, src2)
+    for uint8 and int16 fma(src1, alpha, fma(src2, beta, gamma)) in float32, rounded half
+    to even and saturated.  float32 frames: OpenCV computes in double; this gives the
+    kernel's bytes, (src1 * alpha + src2 * beta) + gamma each operation rounded to
+    float32, within 2^-22 (|src1 alpha| + |src2 beta| + |gamma|) of OpenCV's."""
+    _same_shape("AddWeighted", src1, src2, DTYPES3)
+    dst = _output(out, src1.shape, "AddWeighted", "dst", src1.dtype)
+    if src1.dtype == np.float32:
+        alpha, beta, gamma = (np.float32(v) for v in (alpha, beta, gamma))
+        np.multiply(src1, alpha, out=dst)
+        dst += src2 * beta
+        dst += gamma
+        return dst
     alpha, beta, gamma = (float(np.float32(v)) for v in (alpha, beta, gamma))
-    return cv2.addWeighted(src1, alpha, src2, beta, gamma,
-                           dst=_output(out, src1.shape, "AddWeighted", "dst"))
+    return cv2.addWeighted(src1, alpha, src2, beta, gamma, dst=dst)
 
 
 def absdiff(src1: np.ndarray, src2: np.ndarray, *,
             out: np.ndarray | None = None) -> np.ndarray:
-    """AbsDiff / AbsDiffGray: cv2.absdiff(src1, src2): |src1 - src2|."""
-    _same_shape("AbsDiff", src1, src2)
-    return cv2.absdiff(src1, src2, dst=_output(out, src1.shape, "AbsDiff", "dst"))
+    """AbsDiff / AbsDiffGray: cv2.absdiff(src1, src2): |src1 - src2| (int16 saturated)."""
+    _same_shape("AbsDiff", src1, src2, DTYPES3)
+    return cv2.absdiff(src1, src2, dst=_output(out, src1.shape, "AbsDiff", "dst", src1.dtype))
 
 
 def resize(src: np.ndarray, *, width: int, height: int, interpolation: int,
@@ -247,16 +262,16 @@ def crop(src: np.ndarray, *, x: int, y: int, width: int, height: int,
 
 
 def flip_horizontal(src: np.ndarray, *, out: np.ndarray | None = None) -> np.ndarray:
-    """FlipHorizontal / FlipHorizontalGray: cv2.flip(image, 1)."""
-    _channels("FlipHorizontal", "src", src)
-    return cv2.flip(src, 1, dst=_output(out, src.shape, "FlipHorizontal", "dst"))
+    """FlipHorizontal / FlipHorizontalGray: cv2.flip(image, 1), any element type."""
+    _channels("FlipHorizontal", "src", src, ANY_DTYPE)
+    return cv2.flip(src, 1, dst=_output(out, src.shape, "FlipHorizontal", "dst", src.dtype))
 
 
 def rotate180(src: np.ndarray, *, out: np.ndarray | None = None) -> np.ndarray:
-    """Rotate180 / Rotate180Gray: cv2.rotate(image, cv2.ROTATE_180)."""
-    _channels("Rotate180", "src", src)
+    """Rotate180 / Rotate180Gray: cv2.rotate(image, cv2.ROTATE_180), any element type."""
+    _channels("Rotate180", "src", src, ANY_DTYPE)
     return cv2.rotate(src, cv2.ROTATE_180,
-                      dst=_output(out, src.shape, "Rotate180", "dst"))
+                      dst=_output(out, src.shape, "Rotate180", "dst", src.dtype))
 
 
 def gaussian_blur(src: np.ndarray, *, ksize: int, ksize_y: int = 0, sigma: float = 0.0,
@@ -302,22 +317,22 @@ def erode(src: np.ndarray, *, out: np.ndarray | None = None) -> np.ndarray:
     """Erode / ErodeGray: cv2.erode(image, np.ones((3, 3), np.uint8)): the minimum of the
     3x3 window, pixels outside the frame ignored (OpenCV's default border for
     morphology), which is the same as repeating the edge."""
-    _channels("Erode", "src", src)
-    return cv2.erode(src, MORPH_KERNEL, dst=_output(out, src.shape, "Erode", "dst"))
+    _channels("Erode", "src", src, DTYPES3)
+    return cv2.erode(src, MORPH_KERNEL, dst=_output(out, src.shape, "Erode", "dst", src.dtype))
 
 
 def dilate(src: np.ndarray, *, out: np.ndarray | None = None) -> np.ndarray:
     """Dilate / DilateGray: cv2.dilate(image, np.ones((3, 3), np.uint8)): the maximum of
     the 3x3 window, pixels outside the frame ignored."""
-    _channels("Dilate", "src", src)
-    return cv2.dilate(src, MORPH_KERNEL, dst=_output(out, src.shape, "Dilate", "dst"))
+    _channels("Dilate", "src", src, DTYPES3)
+    return cv2.dilate(src, MORPH_KERNEL, dst=_output(out, src.shape, "Dilate", "dst", src.dtype))
 
 
 def median_blur(src: np.ndarray, *, out: np.ndarray | None = None) -> np.ndarray:
     """MedianBlur / MedianBlurGray: cv2.medianBlur(image, 3): the median of the 3x3
     window, edges repeated (BORDER_REPLICATE, as OpenCV's medianBlur)."""
-    _channels("MedianBlur", "src", src)
-    return cv2.medianBlur(src, 3, dst=_output(out, src.shape, "MedianBlur", "dst"))
+    _channels("MedianBlur", "src", src, DTYPES3)
+    return cv2.medianBlur(src, 3, dst=_output(out, src.shape, "MedianBlur", "dst", src.dtype))
 
 
 def _channels(type_name: str, port: str, array: np.ndarray, dtypes=(np.uint8,)) -> int:
@@ -325,7 +340,8 @@ def _channels(type_name: str, port: str, array: np.ndarray, dtypes=(np.uint8,)) 
     three-channel image of one of dtypes; anything else raises."""
     if not isinstance(array, np.ndarray) or array.dtype not in dtypes:
         dtype = getattr(array, "dtype", type(array).__name__)
-        names = " or ".join(np.dtype(d).name for d in dtypes)
+        names = [np.dtype(d).name for d in dtypes]
+        names = " or ".join([", ".join(names[:-1]), names[-1]] if len(names) > 1 else names)
         raise TypeError(f"{type_name}: '{port}' must be a {names} numpy array, not {dtype}")
     if array.ndim == 2 and 0 not in array.shape:
         return 1
@@ -337,12 +353,13 @@ def _channels(type_name: str, port: str, array: np.ndarray, dtypes=(np.uint8,)) 
     return 3
 
 
-def _same_shape(type_name: str, src1: np.ndarray, src2: np.ndarray) -> None:
-    _channels(type_name, "src1", src1)
-    _channels(type_name, "src2", src2)
-    if src1.shape != src2.shape:
-        raise ValueError(f"{type_name}: src1 and src2 must have the same size, not "
-                         f"{src1.shape} and {src2.shape}")
+def _same_shape(type_name: str, src1: np.ndarray, src2: np.ndarray,
+                dtypes=(np.uint8,)) -> None:
+    _channels(type_name, "src1", src1, dtypes)
+    _channels(type_name, "src2", src2, dtypes)
+    if src1.shape != src2.shape or src1.dtype != src2.dtype:
+        raise ValueError(f"{type_name}: src1 and src2 must have the same size and element "
+                         f"type, not {src1.shape} {src1.dtype} and {src2.shape} {src2.dtype}")
 
 
 CPU_IMPLEMENTATIONS = {

@@ -26,6 +26,7 @@ BORDERS = {BORDER_CONSTANT: "BORDER_CONSTANT (0 outside the frame)",
            BORDER_REFLECT: "BORDER_REFLECT (cba|abc|cba)",
            BORDER_REFLECT_101: "BORDER_REFLECT_101 (cb|abc|ba)"}
 MAX_KSIZE = 31  # Blur's and MorphologyEx's largest window side
+INTEGER = (np.uint8, np.int16)  # the element types of the bitwise operations
 
 
 # -- conversions --------------------------------------------------------------------------
@@ -46,9 +47,10 @@ def swap_red_blue(src: np.ndarray, *, out: np.ndarray | None = None) -> np.ndarr
 
 
 def flip_vertical(src: np.ndarray, *, out: np.ndarray | None = None) -> np.ndarray:
-    """FlipVertical / FlipVerticalGray: cv2.flip(src, 0): row y is row height - 1 - y."""
-    _image("FlipVertical", "src", src)
-    return cv2.flip(src, 0, dst=_output(out, src.shape, "FlipVertical", "dst"))
+    """FlipVertical / FlipVerticalGray: cv2.flip(src, 0): row y is row height - 1 - y,
+    any element type."""
+    _channels("FlipVertical", "src", src, ANY_DTYPE)
+    return cv2.flip(src, 0, dst=_output(out, src.shape, "FlipVertical", "dst", src.dtype))
 
 
 def lut(src: np.ndarray, *, lut, out: np.ndarray | None = None) -> np.ndarray:
@@ -65,39 +67,42 @@ def lut(src: np.ndarray, *, lut, out: np.ndarray | None = None) -> np.ndarray:
 def bitwise_and(src1: np.ndarray, src2: np.ndarray, *,
                 out: np.ndarray | None = None) -> np.ndarray:
     """BitwiseAnd / BitwiseAndGray: cv2.bitwise_and(src1, src2)."""
-    _pair("BitwiseAnd", src1, src2)
-    return cv2.bitwise_and(src1, src2, dst=_output(out, src1.shape, "BitwiseAnd", "dst"))
+    _pair("BitwiseAnd", src1, src2, INTEGER)
+    dst = _output(out, src1.shape, "BitwiseAnd", "dst", src1.dtype)
+    return cv2.bitwise_and(src1, src2, dst=dst)
 
 
 def bitwise_or(src1: np.ndarray, src2: np.ndarray, *,
                out: np.ndarray | None = None) -> np.ndarray:
     """BitwiseOr / BitwiseOrGray: cv2.bitwise_or(src1, src2)."""
-    _pair("BitwiseOr", src1, src2)
-    return cv2.bitwise_or(src1, src2, dst=_output(out, src1.shape, "BitwiseOr", "dst"))
+    _pair("BitwiseOr", src1, src2, INTEGER)
+    dst = _output(out, src1.shape, "BitwiseOr", "dst", src1.dtype)
+    return cv2.bitwise_or(src1, src2, dst=dst)
 
 
 def bitwise_xor(src1: np.ndarray, src2: np.ndarray, *,
                 out: np.ndarray | None = None) -> np.ndarray:
     """BitwiseXor / BitwiseXorGray: cv2.bitwise_xor(src1, src2)."""
-    _pair("BitwiseXor", src1, src2)
-    return cv2.bitwise_xor(src1, src2, dst=_output(out, src1.shape, "BitwiseXor", "dst"))
+    _pair("BitwiseXor", src1, src2, INTEGER)
+    dst = _output(out, src1.shape, "BitwiseXor", "dst", src1.dtype)
+    return cv2.bitwise_xor(src1, src2, dst=dst)
 
 
 def bitwise_not(src: np.ndarray, *, out: np.ndarray | None = None) -> np.ndarray:
-    """BitwiseNot / BitwiseNotGray: cv2.bitwise_not(src): 255 - p."""
-    _image("BitwiseNot", "src", src)
-    return cv2.bitwise_not(src, dst=_output(out, src.shape, "BitwiseNot", "dst"))
+    """BitwiseNot / BitwiseNotGray: cv2.bitwise_not(src): ~p (255 - p for uint8)."""
+    _channels("BitwiseNot", "src", src, INTEGER)
+    return cv2.bitwise_not(src, dst=_output(out, src.shape, "BitwiseNot", "dst", src.dtype))
 
 
 def bitwise_and_mask(src1: np.ndarray, src2: np.ndarray, mask: np.ndarray, *,
                      out: np.ndarray | None = None) -> np.ndarray:
     """BitwiseAndMask / BitwiseAndMaskGray: cv2.bitwise_and(src1, src2, mask=mask) into a
     zeroed frame: src1 & src2 where the mask is not 0, else 0 (every channel)."""
-    _pair("BitwiseAndMask", src1, src2)
+    _pair("BitwiseAndMask", src1, src2, INTEGER)
     if _image("BitwiseAndMask", "mask", mask) != 1 or mask.shape[:2] != src1.shape[:2]:
         raise ValueError(f"BitwiseAndMask: 'mask' must be one channel of the frames' size "
                          f"{src1.shape[:2]}, not {mask.shape}")
-    dst = _output(out, src1.shape, "BitwiseAndMask", "dst")
+    dst = _output(out, src1.shape, "BitwiseAndMask", "dst", src1.dtype)
     dst[...] = 0  # OpenCV leaves dst as it was where the mask is 0
     return cv2.bitwise_and(src1, src2, dst=dst, mask=mask.reshape(mask.shape[:2]))
 
@@ -218,5 +223,5 @@ CPU_OPS = {
 
 # last, so that either module may be imported first: cpu_kernels imports CPU_OPS at its
 # end, and these helpers are defined before that import runs
-from .cpu_kernels import _output
+from .cpu_kernels import ANY_DTYPE, _channels, _output
 from .cpu_kernels import _same_shape as _pair

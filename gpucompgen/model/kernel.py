@@ -133,6 +133,36 @@ def _load_gpu(doc, rep, base, ctype: ComponentType, spec) -> None:
                         max_threads, square)
 
 
+def _snippet_problems(doc, rep, path, ctype: ComponentType, value: str, problems) -> None:
+    """Each problem of the snippet at its place in the YAML string."""
+    start = doc.pos(*path, "value")
+    raw, style = doc.sources.get(path + ("value",), (None, None))
+    for p in problems:
+        at = fusable_forms.snippet_position(start, raw, style, value, p.offset)
+        where = "" if at is not None else f" (at character {p.offset + 1} of the snippet)"
+        rep.error(at or start, f"fusable snippet of '{ctype.name}': {p.message}{where}",
+                  p.hint or "a snippet uses y, x, c, its ports as <port>(y, x, c), "
+                  "<port>_height, <port>_width, <port>_t (element type), its parameters "
+                  "and its own locals")
+
+
+def _names_taken(doc, rep, base, ctype: ComponentType) -> bool:
+    """Whether a parameter or port has a name the type's snippet gets for a port
+    (<port>_height, <port>_t, <port>_max, ...): each is an error at its place."""
+    given = fusable_forms.port_names(list(ctype.inputs), list(ctype.outputs))
+    taken = [(("params", n), "parameter") for n in ctype.params if n in given]
+    taken += [((key, n), "port") for key, ports in (("inputs", ctype.inputs),
+                                                     ("outputs", ctype.outputs))
+              for n in ports if n in given]
+    for where, what in taken:
+        rep.error(doc.key_pos(*base, *where), f"{what} '{where[1]}' of '{ctype.name}' has "
+                  f"the name its fusable snippet gets for {given[where[1]]}",
+                  f"rename the {what}: a snippet names each port's height, width, "
+                  "element type and its bounds <port>_height, <port>_width, <port>_t, "
+                  "<port>_min, <port>_max")
+    return bool(taken)
+
+
 def _load_fusable(doc, rep, base, ctype: ComponentType, fspec) -> None:
     """The type's fusable form (gpucompgen/fusable.py), checked as far as possible without
     a device."""
@@ -159,6 +189,8 @@ def _load_fusable(doc, rep, base, ctype: ComponentType, fspec) -> None:
                   "statements ending in 'return ...;') for output element (y, x, c)",
                   "e.g. value: \"image(image_height - 1 - y, x, c)\"")
         return
+    if _names_taken(doc, rep, base, ctype):
+        return
     tables = _load_tables(doc, rep, path, ctype, fspec) if form == "stencil" else {}
     if tables is None:
         return
@@ -169,14 +201,7 @@ def _load_fusable(doc, rep, base, ctype: ComponentType, fspec) -> None:
                                      [*ctype.params, *tables, *lengths],
                                      arrays=[*(n for n, d in ctype.params.items() if d.shape),
                                              *tables])
-    start = doc.pos(*path, "value")
-    raw, style = doc.sources.get(path + ("value",), (None, None))
-    for p in analysis.problems:
-        at = fusable_forms.snippet_position(start, raw, style, value, p.offset)
-        where = "" if at is not None else f" (at character {p.offset + 1} of the snippet)"
-        rep.error(at or start, f"fusable snippet of '{ctype.name}': {p.message}{where}",
-                  p.hint or "a snippet uses y, x, c, its ports as <port>(y, x, c), "
-                  "<port>_height, <port>_width, its parameters and its own locals")
+    _snippet_problems(doc, rep, path, ctype, value, analysis.problems)
     radius: int | str = 0
     border = fspec.get("border", "clamp")
     if form == "stencil":

@@ -19,6 +19,7 @@ from ..errors import did_you_mean
 from .lexer import tokens
 from .problems import Problem, SnippetError
 from .syntax import (
+    KEYWORDS,
     VECTORS,
     Assign,
     Binary,
@@ -94,12 +95,35 @@ def is_builtin(name: str) -> bool:
 @dataclass
 class Analysis:
     """A snippet read once: its tree (None when it does not parse), the kind of every name
-    it uses ('coordinate', 'accessor', 'size', 'param', 'local', 'builtin', 'constant')
-    and its problems."""
+    it uses ('coordinate', 'accessor', 'size', 'type' (<port>_t), 'limit' (<port>_min,
+    <port>_max), 'param', 'local', 'builtin', 'constant') and its problems."""
 
     tree: Snippet | None
-    names: dict[str, str] = field(default_factory=dict)
+    names: dict[str, str] = field(default_factory=dict)  # and 'type': a port's <port>_t
     problems: list[Problem] = field(default_factory=list)
+
+
+def port_names(inputs: list[str], outputs: list[str]) -> dict[str, str]:
+    """The names a snippet gets for its ports beyond their accessors, each with what it
+    names: <port>_height and <port>_width (sizes), <port>_t (the port's element type,
+    uchar, short or float as the model resolves it; not where <port>_t is already a word
+    of OpenCL C, such as size_t), <port>_min and <port>_max (the least and the greatest
+    value of that type: OpenCV's saturation bounds).  A type's parameters and ports must
+    not take them."""
+    names = {}
+    for p in (*inputs, *outputs):
+        names[f"{p}_height"] = f"the height of port '{p}'"
+        names[f"{p}_width"] = f"the width of port '{p}'"
+        names[f"{p}_min"] = f"the least value of port '{p}''s element type"
+        names[f"{p}_max"] = f"the greatest value of port '{p}''s element type"
+        if f"{p}_t" not in KEYWORDS:
+            names[f"{p}_t"] = f"the element type of port '{p}'"
+    return names
+
+
+def port_types(inputs: list[str], outputs: list[str]) -> dict[str, str]:
+    """'<port>_t' -> port, for the ports whose element type the snippet can name."""
+    return {f"{p}_t": p for p in (*inputs, *outputs) if f"{p}_t" not in KEYWORDS}
 
 
 def analyse(text: str, form: str, inputs: list[str], outputs: list[str],
@@ -117,13 +141,15 @@ def analyse(text: str, form: str, inputs: list[str], outputs: list[str],
                      if t.kind == "id" and t.text in FORBIDDEN]
         if forbidden:
             return Analysis(None, problems=forbidden)
-        tree = parse(text)
+        tree = parse(text, port_types(inputs, outputs))
     except SnippetError as exc:
         return Analysis(None, problems=[exc.problem])
     given = {n: "coordinate" for n in COORDINATES}
     given.update({f"{p}_{d}": "size" for p in inputs + outputs for d in ("height", "width")})
+    given.update({f"{p}_{d}": "limit" for p in inputs + outputs for d in ("min", "max")})
     given.update({p: "param" for p in params})
-    resolver = _Resolver(form, given, set(inputs), set(outputs), frozenset(arrays))
+    resolver = _Resolver(form, given, set(inputs), set(outputs), frozenset(arrays),
+                         port_types(inputs, outputs))
     resolver.block(tree.body)
     if not tree.expression and not _returns(tree.body):
         last = tree.body[-1] if tree.body else tree
@@ -145,8 +171,10 @@ class _Local:
 
 class _Resolver:
     def __init__(self, form: str, given: dict[str, str], inputs: set[str],
-                 outputs: set[str], arrays: frozenset[str] = frozenset()) -> None:
+                 outputs: set[str], arrays: frozenset[str] = frozenset(),
+                 types: Collection[str] = ()) -> None:
         self.form = form
+        self.types = types  # the ports' element types, <port>_t
         self.arrays = arrays  # array parameters: indexed as local arrays are
         self.given = given
         self.inputs = inputs
@@ -212,7 +240,12 @@ class _Resolver:
         self.block((body,))
         self.loops -= 1
 
+    def typename(self, t) -> None:
+        if t.name in self.types:
+            self.names[t.name] = "type"
+
     def declaration(self, d: Decl) -> None:
+        self.typename(d.type)
         for v in d.declarators:
             length = None
             if v.size is not None:
@@ -293,6 +326,7 @@ class _Resolver:
         elif isinstance(e, Member):
             self.expr(e.base)
         elif isinstance(e, Cast):
+            self.typename(e.type)
             self.expr(e.operand)
         elif isinstance(e, VectorLiteral):
             for a in e.args:

@@ -15,6 +15,7 @@ from collections.abc import Mapping
 from .syntax import (
     BINARY_PREC,
     KEYWORDS,
+    TYPE_WORDS,
     Assign,
     Binary,
     Block,
@@ -80,7 +81,8 @@ def names_in(tree: Node) -> set[str]:
             found.add(node.name)
         elif isinstance(node, Call):
             found.add(node.func)
-        elif isinstance(node, Declarator):
+        elif isinstance(node, Declarator) or isinstance(node, TypeName) and node.name not in TYPE_WORDS \
+                and " " not in node.name:
             found.add(node.name)
         if isinstance(node, Node):
             for value in vars(node).values():
@@ -205,7 +207,7 @@ class _Printer:
             head = f"{self.expr(e.target, _UNARY)} {e.op} "
             return _join([head], self.layout(e.value, _ASSIGN, col + len(head)))
         if isinstance(e, Cast):
-            head = f"({e.type.name})"
+            head = f"({self.n(e.type.name)})"
             return _join([head], self.layout(e.operand, _UNARY, col + len(head)))
         if isinstance(e, Call):  # arguments broken after a comma, aligned after '('
             head = f"{self.n(e.func)}("
@@ -248,9 +250,9 @@ class _Printer:
     def decl(self, d: Decl) -> str:
         return f"{self.type(d.type)} " + ", ".join(self.declarator(v) for v in d.declarators)
 
-    @staticmethod
-    def type(t: TypeName) -> str:
-        return f"const {t.name}" if t.const else t.name
+    def type(self, t: TypeName) -> str:
+        name = self.n(t.name)  # OpenCL C's types are never renamed; a port's may be
+        return f"const {name}" if t.const else name
 
     def declarator(self, v: Declarator) -> str:
         text = self.n(v.name)
@@ -290,7 +292,7 @@ class _Printer:
             sep = " " if operand[:1] in "+-" and e.op[-1] in "+-" else ""
             return f"{e.op}{sep}{operand}", _UNARY
         if isinstance(e, Cast):
-            return f"({e.type.name}){self.expr(e.operand, _UNARY)}", _UNARY
+            return f"({self.n(e.type.name)}){self.expr(e.operand, _UNARY)}", _UNARY
         if isinstance(e, VectorLiteral):
             return f"({e.type.name})({self.args(e.args)})", _UNARY
         if isinstance(e, Binary):

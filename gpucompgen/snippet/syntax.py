@@ -12,8 +12,10 @@ written in it).  Anything else is a positioned error, never passed on to the com
     declaration := ['const'] type declarator (',' declarator)* ';'
     declarator  := name ['[' expr ']'] ['=' (expr | '{' expr (',' expr)* [','] '}')]
     type        := a scalar type (bool, char, uchar, short, ushort, int, uint, long, ulong,
-                   float, half, double, size_t, 'unsigned int', ...) or a vector type
-                   (char2 ... double16)
+                   float, half, double, size_t, 'unsigned int', ...), a vector type
+                   (char2 ... double16) or a port's element type <port>_t (src_t: the
+                   element type of port src, uchar, short or float as the model resolves
+                   it; parse's 'types')
     expr        := C's expressions without the comma operator, pointers (unary '*' and
                    '&', '->'), 'sizeof', strings and compound literals other than vector
                    literals '(float4)(a, b, c, d)'; calls name a function (an accessor
@@ -30,6 +32,7 @@ it gives back the author's grouping.
 from __future__ import annotations
 
 import re
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 from .lexer import Token, tokens
@@ -246,9 +249,11 @@ class Snippet(Node):
 
 
 # -- the parser ------------------------------------------------------------------------
-def parse(text: str) -> Snippet:
-    """The snippet's tree, or SnippetError at the first thing outside the language."""
-    tree = _Parser(tokens(text)).snippet()
+def parse(text: str, types: Mapping[str, str] | None = None) -> Snippet:
+    """The snippet's tree, or SnippetError at the first thing outside the language.  types
+    are the type names the snippet is given beyond OpenCL C's ('src_t' -> port 'src',
+    whose element type it names): written where a type may be, never as values."""
+    tree = _Parser(tokens(text), types or {}).snippet()
     _check_depth(tree)
     return tree
 
@@ -270,8 +275,10 @@ def _check_depth(tree: Snippet) -> None:
 
 
 class _Parser:
-    def __init__(self, toks: list[Token]) -> None:
+    def __init__(self, toks: list[Token], types: Mapping[str, str]) -> None:
         self.toks = toks
+        self.port_types = types  # 'src_t' -> 'src'
+        self.types = TYPE_WORDS | frozenset(types)
         self.i = 0
         self.depth = 0
 
@@ -433,7 +440,7 @@ class _Parser:
 
     # declarations
     def is_type_start(self) -> bool:
-        return self.tok.kind == "id" and (self.tok.text in TYPE_WORDS or self.tok.text == "const")
+        return self.tok.kind == "id" and (self.tok.text in self.types or self.tok.text == "const")
 
     def type_name(self) -> TypeName:
         t = self.tok
@@ -447,12 +454,14 @@ class _Parser:
                 name = f"{sign} {self.take().text}"
             else:
                 name = sign
-        elif self.tok.kind == "id" and self.tok.text in TYPE_WORDS:
+        elif self.tok.kind == "id" and self.tok.text in self.types:
             name = self.take().text
         else:
+            ports = ", ".join(self.port_types) or "none here"
             raise self.error(f"expected a type, found {self.shown(self.tok)}",
                              "types: bool, char, uchar, short, ushort, int, uint, long, "
-                             "ulong, float, half, double, size_t and vectors like uchar4")
+                             "ulong, float, half, double, size_t, vectors like uchar4 and "
+                             f"the ports' element types <port>_t ({ports})")
         if self.at("const"):
             raise self.error("write 'const' before the type", f"const {name}")
         return TypeName(name, const, at=t.offset)
@@ -499,6 +508,10 @@ class _Parser:
             raise self.error(f"expected {what}, found {self.shown(t)}")
         if t.text in KEYWORDS:
             raise self.error(f"'{t.text}' is a reserved word of OpenCL C, not a name",
+                             "choose another name")
+        if t.text in self.port_types:
+            raise self.error(f"'{t.text}' names the element type of port "
+                             f"'{self.port_types[t.text]}', not a local",
                              "choose another name")
         return self.take()
 
@@ -561,7 +574,7 @@ class _Parser:
         if t.kind == "id" and t.text == "sizeof":
             raise self.error("'sizeof' is not part of the snippet language",
                              "write the size as a number")
-        if self.at("(") and self.peek().kind == "id" and (self.peek().text in TYPE_WORDS
+        if self.at("(") and self.peek().kind == "id" and (self.peek().text in self.types
                                                            or self.peek().text == "const"):
             self.take()
             ty = self.type_name()
@@ -642,6 +655,11 @@ class _Parser:
         if t.kind == "id":
             if t.text in KEYWORDS:
                 raise self.error(f"'{t.text}' is not allowed here", _keyword_hint(t.text))
+            if t.text in self.port_types:
+                raise self.error(f"'{t.text}' is a type (the element type of port "
+                                 f"'{self.port_types[t.text]}'), not a value",
+                                 f"declare a local of it ({t.text} v = ...;) or cast to it "
+                                 f"(({t.text})(...))")
             self.take()
             return Name(t.text, at=t.offset)
         if self.at("("):

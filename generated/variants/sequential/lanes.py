@@ -113,8 +113,8 @@ PARAMS = {
     'segments.theta_degrees': runtime.Param('float', 1.0, minimum=0.01, maximum=180.0),
     'segments.threshold': runtime.Param('int', 30, minimum=1),
     'sink.output': runtime.Param('str', ''),
-    'strong.maxval': runtime.Param('int', 255, minimum=0, maximum=255),
-    'strong.thresh': runtime.Param('int', 60, minimum=0, maximum=255),
+    'strong.maxval': runtime.Param('float', 255.0),
+    'strong.thresh': runtime.Param('float', 60.0),
     'strong.thresh_type': runtime.Param('int', 0, minimum=0, maximum=4),
 }
 
@@ -220,8 +220,8 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
             '_m0_dy': np.int32(0),
             '_m1_alpha': np.float32(params['magnitude.alpha']),
             '_m1_beta': np.float32(params['magnitude.beta']),
-            '_m2_thresh': np.int32(params['strong.thresh']),
-            '_m2_maxval': np.int32(params['strong.maxval']),
+            '_m2_thresh': np.float32(params['strong.thresh']),
+            '_m2_maxval': np.float32(params['strong.maxval']),
             '_m2_thresh_type': np.int32(params['strong.thresh_type']),
         })
 

@@ -126,8 +126,8 @@ PARAMS = {
     'segments.theta_degrees': runtime.Param('float', 1.0, minimum=0.01, maximum=180.0),
     'segments.threshold': runtime.Param('int', 30, minimum=1),
     'sink.output': runtime.Param('str', ''),
-    'strong.maxval': runtime.Param('int', 255, minimum=0, maximum=255),
-    'strong.thresh': runtime.Param('int', 60, minimum=0, maximum=255),
+    'strong.maxval': runtime.Param('float', 255.0),
+    'strong.thresh': runtime.Param('float', 60.0),
     'strong.thresh_type': runtime.Param('int', 0, minimum=0, maximum=4),
 }
 
@@ -306,8 +306,8 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
     threshold_gray_program = runtime.build_program(
         context, LIB_DIR / 'strong.cl', 'strong (ThresholdGray)',
         defines={  # the kernel's constants, its members' parameters: -D NAME=VALUE
-            '_m0_thresh': np.int32(params['strong.thresh']),
-            '_m0_maxval': np.int32(params['strong.maxval']),
+            '_m0_thresh': np.float32(params['strong.thresh']),
+            '_m0_maxval': np.float32(params['strong.maxval']),
             '_m0_thresh_type': np.int32(params['strong.thresh_type']),
         })
     bitwise_and_mask_gray_program = runtime.build_program(

@@ -487,9 +487,7 @@ def _member(m, feeds: dict[Endpoint, str], producer: dict[Endpoint, Endpoint], i
     lines.append(f"static inline{attribute} {ctype} {_function(m.name, index, interior)}(_PARAMS, "
                  "const int y, const int x, const int c)")
     lines.append("{")
-    for pname, port in {**m.inputs, **m.outputs}.items():
-        lines.append(f"    const int {pname}_height = {port.data.height}, "
-                     f"{pname}_width = {port.data.width};")
+    lines += _port_constants(m)
     lines += locals_
     for pname, pdecl in m.type.params.items():
         c = "float" if pdecl.element == "float" else "int"
@@ -515,6 +513,36 @@ def _member(m, feeds: dict[Endpoint, str], producer: dict[Endpoint, Endpoint], i
     lines += [f"#undef {p}" for p in macros]
     lines.append("")
     return lines
+
+
+def _port_constants(m) -> list[str]:
+    """What the snippet is given of each port: its sizes, and its element type and that
+    type's least and greatest values where the snippet names them (src_t, src_min)."""
+    names, lines = m.type.fusable.names, []
+    for pname, port in {**m.inputs, **m.outputs}.items():
+        lines.append(f"    const int {pname}_height = {port.data.height}, "
+                     f"{pname}_width = {port.data.width};")
+        ctype = DTYPES[port.dtype][1]
+        if names.get(f"{pname}_t") == "type":
+            lines.append(f"    typedef {ctype} {pname}_t;")
+        limits = [f"{pname}_{end} = {_limit(port.dtype, end)}" for end in ("min", "max")
+                  if names.get(f"{pname}_{end}") == "limit"]
+        if limits:
+            lines.append(f"    const {ctype} {', '.join(limits)};")
+    return lines
+
+
+def _limit(dtype: str, end: str) -> str:
+    """The least ('min') or greatest ('max') value of an element type, as a C literal."""
+    import numpy as np
+
+    if dtype == "float32":
+        return ("-" if end == "min" else "") + _float_literal(np.finfo(np.float32).max)
+    info = np.iinfo(DTYPES[dtype][0])
+    value = int(info.min if end == "min" else info.max)
+    if value == -(1 << 31):
+        return "(-2147483647 - 1)"
+    return f"{value}u" if value >= 1 << 31 else str(value)
 
 
 def _tables(m, i: int) -> tuple[list[str], list[str]]:

@@ -92,8 +92,8 @@ PARAMS = {
     'camera.source': runtime.Param('input', ''),
     'camera.video': runtime.Param('input', ''),
     'sink.output': runtime.Param('str', ''),
-    'threshold.maxval': runtime.Param('int', 255, minimum=0, maximum=255),
-    'threshold.thresh': runtime.Param('int', 127, minimum=0, maximum=255),
+    'threshold.maxval': runtime.Param('float', 255.0),
+    'threshold.thresh': runtime.Param('float', 127.0),
     'threshold.thresh_type': runtime.Param('int', 0, minimum=0, maximum=4),
     'unread.gain': runtime.Param('int', 1, minimum=0, maximum=255),
 }
@@ -177,8 +177,8 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
     fused_to_hsv_threshold_program = runtime.build_program(
         context, LIB_DIR / 'group_to_hsv_threshold.cl', 'to_hsv_threshold (FusedToHsvThreshold)',
         defines={  # the kernel's constants, its members' parameters: -D NAME=VALUE
-            '_m1_thresh': np.int32(params['threshold.thresh']),
-            '_m1_maxval': np.int32(params['threshold.maxval']),
+            '_m1_thresh': np.float32(params['threshold.thresh']),
+            '_m1_maxval': np.float32(params['threshold.maxval']),
             '_m1_thresh_type': np.int32(params['threshold.thresh_type']),
         })
 

@@ -12,10 +12,10 @@
 // parameter is chosen once, not per element).  The program builds this file with -D
 // NAME=VALUE, its values after --set; below, the model's values, for a build without them.
 #ifndef _m1_thresh
-#define _m1_thresh 127
+#define _m1_thresh 127.0f
 #endif
 #ifndef _m1_maxval
-#define _m1_maxval 255
+#define _m1_maxval 255.0f
 #endif
 #ifndef _m1_thresh_type
 #define _m1_thresh_type 0
@@ -44,6 +44,13 @@ static inline __attribute__((overloadable)) short _max(const short a, const shor
 static inline __attribute__((overloadable)) uint _max(const uint a, const uint b) { return a > b ? a : b; }
 static inline __attribute__((overloadable)) int _max(const int a, const int b) { return a > b ? a : b; }
 static inline __attribute__((overloadable)) float _max(const float a, const float b) { return a > b ? a : b; }
+static inline __attribute__((overloadable)) uchar _clamp3(const uchar v, const uchar lo, const uchar hi) { return v < lo ? lo : v > hi ? hi : v; }
+static inline __attribute__((overloadable)) char _clamp3(const char v, const char lo, const char hi) { return v < lo ? lo : v > hi ? hi : v; }
+static inline __attribute__((overloadable)) ushort _clamp3(const ushort v, const ushort lo, const ushort hi) { return v < lo ? lo : v > hi ? hi : v; }
+static inline __attribute__((overloadable)) short _clamp3(const short v, const short lo, const short hi) { return v < lo ? lo : v > hi ? hi : v; }
+static inline __attribute__((overloadable)) uint _clamp3(const uint v, const uint lo, const uint hi) { return v < lo ? lo : v > hi ? hi : v; }
+static inline __attribute__((overloadable)) int _clamp3(const int v, const int lo, const int hi) { return v < lo ? lo : v > hi ? hi : v; }
+static inline __attribute__((overloadable)) float _clamp3(const float v, const float lo, const float hi) { return v < lo ? lo : v > hi ? hi : v; }
 
 // to_hsv: RgbToHsv (pointwise); every element
 #define src(y_, x_, c_) _in0[3 * ((size_t)(y_) * 48 + (x_)) + (c_)]
@@ -73,17 +80,24 @@ static inline __attribute__((always_inline)) uchar _f0_to_hsv(_PARAMS, const int
 static inline __attribute__((always_inline)) uchar _f1_threshold(_PARAMS, const int y, const int x, const int c)
 {
     const int src_height = 32, src_width = 48;
+    typedef uchar src_t;
+    const uchar src_min = 0, src_max = 255;
     const int dst_height = 32, dst_width = 48;
-    const int thresh = _m1_thresh;
-    const int maxval = _m1_maxval;
+    const float thresh = _m1_thresh;
+    const float maxval = _m1_maxval;
     const int thresh_type = _m1_thresh_type;
-    const int p = src(y, x, c);
-    const bool above = p > thresh;
-    return thresh_type == 0 ? (above ? maxval : 0)
-           : thresh_type == 1 ? (above ? 0 : maxval)
-           : thresh_type == 2 ? (above ? thresh : p)
-           : thresh_type == 3 ? (above ? p : 0)
-           : (above ? 0 : p);
+    const bool whole = (src_t)0.5f == (src_t)0;
+    const float t = whole ? floor(thresh) : thresh;
+    const src_t top = (src_t)_clamp3(whole ? rint(maxval) : maxval, (float)src_min, (float)src_max);
+    const src_t cut = whole && t < src_min ? (src_t)0 : (src_t)_clamp3(t, (float)src_min, (float)src_max);
+    const src_t p = src(y, x, c);
+    const int whole_t = (int)_clamp3(t, -65536.0f, 65536.0f);
+    const bool above = whole ? (int)p > whole_t : p > t;
+    return thresh_type == 0 ? (above ? top : (src_t)0)
+           : thresh_type == 1 ? (above ? (src_t)0 : top)
+           : thresh_type == 2 ? (above ? cut : p)
+           : thresh_type == 3 ? (above ? p : (src_t)0)
+           : (above ? (src_t)0 : p);
 }
 #undef src
 
