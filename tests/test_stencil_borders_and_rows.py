@@ -197,8 +197,19 @@ def test_the_reads_a_stencil_states_bound_what_its_snippet_reads(cl_context, cl_
     import pyopencl as cl
 
     require_opencl()
-    decl = library_types()[name].fusable
-    lines = [f"    const int {p} = {int(v)};" for p, v in params.items()]
+    ctype = library_types()[name]
+    decl = ctype.fusable
+    params = {**{p: d.default for p, d in ctype.params.items()}, **params}
+    lines = [f"    const {'float' if isinstance(v, float) else 'int'} {p} = {v};"
+             for p, v in params.items() if not isinstance(v, tuple)]
+    # what the generator defines around a snippet: its ports' element types and bounds,
+    # its tables (uint8 ports: the library's stencils here read and write uint8)
+    lines += [f"    typedef uchar {p}_t; const int {p}_min = 0, {p}_max = 255;"
+              for p in (*ctype.inputs, *ctype.outputs)]
+    for table, values in decl.tables_of(params).items():
+        c = "float" if any(isinstance(v, float) for v in values) else "int"
+        lines.append(f"    const {c} {table}[] = {{{', '.join(str(v) for v in values)}}};")
+    lines += [f"    const int {n} = {v};" for n, v in decl.lengths_of(params).items()]
     body = "\n".join("    " + line for line in decl.lines())
     program = cl.Program(cl_context, _COUNTING.format(params="\n".join(lines),
                                                       body=body)).build()
