@@ -303,7 +303,7 @@ def test_stencils_on_frames_narrower_or_lower_than_their_window(cl_context, cl_q
         port = next(iter(ctype.inputs.values()))
         channels = (port.channel_counts or (port.channels,))[-1]
         dtype = (port.dtypes or (port.dtype,))[0]
-        for h, w in ((1, 1), (33, 1), (1, 33), (2, 3), (7, 5), (5, 7)):
+        for h, w in ((1, 1), (33, 1), (1, 33), (7, 5)):  # a build each: sizes are constants
             shape = (h, w) + ((channels,) if channels > 1 else ())
             frame = rng.integers(0, 256, shape).astype(dtype)
             cpu = cpu_kernels.CPU_IMPLEMENTATIONS[name](frame, **params)
