@@ -167,10 +167,10 @@ def test_what_the_compiler_is_given_to_unroll_stays_bounded_for_every_parameter_
 # a snippet run as one element of a kernel whose accessors count their calls
 _COUNTING = """
 #define src(y_, x_, c_) (++*_reads, (uchar)(((y_) * 7 + (x_) * 3) & 255))
+{program}
 static int _count(__global int *_reads)
 {{
     const int y = 40, x = 40, c = 0;
-    const int src_height = 81, src_width = 81, dst_height = 81, dst_width = 81;
 {params}
 {body}
 }}
@@ -200,18 +200,16 @@ def test_the_reads_a_stencil_states_bound_what_its_snippet_reads(cl_context, cl_
     ctype = library_types()[name]
     decl = ctype.fusable
     params = {**{p: d.default for p, d in ctype.params.items()}, **params}
-    lines = [f"    const {'float' if isinstance(v, float) else 'int'} {p} = {v};"
-             for p, v in params.items() if not isinstance(v, tuple)]
-    # what the generator defines around a snippet: its ports' element types and bounds,
-    # its tables (uint8 ports: the library's stencils here read and write uint8)
-    lines += [f"    typedef uchar {p}_t; const int {p}_min = 0, {p}_max = 255;"
-              for p in (*ctype.inputs, *ctype.outputs)]
-    for table, values in decl.tables_of(params).items():
-        c = "float" if any(isinstance(v, float) for v in values) else "int"
-        lines.append(f"    const {c} {table}[] = {{{', '.join(str(v) for v in values)}}};")
-    lines += [f"    const int {n} = {v};" for n, v in decl.lengths_of(params).items()]
+    # what the generator gives a member's snippet: its port sizes, element types and
+    # bounds, its tables and array lengths (fused.py's own helpers), then the parameters
+    member = fused.group_of_one(ctype, params, {"src": (81, 81), "dst": (81, 81)}).members[0]
+    program, local = fused._tables(member, 0)
+    lines = [*fused._port_constants(member), *local]
+    lines += [f"    const {'float' if isinstance(v, float) else 'int'} {p} = {v};"
+              for p, v in params.items() if not isinstance(v, tuple)]
     body = "\n".join("    " + line for line in decl.lines())
-    program = cl.Program(cl_context, _COUNTING.format(params="\n".join(lines),
+    program = cl.Program(cl_context, _COUNTING.format(program="\n".join(program),
+                                                      params="\n".join(lines),
                                                       body=body)).build()
     out, reads = (cl.Buffer(cl_context, cl.mem_flags.READ_WRITE, 4) for _ in range(2))
     program.count(cl_queue, (1,), None, out, reads)
