@@ -315,8 +315,8 @@ def reads(node, port: str) -> int:
     calls = len(accessor_calls(decl.tree, [port])[port])
     if decl.form != "stencil":
         return max(calls, 1)
-    stated = decl.reads_of(node.params) if decl.reads is not None and \
-        len(node.inputs) == 1 else 0
+    stated = decl.total_reads_of(node.params) if (decl.reads is not None or decl.stages) \
+        and len(node.inputs) == 1 else 0
     return max(calls, decl.taps(node.params), stated)
 
 
