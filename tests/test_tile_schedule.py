@@ -15,7 +15,6 @@ import pytest
 from conftest import require_opencl, run_generated
 
 from gpucompgen.backend.opencl import fused
-from gpucompgen.device import PROFILES
 from gpucompgen.model import library_types
 
 
@@ -33,8 +32,7 @@ def test_what_is_staged_and_in_what_tiles():
     """A stage is staged where its readers would read more than MIN_STAGED_READS input
     elements through it inline (Blur k5's 25, not k3's 9), and never one that reads one
     element (MorphologyEx's stage is src itself for erode and gradient); nothing on a
-    GPU's schedule; tiles that fit the local memory, whole rows where they fit, else
-    columns, else nothing staged."""
+    GPU's schedule; tiles of whole rows where they fit, else of columns."""
     staged = {}
     for name, params in (("Blur", {"ksize": 3, "border_type": 4}),
                          ("Blur", {"ksize": 5, "border_type": 4}),
@@ -48,32 +46,22 @@ def test_what_is_staged_and_in_what_tiles():
                       ("Blur", 31, None): ["m.rows"], ("MorphologyEx", 5, 4): [],
                       ("MorphologyEx", 15, 0): [], ("MorphologyEx", 3, 2): ["m.inner"],
                       ("MorphologyEx", 5, 6): ["m.inner"]}
-    # tiles: what fits in the device's local memory (the portable profile: 32 KiB)
-    portable = PROFILES["portable"]
-    for w, budget, expected in ((64, 32 << 10, (32, 64)), (1280, 1 << 20, (32, 1280)),
-                                (1280, 32 << 10, None), (1280, 200, "none")):
-        device = replace(portable, local_mem_size=budget)
+    # tiles: whole rows where they fit in STAGED_BYTES, else columns
+    for w, expected in ((64, (32, 64)), (200, (32, 200)), (1280, None)):
         group = _group("Blur", {"ksize": 31, "border_type": 4}, 360, w)
-        pieces, (rows, cols) = fused.staged_pieces(group, "runs", device)
-        if expected == "none":
-            assert not pieces
-            continue
+        pieces, (rows, cols) = fused.staged_pieces(group, "runs")
         assert pieces == {"m.rows"}
-        # (rows + 30) x cols int32 row sums in the budget: the sums down a column read
-        # them 15 rows either side, in the same column
-        assert (rows + 30) * cols * 4 <= budget
-        if expected is not None:
-            assert (rows, cols) == expected
-        else:
-            assert cols < w
+        # (rows + 30) x cols int32 row sums: the sums down a column read them 15 rows
+        # either side, in the same column
+        assert (rows + 30) * cols * 4 <= fused.STAGED_BYTES
+        assert (rows, cols) == expected or expected is None and cols < w
     text = fused.group_kernel(_group("Blur", {"ksize": 31, "border_type": 4}, 360, 1280),
-                              "test", portable)
-    assert "__local int _s0[" in text and "barrier(CLK_LOCAL_MEM_FENCE);" in text
+                              "test")
+    assert "    int _s0[" in text and "barrier" not in text
 
 
 # (type, parameters, frame shape, launch settings, OpenCV): frames narrower than the
-# window and than a tile, taller than a strip, wider than a column tile (the portable
-# budget: 32 KiB), 1 and 3 channels, every border rule; one build each
+# window and than a tile, taller than a strip, wider than a column tile, 1 and 3 channels, every border rule; one build each
 def _cv(op, k, shape=0, iterations=1):
     import cv2
 

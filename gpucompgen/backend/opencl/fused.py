@@ -103,12 +103,13 @@ MAX_UNROLLED_LOOPS = 1024
 # inline, 0.108 staged; k5 (25) 0.23 -> 0.16; k9 (81) 0.85 -> 0.16; an opening 3x3 (81)
 # 0.14 to 0.26 -> 0.05; 5x5 (625) 2.7 -> 0.34.
 MIN_STAGED_READS = 9
-# Output rows a pass of a staged kernel covers (its pieces over these rows and their
-# halo), and the bytes the staged strips may take at most (the device's local memory
-# too; a CPU device keeps them in its cache).
+# The tiles of output a staged kernel computes a piece at a time (rows, and columns: the
+# whole row where it fits), the one whose staged pieces, with their halos, compute the
+# fewest elements an output element, among those whose arrays take at most STAGED_BYTES
+# (a work-item's own: a CPU keeps them in its cache).
 STRIP_ROWS = (32, 16, 8)
-TILE_COLUMNS = (512, 256, 128, 64)  # or the whole row, where it fits
-LOCAL_BUDGET = 1 << 20
+TILE_COLUMNS = (512, 256, 128, 64)
+STAGED_BYTES = 64 << 10
 
 BORDER_RULES = {
     "reflect101": [
@@ -386,13 +387,14 @@ def forced_inline(group: GroupNode, how: str, staged: frozenset = frozenset()) -
 
 # -- stages (fusable.Stage) and the staged schedule ----------------------------------------
 
-def staged_pieces(group: GroupNode, how: str, device=None) -> tuple[frozenset, int]:
-    """The pieces of the (expanded) group that the kernel computes into local memory
-    first, and the rows of output a pass covers (the strip): a stencil piece read by a
-    stencil whose reads of it, inlined, would read more than MIN_STAGED_READS input
-    elements an output element (it is then computed once a strip, its halo included, not
-    at every read), where every staged strip fits in LOCAL_BUDGET bytes (and the device's
-    local memory).  None on a GPU ('strided') yet, nor where the group has no interior."""
+def staged_pieces(group: GroupNode, how: str) -> tuple[frozenset, tuple[int, int]]:
+    """The pieces of the (expanded) group that the kernel computes first, a tile at a
+    time, into arrays its readers then read, and the tile (rows, columns) of output: a
+    stencil piece reading more than one element, read by a stencil whose reads of it,
+    inlined, would read more than MIN_STAGED_READS input elements an output element (it
+    is then computed once a tile, its halo included, not at every read), where the
+    arrays fit in STAGED_BYTES.  None on a GPU ('strided') yet, nor where the group has
+    no interior."""
     if how != "runs" or margin(group) is None:
         return frozenset(), 0
     group = expand(group)[0]
@@ -408,7 +410,7 @@ def staged_pieces(group: GroupNode, how: str, device=None) -> tuple[frozenset, i
     if not staged:
         return frozenset(), (0, 0)
     halo = _halos(group)
-    budget = min(LOCAL_BUDGET, device.local_mem_size if device is not None else 32 << 10)
+    budget = STAGED_BYTES
     (port,) = group.outputs.values()
     w = port.data.width
     best = None
@@ -444,9 +446,12 @@ def _staged_kernel(whole: GroupNode, group: GroupNode, out_port, flat: bool, how
                    staged: frozenset, tile: tuple[int, int],
                    slots: dict[str, tuple[int, int]]) -> list[str]:
     """The kernel of a group with staged pieces (staged_pieces): a work-group's rows in
-    tiles of tile = (rows, columns) of output; per tile, each staged piece computed over
-    what its readers read (the tile and its halo, inside the frame) into its local
-    array, then the root's tile from them, a barrier after each pass."""
+    tiles of tile = (rows, columns) of output, the work-group's items taking its strips
+    of rows in turn; per tile, each staged piece computed over what its readers read (the
+    tile and its halo, inside the frame) into a work-item's own array, then the root's
+    tile from them.  A CPU runs a work-group's items one after another on one core: an
+    item's own arrays need no barrier, and stay in its cache (with barriers between
+    passes, PoCL took 30 to 100 s to compile an opening of 5x5 for a work-group size)."""
     index = {m.name: i for i, m in enumerate(group.members)}
     h, w = out_port.data.height, out_port.data.width
     edges, halo = _edges(group, staged), _halos(group)
@@ -454,17 +459,18 @@ def _staged_kernel(whole: GroupNode, group: GroupNode, out_port, flat: bool, how
     args = "_ARGS, _LARGS"
     lines = _comment(
         f"{h} rows of {w} pixels.  Work-group g computes the rows [g * tile, g * tile + "
-        f"tile), in tiles of {rows_} rows and {cols} columns: first "
+        f"tile), in strips of {rows_} rows that its threads take in turn, each strip in "
+        f"tiles of {cols} columns: first "
         + ", then ".join(f"{n} over the tile and {halo[n][0]} rows and {halo[n][1]} "
-                         f"columns around it (inside the frame) into local memory, _s{j}"
+                         f"columns around it (inside the frame) into the thread's array _s{j}"
                          for n, (j, _) in slots.items())
         + f", then {group.root.name} from them: each computed once, not at every read of "
-        "it.  Its threads take a pass's rows in turn, each a whole row of the tile.")
+        "it.")
     lines += [f"__kernel void {kernel_name(whole)}(_PARAMS, const int _tile)", "{"]
     for n, (j, lw) in slots.items():
         m = group.member(n)
         (port,) = m.outputs.values()
-        lines.append(f"    __local {DTYPES[port.dtype][1]} _s{j}[{(rows_ + 2 * halo[n][0]) * lw}"
+        lines.append(f"    {DTYPES[port.dtype][1]} _s{j}[{(rows_ + 2 * halo[n][0]) * lw}"
                      f"{f' * {port.channels}' if port.channels > 1 else ''}];  // "
                      f"{rows_} + 2 x {halo[n][0]} rows of {cols} + 2 x {halo[n][1]} pixels "
                      f"of {n}")
@@ -472,7 +478,7 @@ def _staged_kernel(whole: GroupNode, group: GroupNode, out_port, flat: bool, how
               f"    const int _y1 = min(_y0 + _tile, {h});",
               "    const int _k = get_local_id(1) * get_local_size(0) + get_local_id(0);",
               "    const int _n = get_local_size(0) * get_local_size(1);",
-              f"    for (int _ys = _y0; _ys < _y1; _ys += {rows_})",
+              f"    for (int _ys = _y0 + {rows_} * _k; _ys < _y1; _ys += {rows_} * _n)",
               f"    for (int _xs = 0; _xs < {w}; _xs += {cols}) {{",
               f"        const int _ye = min(_ys + {rows_}, _y1), _xe = min(_xs + {cols}, {w});"]
     for n, (j, _) in slots.items():
@@ -482,7 +488,7 @@ def _staged_kernel(whole: GroupNode, group: GroupNode, out_port, flat: bool, how
     for n, slot in [*slots.items(), (group.root.name, None)]:
         m = group.member(n)
         (port,) = m.outputs.values()
-        ch = port.channels
+        ch, c = port.channels, DTYPES[port.dtype][1]
         ey, ex = edges[n]
         plain = ey == ex == 0 and not any(
             m.type.fusable.form == "stencil" for m in _inlined(group, staged, n))
@@ -490,19 +496,18 @@ def _staged_kernel(whole: GroupNode, group: GroupNode, out_port, flat: bool, how
         if slot is None:
             rows = _Rows(_function(n, index, False), _function(n, index, True),
                          None if plain else ex, h, w, ch, flat, args, ey, ("_xs", "_xe"))
-            row_decl = f"__global {DTYPES[port.dtype][1]} *_row = _out + (size_t)_y * {w * ch};"
-            lines += [f"        // {n}: the tile of output",
-                      *rows.runs("_ys", "_ye", row_decl, together, 2)]
+            row_decl = f"__global {c} *_row = _out + (size_t)_y * {w * ch};"
+            lines += [f"        // {n}: the tile [_ys, _ye) x [_xs, _xe) of the output",
+                      *rows.runs("_ys", "_ye", row_decl, together, 2, split=False)]
         else:
             j, lw = slot
             rows = _Rows(_function(n, index, False), _function(n, index, True),
                          None if plain else ex, h, w, ch, flat, args, ey,
                          (f"_c{j}", f"_d{j}"), f"_c{j}", lw * ch)
-            row_decl = (f"__local {DTYPES[port.dtype][1]} *_row = _s{j} + (size_t)(_y - _a{j})"
-                        f" * {lw * ch};")
-            lines += [f"        // {n}: rows _a{j} to _b{j}, columns _c{j} to _d{j}, into _s{j}",
-                      *rows.runs(f"_a{j}", f"_b{j}", row_decl, together, 2)]
-        lines.append("        barrier(CLK_LOCAL_MEM_FENCE);")
+            row_decl = f"{c} *_row = _s{j} + (size_t)(_y - _a{j}) * {lw * ch};"
+            lines += [(f"        // {n}: rows [_a{j}, _b{j}) and columns [_c{j}, _d{j}) of "
+                       f"the frame, into _s{j}"),
+                      *rows.runs(f"_a{j}", f"_b{j}", row_decl, together, 2, split=False)]
     lines += ["    }", "}", ""]
     return lines
 
@@ -573,7 +578,7 @@ def group_kernel(group: GroupNode, header: str, device=None) -> str:
     decls = [_declaration(p, names[p.name]) for p in params if p.role != "tile"]
     args = [names[p.name] for p in params if p.role != "tile"]
     how = schedule(device)
-    staged, tile = staged_pieces(group, how, device)
+    staged, tile = staged_pieces(group, how)
     whole = group
     group, feeds = expand(group)  # stages are members of their own
     index = {m.name: i for i, m in enumerate(group.members)}
@@ -613,7 +618,7 @@ def group_kernel(group: GroupNode, header: str, device=None) -> str:
     if slots:
         # what every member's function is given of the staged pieces: each one's tile in
         # local memory and the frame row and column its first element is
-        local = [f"__local const {DTYPES[_out_dtype(group.member(n))][1]} *restrict _s{j}, "
+        local = [f"const {DTYPES[_out_dtype(group.member(n))][1]} *_s{j}, "
                  f"const int _a{j}, const int _c{j}" for n, (j, _) in slots.items()]
         lines += ["#define _LOCALS \\",
                   *(f"    {d}, \\" if i < len(local) - 1 else f"    {d}"
@@ -758,6 +763,11 @@ def _member(m, feeds: dict[Endpoint, str], producer: dict[Endpoint, Endpoint], i
     if not interior:  # once, before the member's first version
         lines[1:1] = tables
     attribute = " __attribute__((always_inline))" if inline else ""
+    if slots and not interior:
+        # a staged kernel's border version: a call (it runs on a few columns and rows,
+        # element by element); inlined at each of its call sites in every pass, an
+        # opening of 5x5 took 28 s to compile for a work-group size
+        attribute = " __attribute__((noinline))"
     lines.append(f"static inline{attribute} {ctype} {_function(m.name, index, interior)}"
                  f"({fparams}, const int y, const int x, const int c)")
     lines.append("{")
@@ -971,16 +981,20 @@ class _Rows:
                 f"{pad}}} else {{",
                 *block(whole, self.fn, depth, True), f"{pad}}}"]
 
-    def runs(self, lo: str, hi: str, row_decl: str, together: int, depth: int = 1) -> list[str]:
+    def runs(self, lo: str, hi: str, row_decl: str, together: int, depth: int = 1,
+             split: bool = True) -> list[str]:
         """The loop over rows [lo, hi) (C expressions), the work-group's items taking them
-        in turn ('runs'), together rows at a time where they are interior rows; row_decl
-        declares _row, row _y's first element."""
+        in turn ('runs'; split False: all of them this item's), together rows at a time
+        where they are interior rows; row_decl declares _row, row _y's first element."""
         pad, edge, h, t = "    " * depth, self.edge_y, self.h, together
+        first, step = ("_k", "_n") if split else ("", "1")
         if t == 1:
-            return [f"{pad}for (int _y = {lo} + _k; _y < {hi}; _y += _n) {{",
+            start = f"{lo} + _k" if split else lo
+            return [f"{pad}for (int _y = {start}; _y < {hi}; _y += {step}) {{",
                     f"{pad}    {row_decl}",
                     *self.row(depth + (2 if self.edge is not None else 1)), pad + "}"]
-        return [f"{pad}for (int _p = {lo} + {t} * _k; _p < {hi}; _p += {t} * _n) {{",
+        start = f"{lo} + {t} * {first}" if split else lo
+        return [f"{pad}for (int _p = {start}; _p < {hi}; _p += {t} * {step}) {{",
                 f"{pad}    if (_p >= {edge} && _p + {t - 1} < min({hi}, {h - edge})) {{",
                 f"{pad}        // rows _p to _p + {t - 1}, every one in the interior",
                 f"{pad}        const int _y = _p;", f"{pad}        {row_decl}",
