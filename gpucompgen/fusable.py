@@ -60,12 +60,14 @@ from .snippet import MAX_SNIPPET, Snippet, analyse, is_builtin, port_names, prin
 from .snippet.syntax import Call, DoWhile, For, Node, While
 
 FORMS = ("pointwise", "index_map", "stencil")
+# a stencil's window along one axis: a row ('x': it reads (y, x + d) only) or a column
+AXES = ("x", "y")
 # the nearest edge pixel (BORDER_REPLICATE); OpenCV's BORDER_REFLECT_101 (gfedcb|abcdefgh),
 # BORDER_REFLECT (fedcba|abcdefgh) and BORDER_CONSTANT with 0 (000000|abcdefgh)
 BORDERS = ("clamp", "reflect101", "reflect", "constant")
 # OpenCV's border codes, for a border chosen by a parameter ('border: border_type')
 OPENCV_BORDERS = {0: "constant", 1: "clamp", 2: "reflect", 4: "reflect101"}
-__all__ = ["BORDERS", "FORMS", "MAX_SNIPPET", "OPENCV_BORDERS", "TABLES", "FusableDecl", "Stage",
+__all__ = ["AXES", "BORDERS", "FORMS", "MAX_SNIPPET", "OPENCV_BORDERS", "TABLES", "FusableDecl", "Stage",
            "analyse", "array_lengths", "length_names", "port_names", "snippet_position",
            "table_call"]
 

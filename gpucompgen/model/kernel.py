@@ -22,7 +22,6 @@ GPU_KEYS = ("tiles", "block_z", "prefer", "max_threads", "square")
 
 FUSABLE_KEYS = ("form", "value", "radius", "border", "reads", "tables", "stages", "axis")
 STAGE_KEYS = ("dtype", "radius", "axis", "reads", "value")
-AXES = ("x", "y")
 
 
 def _check_signature(doc, rep, base, ctype: ComponentType, kspec: dict) -> None:
@@ -248,7 +247,7 @@ def _load_fusable(doc, rep, base, ctype: ComponentType, fspec) -> None:
 
 def _axis_ok(doc, rep, path, ctype: ComponentType, spec) -> bool:
     """A stencil's (or stage's) 'axis', where given, is x or y."""
-    if "axis" not in spec or _named(spec["axis"], AXES):
+    if "axis" not in spec or _named(spec["axis"], fusable_forms.AXES):
         return True
     rep.error(doc.pos(*path, "axis"), f"stencil '{ctype.name}': 'axis' is x (the window "
               f"is a row: reads at (y, x + d) only) or y (a column), not {spec['axis']!r}",

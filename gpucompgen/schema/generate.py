@@ -225,7 +225,7 @@ def _fusable() -> dict:
             "radius": {"type": ["integer", "string"],
                        "description": "the stage's window radius, a number or an int "
                                       "parameter or an expression of them"},
-            "axis": _enum(("x", "y"), "x where the stage's window is a row (it reads at "
+            "axis": _enum(fusable_forms.AXES, "x where the stage's window is a row (it reads at "
                           "(y, x + d) only), y where it is a column"),
             "reads": {"type": ["integer", "string"],
                       "description": "input elements an element of the stage reads with "
@@ -238,7 +238,7 @@ def _fusable() -> dict:
                    "it (a box filter's row sums, an opening's erosion); the value reads "
                    "them as <name>(y, x, c); the generator computes a stage at every read "
                    "of it or once into local memory"},
-        "axis": _enum(("x", "y"), "stencil: x where the window is a row (it reads at "
+        "axis": _enum(fusable_forms.AXES, "stencil: x where the window is a row (it reads at "
                       "(y, x + d) only), y where it is a column; by default a square"),
         "tables": {"type": "object", "additionalProperties": {"type": "string"},
                    "description": "stencil: arrays the snippet reads, each computed from "
