@@ -30,19 +30,20 @@ def _morph(op, ksize, shape=0, iterations=1):
 
 def test_what_is_staged_and_in_what_tiles():
     """A stage is staged where its readers would read more than MIN_STAGED_READS input
-    elements through it inline (Blur k5's 25, not k3's 9), and never one that reads one
+    elements through it inline (Blur k7's 49, not k5's 25), and never one that reads one
     element (MorphologyEx's stage is src itself for erode and gradient); nothing on a
     GPU's schedule; tiles of whole rows where they fit, else of columns."""
     staged = {}
     for name, params in (("Blur", {"ksize": 3, "border_type": 4}),
                          ("Blur", {"ksize": 5, "border_type": 4}),
+                         ("Blur", {"ksize": 7, "border_type": 4}),
                          ("Blur", {"ksize": 31, "border_type": 0}),
                          ("MorphologyEx", _morph(4, 5)), ("MorphologyEx", _morph(0, 15)),
                          ("MorphologyEx", _morph(2, 3)), ("MorphologyEx", _morph(6, 5, 2))):
         pieces, tile = fused.staged_pieces(_group(name, params), "runs")
         staged[name, params.get("ksize"), params.get("op")] = sorted(pieces)
         assert fused.staged_pieces(_group(name, params), "strided")[0] == frozenset()
-    assert staged == {("Blur", 3, None): [], ("Blur", 5, None): ["m.rows"],
+    assert staged == {("Blur", 3, None): [], ("Blur", 5, None): [], ("Blur", 7, None): ["m.rows"],
                       ("Blur", 31, None): ["m.rows"], ("MorphologyEx", 5, 4): [],
                       ("MorphologyEx", 15, 0): [], ("MorphologyEx", 3, 2): ["m.inner"],
                       ("MorphologyEx", 5, 6): ["m.inner"]}
@@ -79,7 +80,7 @@ CASES = [
     ("Blur", {"ksize": 15, "border_type": 0}, (5, 7), (8, 1, 1, 1), _blur(15, 0)),
     ("Blur", {"ksize": 9, "border_type": 2}, (45, 150, 3), (40, 2, 3, 1), _blur(9, 2)),
     ("Blur", {"ksize": 31, "border_type": 4}, (70, 200), (64, 2, 1, 1), _blur(31, 4)),
-    ("Blur", {"ksize": 5, "border_type": 1}, (3, 1), (4, 1, 2, 1), _blur(5, 1)),
+    ("Blur", {"ksize": 7, "border_type": 1}, (3, 1), (4, 1, 2, 1), _blur(7, 1)),
     ("MorphologyEx", _morph(2, 5), (35, 90), (16, 4, 1, 1), _cv(2, 5)),
     ("MorphologyEx", _morph(6, 5, 2), (6, 4, 3), (8, 1, 1, 1), _cv(6, 5, 2)),
     ("MorphologyEx", _morph(3, 3, 0, 2), (33, 170), (40, 1, 3, 1), _cv(3, 3, 0, 2)),

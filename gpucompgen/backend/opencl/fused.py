@@ -98,11 +98,11 @@ MAX_UNROLLED_READS = 400
 MAX_UNROLLED_LOOPS = 1024
 # The staged schedule (staged_pieces): a stage of a stencil (fusable.Stage), or a stencil
 # member, read by a stencil whose inlined reads of it would exceed this many input
-# elements an output element is computed once a tile into local memory instead.  A
-# 640x360 frame, PoCL, load 3 to 5 (docs/benchmarks.md): BlurGray k3 (9 reads) 0.074 ms
-# inline, 0.108 staged; k5 (25) 0.23 -> 0.16; k9 (81) 0.85 -> 0.16; an opening 3x3 (81)
-# 0.14 to 0.26 -> 0.05; 5x5 (625) 2.7 -> 0.34.
-MIN_STAGED_READS = 9
+# elements an output element is computed once a tile into an array instead.  A 640x360
+# frame, PoCL, load 3 to 5 (docs/benchmarks.md): BlurGray k5 (25 reads) 0.163 ms inline,
+# 0.174 staged; k7 (49) 0.345 -> 0.239; k15 (225) 2.07 -> 0.66; k31 (961) 85 -> 2.1; an
+# opening 3x3 (81) 0.185 -> 0.197, of 5x5 (625) 1.87 -> 0.67.
+MIN_STAGED_READS = 25
 # The tiles of output a staged kernel computes a piece at a time (rows, and columns: the
 # whole row where it fits), the one whose staged pieces, with their halos, compute the
 # fewest elements an output element, among those whose arrays take at most STAGED_BYTES
