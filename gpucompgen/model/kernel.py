@@ -284,7 +284,8 @@ def _load_stages(doc, rep, path, ctype: ComponentType, fspec, tables,
         if not _named(dtype, DTYPES):
             rep.error(doc.pos(*where, "dtype") if "dtype" in sspec else doc.key_pos(*where),
                       f"stage '{name}' of '{ctype.name}' needs 'dtype', one of "
-                      f"{', '.join(DTYPES)}, not {dtype!r}", "e.g. dtype: int32")
+                      f"{', '.join(DTYPES)}" + (f", not {dtype!r}" if "dtype" in sspec else ""),
+                      "the element type of the stage's values, e.g. dtype: int32")
             return None
         for key, what, least in (("radius", radius, 0), ("reads", reads, 1)):
             if (what is not None or key == "radius") and not _count(what, int_params, least):
