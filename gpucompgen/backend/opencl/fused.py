@@ -746,25 +746,16 @@ def _member(m, feeds: dict[Endpoint, str], producer: dict[Endpoint, Endpoint], i
             # dx x C elements away, the same channel
             xx = f"(x + ((x_) - x) * {port.channels})"
         if src is not None and src.component in slots:
-            # a staged piece: its value, stored in local memory before this pass (rows
-            # from _a<j>, columns from _c<j>, lw a row)
+            # a staged piece: its value, stored in an array before this pass (rows from
+            # _a<j>, columns from _c<j>, lw a row)
             j, lw = slots[src.component]
-            row, ch = f"(size_t)({yy} - _a{j})", port.channels
-            if flat:
-                body = f"_s{j}[{row} * {lw * ch} + {xx} - {ch} * _c{j}]" if ch > 1 else \
-                    f"_s{j}[{row} * {lw} + {xx} - _c{j}]"
-            else:
-                body = (f"_s{j}[{ch} * ({row} * {lw} + {xx} - _c{j}) + (c_)]"
-                        if ch > 1 else f"_s{j}[{row} * {lw} + {xx} - _c{j}]")
+            body = _load(f"_s{j}", f"(size_t)({yy} - _a{j})", lw, xx, port.channels, flat,
+                         f"_c{j}")
         elif src is not None:
             body = f"{_function(src.component, index, interior)}({fargs}, {yy}, {xx}, (c_))"
         else:
-            buf = names[feeds[Endpoint(m.name, pname)]]
-            if flat:
-                body = f"{buf}[(size_t){yy} * {w * port.channels} + {xx}]"
-            else:
-                body = (f"{buf}[{port.channels} * ((size_t){yy} * {w} + {xx}) + (c_)]"
-                        if port.channels > 1 else f"{buf}[(size_t){yy} * {w} + {xx}]")
+            body = _load(names[feeds[Endpoint(m.name, pname)]], f"(size_t){yy}", w, xx,
+                         port.channels, flat)
         if outside_zero:  # BORDER_CONSTANT: a read outside the input is 0
             body = f"((unsigned)(y_) < {h}u && (unsigned)(x_) < {w}u ? {body} : 0)"
         macros.append(pname)
@@ -783,18 +774,7 @@ def _member(m, feeds: dict[Endpoint, str], producer: dict[Endpoint, Endpoint], i
     lines.append("{")
     lines += _port_constants(m)
     lines += locals_
-    for pname, pdecl in m.type.params.items():
-        c = "float" if pdecl.element == "float" else "int"
-        if pdecl.shape:
-            continue
-        if pname in fixed:
-            # the window is fixed at build time (the interior's margin is): a constant, so
-            # that the compiler unrolls a loop over it
-            value = m.params[pname]
-            lines.append(f"    const {c} {pname} = "
-                         f"{_float_literal(value) if c == 'float' else int(value)};")
-            continue
-        lines.append(f"    const {c} {pname} = {names[f'{owner}.{pname}']};")
+    lines += _param_lines(m, names, owner, fixed)
     # printed from the parsed snippet; built-in calls swapped for their inline versions
     unroll = decl.reads_of(m.params) <= MAX_UNROLLED_LOOPS
     for line in inline_builtins("\n".join(decl.lines()), used).splitlines():
@@ -807,6 +787,37 @@ def _member(m, feeds: dict[Endpoint, str], producer: dict[Endpoint, Endpoint], i
     lines += [f"#undef {p}" for p in macros]
     lines.append("")
     return lines
+
+
+def _param_lines(m, names, owner: str, fixed: set[str]) -> list[str]:
+    """A member's parameters as locals of its function: those that fix its window
+    (fixed) as numbers, the others from the kernel's macros (of owner's parameters)."""
+    lines = []
+    for pname, pdecl in m.type.params.items():
+        c = "float" if pdecl.element == "float" else "int"
+        if pdecl.shape:
+            continue
+        if pname in fixed:
+            # the window is fixed at build time (the interior's margin is): a constant, so
+            # that the compiler unrolls a loop over it
+            value = m.params[pname]
+            lines.append(f"    const {c} {pname} = "
+                         f"{_float_literal(value) if c == 'float' else int(value)};")
+            continue
+        lines.append(f"    const {c} {pname} = {names[f'{owner}.{pname}']};")
+    return lines
+
+
+def _load(array: str, row: str, w: int, xx: str, ch: int, flat: bool,
+          first: str | None = None) -> str:
+    """Element (row, xx) of array, rows of w pixels of ch channels (flat: xx an element
+    of the row, else a pixel, its channel c_), its first column first (None: 0)."""
+    if flat:
+        shift = "" if first is None else f" - {ch} * {first}" if ch > 1 else f" - {first}"
+        return f"{array}[{row} * {w * ch} + {xx}{shift}]"
+    at = xx if first is None else f"{xx} - {first}"
+    return f"{array}[{ch} * ({row} * {w} + {at}) + (c_)]" if ch > 1 else \
+        f"{array}[{row} * {w} + {at}]"
 
 
 def _port_constants(m) -> list[str]:
