@@ -155,6 +155,10 @@ def _cases(cv2):
                         lambda a: cv2.blur(a, (3, 3), borderType=4)),
         "BlurGray k7": ("BlurGray", {"ksize": 7, "border_type": 4},
                         lambda a: cv2.blur(a, (7, 7), borderType=4)),
+        # large windows (the staged schedule: row sums, then column sums)
+        **{f"{t} k{k}": (t, {"ksize": k, "border_type": 4},
+                         lambda a, k=k: cv2.blur(a, (k, k), borderType=4))
+           for t, k in (("BlurGray", 15), ("BlurGray", 31), ("Blur", 31))},
         **{f"MorphologyExGray {what} k{k}{' ellipse' if shape else ''}": (
             "MorphologyExGray", {"op": op, "shape": shape, "ksize": k, "iterations": 1},
             lambda a, op=op, k=k, shape=shape: cv2.morphologyEx(

@@ -14,7 +14,8 @@ and PyTorch Inductor's ``Pointwise(inner_fn)``, whose loads are index expression
       # output element reads with the snippet's loops unrolled, where a stencil's
       # snippet nests windows (a number, an int parameter or an expression of them);
       # tables: {kx: 'gaussian_q8(ksize, sigma)'} (tables the snippet reads, computed
-      # from parameters)
+      # from parameters); stages: {rows: {dtype: int32, radius: r, value: ...}} (see
+      # below); axis: x (or y) where the window is a row (a column)
 
 pointwise   reads every input only at (y, x) (any channel)
 index_map   reads each input at one position computed from y, x, c, sizes and parameters
@@ -29,6 +30,16 @@ stencil     reads a window of 'radius' around (y, x); reads outside the input fo
             kernel is generated: those parameters are fixed at build time too
 An array parameter's lengths are names of the snippet and of the radius: <name>_length
 (one dimension), <name>_rows and <name>_cols (two or three), fixed at build time.
+
+A stencil whose work is a window of something computed over a window (a box filter's
+row sums, then the sums of ksize of them down a column; an opening's erosion, then the
+dilation of it) may say so with ``stages``: each a named stencil of its own (an element
+type, a radius, its reads, a value reading the inputs and the stages before it, the
+type's border), and the type's value reads them as ``name(y, x, c)``, like inputs; the
+type's own radius and reads are then the value's own, over the stages.  The kernel
+generator decides how a stage is computed (backend/opencl/fused.py): inline, at every
+read of it (what the type would be without stages), or once a frame strip into local
+memory that the value then reads; the results are the same.
 
 The snippet is read once, at check time, by the snippet language (gpucompgen/snippet/:
 a C lexer, a whitelist grammar, name resolution), and kept parsed in the type; kernels
@@ -49,12 +60,14 @@ from .snippet import MAX_SNIPPET, Snippet, analyse, is_builtin, port_names, prin
 from .snippet.syntax import Call, DoWhile, For, Node, While
 
 FORMS = ("pointwise", "index_map", "stencil")
+# a stencil's window along one axis: a row ('x': it reads (y, x + d) only) or a column
+AXES = ("x", "y")
 # the nearest edge pixel (BORDER_REPLICATE); OpenCV's BORDER_REFLECT_101 (gfedcb|abcdefgh),
 # BORDER_REFLECT (fedcba|abcdefgh) and BORDER_CONSTANT with 0 (000000|abcdefgh)
 BORDERS = ("clamp", "reflect101", "reflect", "constant")
 # OpenCV's border codes, for a border chosen by a parameter ('border: border_type')
 OPENCV_BORDERS = {0: "constant", 1: "clamp", 2: "reflect", 4: "reflect101"}
-__all__ = ["BORDERS", "FORMS", "MAX_SNIPPET", "OPENCV_BORDERS", "TABLES", "FusableDecl",
+__all__ = ["AXES", "BORDERS", "FORMS", "MAX_SNIPPET", "OPENCV_BORDERS", "TABLES", "FusableDecl", "Stage",
            "analyse", "array_lengths", "length_names", "port_names", "snippet_position",
            "table_call"]
 
@@ -125,6 +138,17 @@ class FusableDecl:
     # parameters it is called with ('kx': ('gaussian_q8', ('ksize', 'sigma'))): computed
     # when the kernel is generated, so those parameters are fixed at build time
     tables: Mapping[str, tuple[str, tuple[str, ...]]] = field(default_factory=dict)
+    # stencil: what the value reads besides the inputs, in order (each may read the
+    # inputs and the stages before it): name -> Stage
+    stages: Mapping[str, Stage] = field(default_factory=dict)
+    # stencil: 'x' where the window is a row (it reads (y, x + d) only), 'y' where it is a
+    # column; None: both (a square of 2 radius + 1)
+    axis: str | None = None
+
+    def radii_of(self, params: Mapping[str, object]) -> tuple[int, int]:
+        """The window's radius along y and along x (axis: one of them 0)."""
+        r = self.radius_of(params)
+        return (0 if self.axis == "x" else r, 0 if self.axis == "y" else r)
 
     def radius_of(self, params: Mapping[str, object]) -> int:
         """The stencil's radius for these parameter values (0 for another form)."""
@@ -161,12 +185,29 @@ class FusableDecl:
             return set()
         names = set() if self.border in BORDERS else {self.border}
         names |= {a for _, args in self.tables.values() for a in args}
+        for stage in self.stages.values():
+            names |= stage.decl.radius_names()
         if isinstance(self.radius, int):
             return names
         tree = ast.parse(self.radius.strip(), mode="eval")
         calls = {id(n.func) for n in ast.walk(tree) if isinstance(n, ast.Call)}  # min, max
         return names | {n.id for n in ast.walk(tree)
                         if isinstance(n, ast.Name) and id(n) not in calls}
+
+    def reach_of(self, params: Mapping[str, object]) -> int:
+        """How far from (y, x) an output element reads the inputs: the radius, plus the
+        farthest reach of the stages where it has any (a stage read at the value's
+        radius reads its own window around there)."""
+        return self.radius_of(params) + max(
+            (s.decl.reach_of(params) for s in self.stages.values()), default=0)
+
+    def total_reads_of(self, params: Mapping[str, object]) -> int:
+        """Input elements an output element reads with every stage computed at every read
+        of it (inline) and the loops unrolled: reads_of, a stage's read counted as the
+        most any stage reads (an upper bound)."""
+        inner = max((s.decl.total_reads_of(params) for s in self.stages.values()),
+                    default=1)
+        return self.reads_of(params) * inner
 
     def lines(self, rename: Mapping[str, str] | None = None) -> list[str]:
         """The snippet as C statements ending by returning the element, one a line
@@ -182,10 +223,12 @@ class FusableDecl:
 
     def taps(self, params: dict) -> int:
         """Input elements one output element reads per input: (2 radius + 1)^2 for a
-        stencil, 1 otherwise."""
+        stencil (of the stages where it has any: its own window over them), 1
+        otherwise."""
         if self.form != "stencil":
             return 1
-        return (2 * self.radius_of(params) + 1) ** 2
+        ry, rx = self.radii_of(params)
+        return (2 * ry + 1) * (2 * rx + 1)
 
     def reads_of(self, params: Mapping[str, object]) -> int:
         """Input elements one evaluation of the snippet reads with its loops unrolled
@@ -197,6 +240,16 @@ class FusableDecl:
             return max(1, _int_of(self.reads, params))
         side = 2 * self.radius_of(params) + 1 if self.form == "stencil" else 1
         return max(1, unrolled_calls(self.tree, side))
+
+
+@dataclass(frozen=True)
+class Stage:
+    """A stage of a stencil (FusableDecl.stages): its element type (one of DTYPES) and
+    its own form, a stencil with the type's border."""
+
+    name: str
+    dtype: str
+    decl: FusableDecl
 
 
 _LOOPS = (For, While, DoWhile)

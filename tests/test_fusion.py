@@ -337,10 +337,18 @@ def test_library_snippets_pass_the_check_and_compile(cl_context):
     for name, t in fusable_types.items():
         lengths = [n for p, d in t.params.items() if d.shape
                    for n in fusable.length_names(p, len(d.shape))]
-        assert not fusable.analyse(t.fusable.value, t.fusable.form, list(t.inputs),
+        # the value reads the inputs and the stages (fusable.Stage), a stage the inputs
+        # and the stages before it
+        stages = list(t.fusable.stages)
+        assert not fusable.analyse(t.fusable.value, t.fusable.form, [*t.inputs, *stages],
                                    list(t.outputs), [*t.params, *t.fusable.tables, *lengths],
                                    arrays=[*(p for p, d in t.params.items() if d.shape),
                                            *t.fusable.tables]).problems
+        for i, stage in enumerate(t.fusable.stages.values()):
+            assert not fusable.analyse(stage.decl.value, "stencil", [*t.inputs, *stages[:i]],
+                                       [stage.name], [*t.params, *lengths],
+                                       arrays=[p for p, d in t.params.items()
+                                               if d.shape]).problems
         ports = {p: port(p, "in", d) for p, d in t.inputs.items()}
         outs = {p: port(p, "out", d) for p, d in t.outputs.items()}
         member = ComponentNode("member", None, ports, outs, type=t,

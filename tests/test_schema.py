@@ -176,13 +176,13 @@ def test_every_enum_and_closed_mapping_agrees_with_the_loader():
     enums = {frozenset(e) for e in (model.KINDS, model.DTYPES, model.MEMORIES,
                                     model.PARAM_TYPES, model.COVERS, model.EXECUTIONS,
                                     model.ZERO_COPY, model.STAGING, model.PLACEMENTS,
-                                    model.FUSION, model.BACKENDS, fusable.FORMS, fusable.BORDERS, PROFILES,
+                                    model.FUSION, model.BACKENDS, fusable.FORMS, fusable.BORDERS, fusable.AXES, PROFILES,
                                     [*PROFILES, "auto"], KINDS, model.ANY, model.FAMILIES)}
     tables = {frozenset(t) for t in (
         model.SYSTEM_KEYS, model.PLATFORM_KEYS, model.INSTANCE_KEYS, model.TYPE_KEYS,
         model.PORT_KEYS, set(model.PORT_KEYS) - {"height", "width"}, model.PARAM_KEYS,
         model.REQUIRE_KEYS, model.KERNEL_KEYS, model.GPU_KEYS, model.PYTHON_KEYS,
-        model.CPU_KEYS, model.FUSABLE_KEYS, model.ALIAS_KEYS,
+        model.CPU_KEYS, model.FUSABLE_KEYS, model.STAGE_KEYS, model.ALIAS_KEYS,
         model.SETTING_KEYS, set(FACT_KEYS) | {"profile"}, ("from", "to"),
         ("component_types",))}
     seen_enums, seen_tables = set(), set()

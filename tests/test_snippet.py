@@ -375,8 +375,9 @@ def test_every_library_snippet_compiles_printed_with_every_name_renamed(cl_conte
         rename.update({p: f"{name}_{p}" for p in t.params})
         rename.update({p: f"{name}_{p}" for p in t.inputs})
         rename.update({n: f"{name}_{n}" for n in "yxc"})
+        # an input's accessor, and a stage's (read like an input: fusable.Stage)
         lines = [f"#define {name}_{p}(y_, x_, c_) src[3 * ((y_) * 5 + (x_)) + (c_)]"
-                 for p in t.inputs]
+                 for p in [*t.inputs, *f.stages]]
         lines.append(f"static inline int {name}(__global const uchar *src, const int {name}_y, "
                      f"const int {name}_x, const int {name}_c)")
         lines.append("{")
@@ -400,7 +401,7 @@ def test_every_library_snippet_compiles_printed_with_every_name_renamed(cl_conte
         lines += [f"    const int {name}_{n} = {v};"  # an array's lengths the snippet names
                   for n, v in f.lengths_of(defaults).items() if n in f.names]
         lines += [f"    {line}" for line in f.lines(rename)]
-        lines += ["}"] + [f"#undef {name}_{p}" for p in t.inputs]
+        lines += ["}"] + [f"#undef {name}_{p}" for p in [*t.inputs, *f.stages]]
         functions.append("\n".join(lines))
         printed = "\n".join(f.lines(rename))
         for old in rename:  # nothing of the old names is left

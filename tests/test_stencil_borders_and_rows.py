@@ -103,20 +103,28 @@ def test_rows_together_for_small_windows_and_bodies_on_a_cpu():
     assert fused.rows_together(_group("Erode", {}), "strided") == 1  # a GPU
     assert fused.rows_together(_group("Threshold", {"thresh": 1, "maxval": 2,
                                                     "thresh_type": 0}), "runs") == 1
-    # 5x5 windows, and an opening of 3x3 (9 x 9 reads): together, forced inline
+    # 5x5 windows, and an opening of 3x3 (9 x 9 reads inline): together, forced inline;
+    # where the kernel stages a piece (tests/test_tile_schedule.py), its every pass
     for name, params in (("Blur", {"ksize": 5, "border_type": 4}),
                          ("GaussianBlur", {"ksize": 5}), ("MorphologyEx", _morph(4, 5)),
                          ("MorphologyEx", _morph(2, 3, shape=2))):
         group = _group(name, params)
         assert fused.rows_together(group, "runs") == together, (name, params)
+        staged, _ = fused.staged_pieces(group, "runs")
+        for root in [*staged, None]:
+            assert fused.rows_together(group, "runs", staged, root) == together
         text = fused.group_kernel(group, "test")
-        assert f"_p += {together} * _n" in text and "always_inline" in text
-    # a 7x7 window (more than 25 taps); an opening of 5x5 (25 x 25 reads: 4 rows of it
-    # took 35 s to compile): one row, the latter not forced inline
-    assert fused.rows_together(_group("Blur", {"ksize": 7, "border_type": 4}), "runs") == 1
+        assert f"_p += {together} * " in text and "always_inline" in text
+    # a 9x9 window (more than 25 taps) inline; an opening of 5x5 inline (25 x 25 reads:
+    # 4 rows of it took 35 s to compile): one row, the latter not forced inline
+    assert fused.rows_together(_group("GaussianBlur", {"ksize": 7}), "runs") == 1
     big = _group("MorphologyEx", _morph(2, 5))
     assert fused.rows_together(big, "runs") == 1
-    assert "always_inline" not in fused.group_kernel(big, "test")
+    assert not fused.forced_inline(big, "runs")
+    # staged, its erosion then its dilation: 25 reads each, 4 rows together
+    staged, _ = fused.staged_pieces(big, "runs")
+    assert staged == {"m.inner"} and fused.forced_inline(big, "runs", staged)
+    assert fused.rows_together(big, "runs", staged) == together
 
 
 def _valid_params(ctype):
@@ -154,12 +162,17 @@ def test_what_the_compiler_is_given_to_unroll_stays_bounded_for_every_parameter_
         for params in _valid_params(ctype):
             group = _group(name, params, 24, 40)
             text = fused.group_kernel(group, "test")
-            reads = fused.unrolled_reads(group)
-            if "always_inline" in text:
-                assert fused.rows_together(group, "runs") * reads <= \
-                    fused.MAX_UNROLLED_READS, (name, params)
-            if "#pragma unroll" in text:
-                assert ctype.fusable.reads_of(params) <= fused.MAX_UNROLLED_LOOPS
+            # each pass of the kernel: the root's, and each staged piece's
+            staged, _ = fused.staged_pieces(group, "runs")
+            for root in [*staged, None]:
+                reads = fused.unrolled_reads(group, staged, root)
+                if "always_inline" in text:
+                    assert fused.rows_together(group, "runs", staged, root) * reads <= \
+                        fused.MAX_UNROLLED_READS, (name, params, root)
+            for m in fused.expand(group)[0].members:  # each function's own loops
+                function = text.split(f"\n// {m.name}: ")[1].split("\n}\n")[0]
+                if "#pragma unroll" in function:
+                    assert m.type.fusable.reads_of(params) <= fused.MAX_UNROLLED_LOOPS
             checked += 1
     assert checked > 300  # MorphologyEx: 7 ops x 3 shapes x 8 sizes, iterations (rect)
 
@@ -193,33 +206,37 @@ def test_the_reads_a_stencil_states_bound_what_its_snippet_reads(cl_context, cl_
     """reads_of (the declared 'reads', or the counted window) is at least what the
     snippet reads when it runs (its accessor counting its calls), and within 2.5x of it
     for a rectangular window: the bound the generator's compile-time criterion rests on,
-    checked against the snippet itself."""
+    checked against the snippet itself, and against each of its stages (a read of a
+    stage counted as one)."""
     import pyopencl as cl
 
     require_opencl()
     ctype = library_types()[name]
-    decl = ctype.fusable
     params = {**{p: d.default for p, d in ctype.params.items()}, **params}
-    # what the generator gives a member's snippet: its port sizes, element types and
-    # bounds, its tables and array lengths (fused.py's own helpers), then the parameters
-    member = fused.group_of_one(ctype, params, {"src": (81, 81), "dst": (81, 81)}).members[0]
-    program, local = fused._tables(member, 0)
-    lines = [*fused._port_constants(member), *local]
-    lines += [f"    const {'float' if isinstance(v, float) else 'int'} {p} = {v};"
-              for p, v in params.items() if not isinstance(v, tuple)]
-    body = "\n".join("    " + line for line in decl.lines())
-    program = cl.Program(cl_context, _COUNTING.format(program="\n".join(program),
-                                                      params="\n".join(lines),
-                                                      body=body)).build()
-    out, reads = (cl.Buffer(cl_context, cl.mem_flags.READ_WRITE, 4) for _ in range(2))
-    program.count(cl_queue, (1,), None, out, reads)
-    counted = np.zeros(1, np.int32)
-    cl.enqueue_copy(cl_queue, counted, reads)
-    cl_queue.finish()
-    declared = decl.reads_of(params)
-    assert counted[0] <= declared, (name, params, counted[0], declared)
-    if params.get("shape", 0) == 0:
-        assert declared <= 2.5 * counted[0], (name, params, counted[0], declared)
+    # what the generator gives a member's snippet (and each stage's): its port sizes,
+    # element types and bounds, its tables and array lengths (fused.py's own helpers),
+    # then the parameters
+    group = fused.group_of_one(ctype, params, {"src": (81, 81), "dst": (81, 81)})
+    for member in fused.expand(group)[0].members:
+        decl = member.type.fusable
+        program, local = fused._tables(member, 0)
+        lines = [*fused._port_constants(member), *local]
+        lines += [f"    const {'float' if isinstance(v, float) else 'int'} {p} = {v};"
+                  for p, v in params.items() if not isinstance(v, tuple)]
+        body = "\n".join("    " + line for line in decl.lines())
+        stages = "".join(f"#define {p}(y_, x_, c_) (++*_reads, (int)(((y_) * 5 + (x_)) & 255))\n"
+                         for p in member.inputs if p != "src")
+        program = cl.Program(cl_context, stages + _COUNTING.format(
+            program="\n".join(program), params="\n".join(lines), body=body)).build()
+        out, reads = (cl.Buffer(cl_context, cl.mem_flags.READ_WRITE, 4) for _ in range(2))
+        program.count(cl_queue, (1,), None, out, reads)
+        counted = np.zeros(1, np.int32)
+        cl.enqueue_copy(cl_queue, counted, reads)
+        cl_queue.finish()
+        declared = decl.reads_of(params)
+        assert counted[0] <= declared, (member.name, params, counted[0], declared)
+        if params.get("shape", 0) == 0:
+            assert declared <= 2.5 * counted[0], (member.name, params, counted[0], declared)
 
 
 @pytest.mark.parametrize("name,params", [

@@ -52,7 +52,7 @@ from .decls import (
     PortDecl,
     SystemModel,
 )
-from .kernel import FUSABLE_KEYS, GPU_KEYS, KERNEL_KEYS
+from .kernel import FUSABLE_KEYS, GPU_KEYS, KERNEL_KEYS, STAGE_KEYS
 from .params import (
     ARRAY_TYPE,
     ARRAY_TYPE_PATTERN,
@@ -94,7 +94,8 @@ __all__ = [
     "LIBRARY_DIR", "LIBRARY_PREFIX", "MAX_ARRAY_ELEMENTS", "MAX_COMPONENTS",
     "MAX_CONNECTIONS", "MAX_FRAMES_IN_FLIGHT", "MAX_PARAMS", "MAX_PORTS", "MAX_TYPE_BYTES",
     "MAX_TYPE_FILES", "MEMORIES", "PARAM_KEYS", "PARAM_TYPES", "PLACEMENTS",
-    "PLATFORM_KEYS", "PORT_KEYS", "PYTHON_KEYS", "REQUIRE_KEYS", "SETTING_KEYS", "STAGING",
+    "PLATFORM_KEYS", "PORT_KEYS", "PYTHON_KEYS", "REQUIRE_KEYS", "SETTING_KEYS", "STAGE_KEYS",
+    "STAGING",
     "SYSTEM_KEYS", "TYPE_FILE_SUFFIXES", "TYPE_KEYS", "ZERO_COPY", "ComponentType",
     "Connection", "Endpoint", "GpuDecl", "Instance", "ParamDecl", "PortDecl", "SystemModel",
     "array_shape", "gpu_kernel_param_problem", "library_types", "load_system",

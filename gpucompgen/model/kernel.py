@@ -11,7 +11,7 @@ from .. import sizeexpr
 from ..backend import signature_checker
 from ..errors import did_you_mean
 from ..names import name_problem
-from .decls import COVERS, SETTING_KEYS, ComponentType, GpuDecl
+from .decls import COVERS, DTYPES, SETTING_KEYS, ComponentType, GpuDecl
 from .fields import _expect_map, _named, _positive_int, _unknown_keys
 from .params import _int_params
 from .sources import _resolve_file
@@ -20,7 +20,8 @@ KERNEL_KEYS = ("file", "function", "grid", "cover")
 GPU_KEYS = ("tiles", "block_z", "prefer", "max_threads", "square")
 
 
-FUSABLE_KEYS = ("form", "value", "radius", "border", "reads", "tables")
+FUSABLE_KEYS = ("form", "value", "radius", "border", "reads", "tables", "stages", "axis")
+STAGE_KEYS = ("dtype", "radius", "axis", "reads", "value")
 
 
 def _check_signature(doc, rep, base, ctype: ComponentType, kspec: dict) -> None:
@@ -197,8 +198,12 @@ def _load_fusable(doc, rep, base, ctype: ComponentType, fspec) -> None:
     # an array parameter's lengths: names of the snippet and of the radius
     lengths = [n for p, d in ctype.params.items() if d.shape
                for n in fusable_forms.length_names(p, len(d.shape))]
-    analysis = fusable_forms.analyse(value, form, list(ctype.inputs), list(ctype.outputs),
-                                     [*ctype.params, *tables, *lengths],
+    stages = _load_stages(doc, rep, path, ctype, fspec, tables, lengths) \
+        if form == "stencil" else {}
+    if stages is None:
+        return
+    analysis = fusable_forms.analyse(value, form, [*ctype.inputs, *stages],
+                                     list(ctype.outputs), [*ctype.params, *tables, *lengths],
                                      arrays=[*(n for n, d in ctype.params.items() if d.shape),
                                              *tables])
     _snippet_problems(doc, rep, path, ctype, value, analysis.problems)
@@ -228,16 +233,85 @@ def _load_fusable(doc, rep, base, ctype: ComponentType, fspec) -> None:
                       "snippet's loops unrolled, e.g. reads: (2 * r + 1) * (2 * r + 1)")
             return
     else:
-        for key in ("radius", "border", "reads", "tables"):
+        for key in ("radius", "border", "reads", "tables", "stages", "axis"):
             if key in fspec:
                 rep.error(doc.key_pos(*path, key), f"'{key}' is only for the stencil form",
                           f"remove '{key}' or use 'form: stencil'")
-    if analysis.problems:
+    if analysis.problems or not _axis_ok(doc, rep, path, ctype, fspec):
         return
     ctype.fusable = fusable_forms.FusableDecl(form, value, analysis.tree, analysis.names,
                                               radius, border,
                                               fspec.get("reads") if form == "stencil" else None,
-                                              tables)
+                                              tables, stages, fspec.get("axis"))
+
+
+def _axis_ok(doc, rep, path, ctype: ComponentType, spec) -> bool:
+    """A stencil's (or stage's) 'axis', where given, is x or y."""
+    if "axis" not in spec or _named(spec["axis"], fusable_forms.AXES):
+        return True
+    rep.error(doc.pos(*path, "axis"), f"stencil '{ctype.name}': 'axis' is x (the window "
+              f"is a row: reads at (y, x + d) only) or y (a column), not {spec['axis']!r}",
+              "remove 'axis' for a square window")
+    return False
+
+
+def _load_stages(doc, rep, path, ctype: ComponentType, fspec, tables,
+                 lengths) -> dict[str, fusable_forms.Stage] | None:
+    """A stencil's 'stages:' (fusable.py): name -> {dtype, radius, reads, value}, each a
+    stencil over the inputs and the stages before it, with the type's border; None after
+    reporting why one cannot be."""
+    if "stages" not in fspec:
+        return {}
+    spec = _expect_map(doc, rep, path + ("stages",), fspec["stages"], "stages")
+    int_params = _int_params(ctype) + lengths
+    found: dict[str, fusable_forms.Stage] = {}
+    for name, given in spec.items():
+        where = path + ("stages", name)
+        problem = name_problem(name, "stage name")
+        taken = [*ctype.params, *ctype.inputs, *ctype.outputs, *tables,
+                 *fusable_forms.port_names(list(ctype.inputs), list(ctype.outputs))]
+        if problem is None and name in taken:
+            problem = f"stage '{name}' has the name of a parameter, port or table of " \
+                f"'{ctype.name}'"
+        if problem is not None:
+            rep.error(doc.key_pos(*path, "stages", name), f"fusable stages of "
+                      f"'{ctype.name}': {problem}", "name a stage as a new local would be")
+            return None
+        sspec = _expect_map(doc, rep, where, given, "stage")
+        _unknown_keys(doc, rep, where, sspec, STAGE_KEYS, "stage")
+        dtype, value = sspec.get("dtype"), sspec.get("value")
+        radius, reads = sspec.get("radius"), sspec.get("reads")
+        if not _named(dtype, DTYPES):
+            rep.error(doc.pos(*where, "dtype") if "dtype" in sspec else doc.key_pos(*where),
+                      f"stage '{name}' of '{ctype.name}' needs 'dtype', one of "
+                      f"{', '.join(DTYPES)}" + (f", not {dtype!r}" if "dtype" in sspec else ""),
+                      "the element type of the stage's values, e.g. dtype: int32")
+            return None
+        for key, what, least in (("radius", radius, 0), ("reads", reads, 1)):
+            if (what is not None or key == "radius") and not _count(what, int_params, least):
+                rep.error(doc.pos(*where, key) if key in sspec else doc.key_pos(*where),
+                          f"stage '{name}' of '{ctype.name}': '{key}' must be a number "
+                          f"({least} or more), an int parameter or an expression of them, "
+                          f"not {what!r}", "e.g. radius: ksize // 2")
+                return None
+        if not isinstance(value, str) or not value.strip():
+            rep.error(doc.pos(*where, "value") if "value" in sspec else doc.key_pos(*where),
+                      f"stage '{name}' of '{ctype.name}' needs 'value': statements ending "
+                      "in 'return ...;' for element (y, x, c) of the stage",
+                      "e.g. value: \"return src(y, x - 1, c) + src(y, x + 1, c);\"")
+            return None
+        analysis = fusable_forms.analyse(value, "stencil", [*ctype.inputs, *found], [name],
+                                         [*ctype.params, *lengths],
+                                         arrays=[n for n, d in ctype.params.items()
+                                                 if d.shape])
+        _snippet_problems(doc, rep, where, ctype, value, analysis.problems)
+        if analysis.problems or not _axis_ok(doc, rep, where, ctype, sspec):
+            return None
+        decl = fusable_forms.FusableDecl("stencil", value, analysis.tree, analysis.names,
+                                         radius, fspec.get("border", "clamp"), reads,
+                                         axis=sspec.get("axis"))
+        found[name] = fusable_forms.Stage(name, dtype, decl)
+    return found
 
 
 def _count(value, int_params, least: int = 0) -> bool:

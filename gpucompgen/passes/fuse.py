@@ -315,9 +315,27 @@ def reads(node, port: str) -> int:
     calls = len(accessor_calls(decl.tree, [port])[port])
     if decl.form != "stencil":
         return max(calls, 1)
-    stated = decl.reads_of(node.params) if decl.reads is not None and \
-        len(node.inputs) == 1 else 0
+    stated = staged_reads(decl, node.params) if (decl.reads is not None or decl.stages) \
+        and len(node.inputs) == 1 else 0
     return max(calls, decl.taps(node.params), stated)
+
+
+def staged_reads(decl, params) -> int:
+    """Input elements the generated kernel reads an output element of a stencil with
+    stages: each stage the generator stages (backend/opencl/fused.py staged_pieces: read
+    more than MIN_STAGED_READS times through, reading more than one element) computed
+    once an element, plus the value's own reads of it; a stage inline, at every read of
+    it.  (A 5x5 opening: 25 + 25, not 25 x 25; its halo, about a tenth more, not
+    counted.)"""
+    from ..backend.opencl.fused import MIN_STAGED_READS
+
+    own = decl.reads_of(params)
+    if not decl.stages:
+        return own
+    inner = {n: s.decl.total_reads_of(params) for n, s in decl.stages.items()}
+    staged = {n for n, r in inner.items() if r > 1 and own * r > MIN_STAGED_READS}
+    inline = max((r for n, r in inner.items() if n not in staged), default=1)
+    return own * inline + sum(inner[n] for n in staged)
 
 
 def arithmetic(node) -> int:

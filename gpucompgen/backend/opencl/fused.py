@@ -51,6 +51,16 @@ OpenCL devices):
   (and every window is at most MAX_TAPS_TOGETHER, 5x5, where rows together pay); a
   member's loops unrolled only where it reads at most MAX_UNROLLED_LOOPS.  A snippet that
   nests windows states its reads (MorphologyEx's opening: a window of windows).
+- Staged pieces (staged_pieces()).  A type's stages (fusable.Stage: Blur's row sums,
+  MorphologyEx's inner erosion) are members of their own before it (expand()).  A
+  stencil piece read by a stencil, whose reads through it inline would exceed
+  MIN_STAGED_READS an output element, is computed once a tile instead: on a CPU each
+  work-item takes strips of rows in turn, each strip in tiles of columns (whole rows
+  where they fit in STAGED_BYTES); per tile it computes each staged piece over the tile
+  and its halo (the readers' radii, along y and x, inside the frame) into an array of its
+  own, then the root from them (a Blur of 31x31: 85 -> 2.1 ms a 640x360 frame; an opening
+  of 5x5: 1.9 -> 0.66).  No barrier, no __local (with them PoCL took 30-100 s to compile
+  an opening); the border versions are calls, not inlined (28 s -> 1.8 s to compile).
 - Work split from device facts (schedule()): work-groups cover ``tile`` whole rows.  On
   a CPU device a work-item takes whole rows, the work-group's items in turn: a CPU runs
   a work-group's items one after another on one core, so splitting a row among them
@@ -64,6 +74,7 @@ OpenCL devices):
 from __future__ import annotations
 
 import re
+from dataclasses import dataclass, replace
 
 from ...ir import GroupNode
 from ...model import DTYPES, Endpoint
@@ -95,6 +106,20 @@ MAX_UNROLLED_READS = 400
 # at merge), about 2 s not (and runs 8.7 s a 640x360 frame: a window of windows that
 # large needs two passes).
 MAX_UNROLLED_LOOPS = 1024
+# The staged schedule (staged_pieces): a stage of a stencil (fusable.Stage), or a stencil
+# member, read by a stencil whose inlined reads of it would exceed this many input
+# elements an output element is computed once a tile into an array instead.  A 640x360
+# frame, PoCL, load 3 to 5 (docs/benchmarks.md): BlurGray k5 (25 reads) 0.163 ms inline,
+# 0.174 staged; k7 (49) 0.345 -> 0.239; k15 (225) 2.07 -> 0.66; k31 (961) 85 -> 2.1; an
+# opening 3x3 (81) 0.185 -> 0.197, of 5x5 (625) 1.87 -> 0.67.
+MIN_STAGED_READS = 25
+# The tiles of output a staged kernel computes a piece at a time (rows, and columns: the
+# whole row where it fits), the one whose staged pieces, with their halos, compute the
+# fewest elements an output element, among those whose arrays take at most STAGED_BYTES
+# (a work-item's own: a CPU keeps them in its cache).
+STRIP_ROWS = (32, 16, 8)
+TILE_COLUMNS = (512, 256, 128, 64)
+STAGED_BYTES = 64 << 10
 
 BORDER_RULES = {
     "reflect101": [
@@ -275,11 +300,14 @@ def channel_flat(group: GroupNode) -> bool:
     return True
 
 
-def margin(group: GroupNode) -> int | None:
+def margin(group: GroupNode, staged: frozenset = frozenset()) -> int | None:
     """How far from the output's edges every read of the group is in range without
-    border rules (the stencil radii summed along the deepest path), or None where no
-    interior fast path applies: no stencil, an index map (it moves positions), or ports
-    of different sizes."""
+    border rules (the stencil radii summed along the deepest path; a member's stages
+    count as members), or None where no interior fast path applies: no stencil, an
+    index map (it moves positions), or ports of different sizes.  With staged pieces
+    (stages computed into local memory first) the margin of the root's own pass: a read
+    of a staged piece is a load."""
+    group = expand(group)[0]
     forms = {m.type.fusable.form for m in group.members}
     if "stencil" not in forms or "index_map" in forms:
         return None
@@ -287,47 +315,267 @@ def margin(group: GroupNode) -> int | None:
              for p in (*m.inputs.values(), *m.outputs.values())}
     if len(sizes) != 1:
         return None
-    depth: dict[str, int] = {}
-    for m in reversed(group.members):
-        consumers = [depth[e.target.component] for e in group.internal
-                     if e.source.component == m.name]
-        depth[m.name] = _radius(m) + max(consumers, default=0)
-    return max(depth.values())
+    return max(_edges(group, staged)[group.root.name])
+
+
+def _edges(group: GroupNode, staged: frozenset) -> dict[str, tuple[int, int]]:
+    """Each piece's margins along y and x computed where it stands (an expanded group):
+    its radii plus the largest margins of the producers it inlines (a staged producer
+    is a load)."""
+    edge: dict[str, tuple[int, int]] = {}
+    for m in group.members:  # in run order: producers first
+        inlined = [edge[e.source.component] for e in group.internal
+                   if e.target.component == m.name and e.source.component not in staged]
+        ry, rx = _radii(m)
+        edge[m.name] = (ry + max((e[0] for e in inlined), default=0),
+                        rx + max((e[1] for e in inlined), default=0))
+    return edge
 
 
 def _radius(m) -> int:
     return m.type.fusable.radius_of(m.params)
 
 
-def unrolled_reads(group: GroupNode) -> int:
-    """Input elements one output element of the group reads with every member inlined and
-    its loops unrolled: the root's reads, each read of a producer in the group counted as
-    that producer's own (an upper bound where a member reads several producers)."""
+def _radii(m) -> tuple[int, int]:
+    """A piece's window radius along y and along x."""
+    return m.type.fusable.radii_of(m.params)
+
+
+def unrolled_reads(group: GroupNode, staged: frozenset = frozenset(),
+                   root: str | None = None) -> int:
+    """Input elements one output element of the group (of piece root) reads with every
+    member (and stage) inlined and its loops unrolled: the root's reads, each read of a
+    producer in the group counted as that producer's own (an upper bound where a member
+    reads several producers), a read of a staged piece as one load."""
+    group = expand(group)[0]
     producers: dict[str, list[str]] = {}
     for e in group.internal:
         producers.setdefault(e.target.component, []).append(e.source.component)
     count: dict[str, int] = {}
     for m in group.members:  # in run order: producers first
-        inner = max((count[p] for p in producers.get(m.name, ())), default=1)
+        inner = max((1 if p in staged else count[p] for p in producers.get(m.name, ())),
+                    default=1)
         count[m.name] = m.type.fusable.reads_of(m.params) * inner
-    return count[group.root.name]
+    return count[root or group.root.name]
 
 
-def rows_together(group: GroupNode, how: str) -> int:
-    """How many rows of the group's interior a work-item computes in one loop: ROWS_TOGETHER
-    on a CPU ('runs') for a stencil group of windows of at most MAX_TAPS_TOGETHER elements
-    whose rows' inlined bodies read at most MAX_UNROLLED_READS elements, else 1."""
+def rows_together(group: GroupNode, how: str, staged: frozenset = frozenset(),
+                  root: str | None = None) -> int:
+    """How many rows of the group's interior (of piece root's pass) a work-item computes
+    in one loop: ROWS_TOGETHER on a CPU ('runs') for a stencil group of windows of at
+    most MAX_TAPS_TOGETHER elements whose rows' inlined bodies read at most
+    MAX_UNROLLED_READS elements, else 1."""
     if how != "runs" or margin(group) is None:
         return 1
-    small = all(m.type.fusable.taps(m.params) <= MAX_TAPS_TOGETHER for m in group.members)
-    fits = ROWS_TOGETHER * unrolled_reads(group) <= MAX_UNROLLED_READS
+    small = all(m.type.fusable.taps(m.params) <= MAX_TAPS_TOGETHER
+                for m in _inlined(expand(group)[0], staged, root))
+    fits = ROWS_TOGETHER * unrolled_reads(group, staged, root) <= MAX_UNROLLED_READS
     return ROWS_TOGETHER if small and fits else 1
 
 
-def forced_inline(group: GroupNode, how: str) -> bool:
+def _inlined(group: GroupNode, staged: frozenset, root: str | None) -> list:
+    """The pieces (of an expanded group) that piece root's pass computes inline: root
+    and the producers it reaches through no staged piece."""
+    root = root or group.root.name
+    found, todo = {root}, [root]
+    while todo:
+        name = todo.pop()
+        for e in group.internal:
+            if e.target.component == name and e.source.component not in staged | found:
+                found.add(e.source.component)
+                todo.append(e.source.component)
+    return [m for m in group.members if m.name in found]
+
+
+def forced_inline(group: GroupNode, how: str, staged: frozenset = frozenset()) -> bool:
     """Whether the members' functions are always_inline: where the body a work-item's
-    loop inlines, its rows together, reads at most MAX_UNROLLED_READS elements."""
-    return rows_together(group, how) * unrolled_reads(group) <= MAX_UNROLLED_READS
+    loop inlines, its rows together, reads at most MAX_UNROLLED_READS elements (in every
+    pass, where pieces are staged)."""
+    return all(rows_together(group, how, staged, r) * unrolled_reads(group, staged, r)
+               <= MAX_UNROLLED_READS for r in [*sorted(staged), None])
+
+
+# -- stages (fusable.Stage) and the staged schedule ----------------------------------------
+
+def staged_pieces(group: GroupNode, how: str) -> tuple[frozenset, tuple[int, int]]:
+    """The pieces of the (expanded) group that the kernel computes first, a tile at a
+    time, into arrays its readers then read, and the tile (rows, columns) of output: a
+    stencil piece reading more than one element, read by a stencil whose reads of it,
+    inlined, would read more than MIN_STAGED_READS input elements an output element (it
+    is then computed once a tile, its halo included, not at every read), where the
+    arrays fit in STAGED_BYTES.  None on a GPU ('strided') yet, nor where the group has
+    no interior."""
+    if how != "runs" or margin(group) is None:
+        return frozenset(), 0
+    group = expand(group)[0]
+    staged: set[str] = set()
+    for m in group.members:  # producers first: a staged producer is a load to the next
+        consumers = [group.member(e.target.component) for e in group.internal
+                     if e.source.component == m.name]
+        inline = max((c.type.fusable.reads_of(c.params) for c in consumers
+                      if c.type.fusable.form == "stencil" and _radius(c) > 0), default=0)
+        own = unrolled_reads(group, frozenset(staged), m.name)
+        if m.type.fusable.form == "stencil" and own > 1 and inline * own > MIN_STAGED_READS:
+            staged.add(m.name)
+    if not staged:
+        return frozenset(), (0, 0)
+    halo = _halos(group)
+    budget = STAGED_BYTES
+    (port,) = group.outputs.values()
+    w = port.data.width
+    best = None
+    for rows, cols in [(r, c) for r in STRIP_ROWS for c in (w, *TILE_COLUMNS) if c <= w]:
+        size = sum((rows + 2 * halo[n][0]) * (cols + 2 * halo[n][1]) * _pixel_bytes(
+            group.member(n)) for n in staged)
+        # each staged piece's elements computed an output element: the halo's share
+        work = sum((rows + 2 * halo[n][0]) * (cols + 2 * halo[n][1]) for n in staged) \
+            / (rows * cols)
+        if size <= budget and (best is None or work < best[0]):
+            best = (work, (rows, cols))
+    return (frozenset(staged), best[1]) if best else (frozenset(), (0, 0))
+
+
+def _halos(group: GroupNode) -> dict[str, tuple[int, int]]:
+    """How many rows and columns beyond a tile of output each piece (of an expanded
+    group) is read at: its consumers' radii summed along the longest path to the root."""
+    halo = {group.root.name: (0, 0)}
+    for m in reversed(group.members[:-1]):
+        reads = [(_radii(group.member(e.target.component)), halo[e.target.component])
+                 for e in group.internal if e.source.component == m.name]
+        halo[m.name] = (max((r[0] + h[0] for r, h in reads), default=0),
+                        max((r[1] + h[1] for r, h in reads), default=0))
+    return halo
+
+
+def _pixel_bytes(m) -> int:
+    (port,) = m.outputs.values()
+    return port.channels * DTYPES[port.dtype][2]
+
+
+def _staged_kernel(whole: GroupNode, group: GroupNode, out_port, flat: bool, how: str,
+                   staged: frozenset, tile: tuple[int, int],
+                   slots: dict[str, tuple[int, int]]) -> list[str]:
+    """The kernel of a group with staged pieces (staged_pieces): a work-group's rows in
+    tiles of tile = (rows, columns) of output, the work-group's items taking its strips
+    of rows in turn; per tile, each staged piece computed over what its readers read (the
+    tile and its halo, inside the frame) into a work-item's own array, then the root's
+    tile from them.  A CPU runs a work-group's items one after another on one core: an
+    item's own arrays need no barrier, and stay in its cache (with barriers between
+    passes, PoCL took 30 to 100 s to compile an opening of 5x5 for a work-group size)."""
+    index = {m.name: i for i, m in enumerate(group.members)}
+    h, w = out_port.data.height, out_port.data.width
+    edges, halo = _edges(group, staged), _halos(group)
+    rows_, cols = tile
+    args = "_ARGS, _LARGS"
+    lines = _comment(
+        f"{h} rows of {w} pixels.  Work-group g computes the rows [g * tile, g * tile + "
+        f"tile), in strips of {rows_} rows that its threads take in turn, each strip in "
+        f"tiles of {cols} columns: first "
+        + ", then ".join(f"{n} over the tile and {halo[n][0]} rows and {halo[n][1]} "
+                         f"columns around it (inside the frame) into the thread's array _s{j}"
+                         for n, (j, _) in slots.items())
+        + f", then {group.root.name} from them: each computed once, not at every read of "
+        "it.")
+    lines += [f"__kernel void {kernel_name(whole)}(_PARAMS, const int _tile)", "{"]
+    for n, (j, lw) in slots.items():
+        m = group.member(n)
+        (port,) = m.outputs.values()
+        lines.append(f"    {DTYPES[port.dtype][1]} _s{j}[{(rows_ + 2 * halo[n][0]) * lw}"
+                     f"{f' * {port.channels}' if port.channels > 1 else ''}];  // "
+                     f"{rows_} + 2 x {halo[n][0]} rows of {cols} + 2 x {halo[n][1]} pixels "
+                     f"of {n}")
+    lines += ["    const int _y0 = get_group_id(1) * _tile;",
+              f"    const int _y1 = min(_y0 + _tile, {h});",
+              "    const int _k = get_local_id(1) * get_local_size(0) + get_local_id(0);",
+              "    const int _n = get_local_size(0) * get_local_size(1);",
+              f"    for (int _ys = _y0 + {rows_} * _k; _ys < _y1; _ys += {rows_} * _n)",
+              f"    for (int _xs = 0; _xs < {w}; _xs += {cols}) {{",
+              f"        const int _ye = min(_ys + {rows_}, _y1), _xe = min(_xs + {cols}, {w});"]
+    for n, (j, _) in slots.items():
+        hy, hx = halo[n]
+        lines.append(f"        const int _a{j} = max(_ys - {hy}, 0), _b{j} = min(_ye + {hy}, "
+                     f"{h}), _c{j} = max(_xs - {hx}, 0), _d{j} = min(_xe + {hx}, {w});")
+    for n, slot in [*slots.items(), (group.root.name, None)]:
+        m = group.member(n)
+        (port,) = m.outputs.values()
+        ch, c = port.channels, DTYPES[port.dtype][1]
+        ey, ex = edges[n]
+        plain = ey == ex == 0 and not any(
+            m.type.fusable.form == "stencil" for m in _inlined(group, staged, n))
+        together = rows_together(whole, how, staged, n)
+        if slot is None:
+            rows = _Rows(_function(n, index, False), _function(n, index, True),
+                         None if plain else ex, h, w, ch, flat, args, ey, ("_xs", "_xe"))
+            row_decl = f"__global {c} *_row = _out + (size_t)_y * {w * ch};"
+            lines += [f"        // {n}: the tile [_ys, _ye) x [_xs, _xe) of the output",
+                      *rows.runs("_ys", "_ye", row_decl, together, 2, split=False)]
+        else:
+            j, lw = slot
+            rows = _Rows(_function(n, index, False), _function(n, index, True),
+                         None if plain else ex, h, w, ch, flat, args, ey,
+                         (f"_c{j}", f"_d{j}"), f"_c{j}", lw * ch)
+            row_decl = f"{c} *_row = _s{j} + (size_t)(_y - _a{j}) * {lw * ch};"
+            lines += [(f"        // {n}: rows [_a{j}, _b{j}) and columns [_c{j}, _d{j}) of "
+                       f"the frame, into _s{j}"),
+                      *rows.runs(f"_a{j}", f"_b{j}", row_decl, together, 2, split=False)]
+    lines += ["    }", "}", ""]
+    return lines
+
+
+@dataclass
+class _Piece:
+    """A member of an expanded group that is a stage of a component (fusable.Stage): it
+    reads the component's inputs and earlier stages, and the component's parameters
+    (owner's)."""
+
+    name: str
+    owner: str
+    inputs: dict
+    outputs: dict
+    type: object
+    params: dict
+
+
+def expand(group: GroupNode) -> tuple[GroupNode, dict[Endpoint, str]]:
+    """The group with each member's stages as members of their own before it (named
+    '<member>.<stage>': never a model name), and which group input feeds each piece's
+    input port (Endpoint -> group port)."""
+    feeds = {end: port for port, end in group.feeds.items()}
+    if not any(m.type.fusable.stages for m in group.members) or \
+            any(isinstance(m, _Piece) for m in group.members):  # none, or expanded
+        return group, feeds
+    from types import SimpleNamespace
+
+    from ...ir import Data, Edge, Port
+    from ...runtime.sizes import Size
+
+    producer = {e.target: e.source for e in group.internal}
+    members, internal = [], []
+    for m in group.members:
+        decl = m.type.fusable
+        (out,) = m.outputs.values()
+        h, w, ch = out.data.height, out.data.width, out.channels
+        made: dict[str, Port] = {}  # stage -> its port, as its readers' input
+        for st in decl.stages.values():
+            name = f"{m.name}.{st.name}"
+            port = Port(st.name, "in", "gpu", st.dtype, ch, Data(Size(h, w, ch), st.dtype))
+            # fixed: the component's parameters fixed at build time (its accessors'
+            # border, its windows), constants of the stage's function too
+            ctype = SimpleNamespace(name=f"{m.type.name} stage {st.name}", fusable=st.decl,
+                                    params=m.type.params, fixed=decl.radius_names())
+            members.append(_Piece(name, m.name, {**m.inputs, **made},
+                                  {st.name: replace(port, direction="out")}, ctype, m.params))
+            for p in m.inputs:
+                if Endpoint(m.name, p) in producer:
+                    internal.append(Edge(producer[Endpoint(m.name, p)], Endpoint(name, p)))
+                elif Endpoint(m.name, p) in feeds:
+                    feeds[Endpoint(name, p)] = feeds[Endpoint(m.name, p)]
+            internal += [Edge(Endpoint(f"{m.name}.{q}", q), Endpoint(name, q)) for q in made]
+            made[st.name] = port
+        internal += [Edge(Endpoint(f"{m.name}.{q}", q), Endpoint(m.name, q)) for q in made]
+        members.append(replace(m, inputs={**m.inputs, **made}) if made else m)
+    internal += list(group.internal)
+    return replace(group, members=members, internal=internal), feeds
 
 
 def group_kernel(group: GroupNode, header: str, device=None) -> str:
@@ -335,14 +583,18 @@ def group_kernel(group: GroupNode, header: str, device=None) -> str:
 
     params = group_parameters(group)
     constants = group_constants(group)
-    index = {m.name: i for i, m in enumerate(group.members)}
     names = _param_names(params)
     names.update({p.param: p.name for p in constants})  # 'member.param' -> its macro
     decls = [_declaration(p, names[p.name]) for p in params if p.role != "tile"]
     args = [names[p.name] for p in params if p.role != "tile"]
+    how = schedule(device)
+    staged, tile = staged_pieces(group, how)
+    whole = group
+    group, feeds = expand(group)  # stages are members of their own
+    index = {m.name: i for i, m in enumerate(group.members)}
     root = group.root
     (out_name, out_port), = group.outputs.items()
-    edge = margin(group)
+    edge = margin(group, staged)
     stencils = any(m.type.fusable.form == "stencil" for m in group.members)
     # flat stencils need the interior path: border rules apply to pixel positions
     flat = channel_flat(group) and (edge is not None or not stencils)
@@ -359,7 +611,7 @@ def group_kernel(group: GroupNode, header: str, device=None) -> str:
                        + ", ".join(f"{names[p.name]} = {p.name}" for p in params
                                    if p.role != "tile") + "."),
              "",
-             *_constants(group, constants),
+             *_constants(whole, constants),
              *[line for rule, text in BORDER_RULES.items()
                if any(m.type.fusable.form == "stencil"
                       and m.type.fusable.border_of(m.params) == rule
@@ -370,7 +622,19 @@ def group_kernel(group: GroupNode, header: str, device=None) -> str:
              "#define _ARGS \\",
              *(f"    {a}, \\" if i < len(args) - 1 else f"    {a}" for i, a in enumerate(args)),
              ""]
-    feeds = {end: port for port, end in group.feeds.items()}
+    halo = _halos(group)
+    slots = {name: (j, tile[1] + 2 * halo[name][1])
+             for j, name in enumerate(sorted(staged, key=index.get))}
+    if slots:
+        # what every member's function is given of the staged pieces: each one's tile in
+        # local memory and the frame row and column its first element is
+        local = [f"const {DTYPES[_out_dtype(group.member(n))][1]} *_s{j}, "
+                 f"const int _a{j}, const int _c{j}" for n, (j, _) in slots.items()]
+        lines += ["#define _LOCALS \\",
+                  *(f"    {d}, \\" if i < len(local) - 1 else f"    {d}"
+                    for i, d in enumerate(local)), "",
+                  "#define _LARGS " + ", ".join(f"_s{j}, _a{j}, _c{j}"
+                                                for j, _ in slots.values()), ""]
     producer = {e.target: e.source for e in group.internal}
     # (interior, channel-flat) versions of every member: without stencils one version,
     # with them a border version in pixel coordinates and an interior one
@@ -378,17 +642,24 @@ def group_kernel(group: GroupNode, header: str, device=None) -> str:
     used: set[str] = set()
     members = []
     # forced inline where the bodies stay small (see _member)
-    forced = forced_inline(group, schedule(device))
+    forced = forced_inline(whole, how, staged)
     for interior, flat_version in versions:
         for m in group.members:
             members += _member(m, feeds, producer, index, names, flat_version, interior,
-                               used, inline=forced)
+                               used, inline=forced, slots=slots)
     helpers = [line for name in HELPERS if name in used for line in HELPERS[name]]
     if helpers:
         lines += ["// built-ins the snippets call, inline (see fused.py: HELPERS)", *helpers, ""]
     lines += members
-    lines += _kernel(group, out_name, out_port, names, flat, edge, schedule(device))
+    if slots:
+        lines += _staged_kernel(whole, group, out_port, flat, how, staged, tile, slots)
+    else:
+        lines += _kernel(group, out_name, out_port, names, flat, edge, how)
     return "\n".join(lines)
+
+
+def _out_dtype(m) -> str:
+    return next(iter(m.outputs.values())).dtype
 
 
 def _param_names(params) -> dict[str, str]:
@@ -435,12 +706,14 @@ def _declaration(p, name: str) -> str:
 def _function(name: str, index, interior: bool) -> str:
     """The generated function of member name: its interior version ends '_in'.  '_f',
     not '_m' (the members' parameters): member 'thresh' of a type whose parameter is
-    'thresh' gets _f0_thresh and _m0_thresh, never one name for both."""
-    return f"_f{index[name]}_{name}" + ("_in" if interior else "")
+    'thresh' gets _f0_thresh and _m0_thresh, never one name for both.  A stage
+    'blur.rows' is _f0_blur_rows (the index keeps it apart from a member 'blur_rows')."""
+    return f"_f{index[name]}_{name.replace('.', '_')}" + ("_in" if interior else "")
 
 
 def _member(m, feeds: dict[Endpoint, str], producer: dict[Endpoint, Endpoint], index,
-            names, flat: bool, interior: bool, used: set[str], inline: bool) -> list[str]:
+            names, flat: bool, interior: bool, used: set[str], inline: bool,
+            slots: dict[str, tuple[int, int]] | None = None) -> list[str]:
     """A member's snippet as a function, between the macros of its input accessors.
 
     inline: forced inline (always_inline), which the row loop needs to vectorize: PoCL's
@@ -448,8 +721,13 @@ def _member(m, feeds: dict[Endpoint, str], producer: dict[Endpoint, Endpoint], i
     a 320x240 frame, 0.8 ms inlined, and left stencil members called once per row of the
     rows-together loop (about 20x slower).  Not a group beyond MAX_UNROLLED_READS
     (forced_inline): compile time exploded.  A member's loops are unrolled where it reads
-    at most MAX_UNROLLED_LOOPS elements so."""
+    at most MAX_UNROLLED_LOOPS elements so.  slots: the staged pieces (a read of one
+    loads its tile in local memory, _s<slot>), where the kernel stages any."""
     decl = m.type.fusable
+    slots = slots or {}
+    owner = getattr(m, "owner", m.name)  # a stage reads its component's parameters
+    fixed = getattr(m.type, "fixed", None) or decl.radius_names()
+    fparams, fargs = ("_PARAMS, _LOCALS", "_ARGS, _LARGS") if slots else ("_PARAMS", "_ARGS")
     ctype = DTYPES[next(iter(m.outputs.values())).dtype][1]
     what = "interior: no border rule" if interior else "every element"
     border = decl.border_of(m.params) if decl.form == "stencil" else None
@@ -467,15 +745,17 @@ def _member(m, feeds: dict[Endpoint, str], producer: dict[Endpoint, Endpoint], i
             # x is the element's place in the row of W x C: a read dx pixels away is
             # dx x C elements away, the same channel
             xx = f"(x + ((x_) - x) * {port.channels})"
-        if src is not None:
-            body = f"{_function(src.component, index, interior)}(_ARGS, {yy}, {xx}, (c_))"
+        if src is not None and src.component in slots:
+            # a staged piece: its value, stored in an array before this pass (rows from
+            # _a<j>, columns from _c<j>, lw a row)
+            j, lw = slots[src.component]
+            body = _load(f"_s{j}", f"(size_t)({yy} - _a{j})", lw, xx, port.channels, flat,
+                         f"_c{j}")
+        elif src is not None:
+            body = f"{_function(src.component, index, interior)}({fargs}, {yy}, {xx}, (c_))"
         else:
-            buf = names[feeds[Endpoint(m.name, pname)]]
-            if flat:
-                body = f"{buf}[(size_t){yy} * {w * port.channels} + {xx}]"
-            else:
-                body = (f"{buf}[{port.channels} * ((size_t){yy} * {w} + {xx}) + (c_)]"
-                        if port.channels > 1 else f"{buf}[(size_t){yy} * {w} + {xx}]")
+            body = _load(names[feeds[Endpoint(m.name, pname)]], f"(size_t){yy}", w, xx,
+                         port.channels, flat)
         if outside_zero:  # BORDER_CONSTANT: a read outside the input is 0
             body = f"((unsigned)(y_) < {h}u && (unsigned)(x_) < {w}u ? {body} : 0)"
         macros.append(pname)
@@ -484,23 +764,17 @@ def _member(m, feeds: dict[Endpoint, str], producer: dict[Endpoint, Endpoint], i
     if not interior:  # once, before the member's first version
         lines[1:1] = tables
     attribute = " __attribute__((always_inline))" if inline else ""
-    lines.append(f"static inline{attribute} {ctype} {_function(m.name, index, interior)}(_PARAMS, "
-                 "const int y, const int x, const int c)")
+    if slots and not interior:
+        # a staged kernel's border version: a call (it runs on a few columns and rows,
+        # element by element); inlined at each of its call sites in every pass, an
+        # opening of 5x5 took 28 s to compile for a work-group size
+        attribute = " __attribute__((noinline))"
+    lines.append(f"static inline{attribute} {ctype} {_function(m.name, index, interior)}"
+                 f"({fparams}, const int y, const int x, const int c)")
     lines.append("{")
     lines += _port_constants(m)
     lines += locals_
-    for pname, pdecl in m.type.params.items():
-        c = "float" if pdecl.element == "float" else "int"
-        if pdecl.shape:
-            continue
-        if pname in decl.radius_names():
-            # the window is fixed at build time (the interior's margin is): a constant, so
-            # that the compiler unrolls a loop over it
-            value = m.params[pname]
-            lines.append(f"    const {c} {pname} = "
-                         f"{_float_literal(value) if c == 'float' else int(value)};")
-            continue
-        lines.append(f"    const {c} {pname} = {names[f'{m.name}.{pname}']};")
+    lines += _param_lines(m, names, owner, fixed)
     # printed from the parsed snippet; built-in calls swapped for their inline versions
     unroll = decl.reads_of(m.params) <= MAX_UNROLLED_LOOPS
     for line in inline_builtins("\n".join(decl.lines()), used).splitlines():
@@ -513,6 +787,37 @@ def _member(m, feeds: dict[Endpoint, str], producer: dict[Endpoint, Endpoint], i
     lines += [f"#undef {p}" for p in macros]
     lines.append("")
     return lines
+
+
+def _param_lines(m, names, owner: str, fixed: set[str]) -> list[str]:
+    """A member's parameters as locals of its function: those that fix its window
+    (fixed) as numbers, the others from the kernel's macros (of owner's parameters)."""
+    lines = []
+    for pname, pdecl in m.type.params.items():
+        c = "float" if pdecl.element == "float" else "int"
+        if pdecl.shape:
+            continue
+        if pname in fixed:
+            # the window is fixed at build time (the interior's margin is): a constant, so
+            # that the compiler unrolls a loop over it
+            value = m.params[pname]
+            lines.append(f"    const {c} {pname} = "
+                         f"{_float_literal(value) if c == 'float' else int(value)};")
+            continue
+        lines.append(f"    const {c} {pname} = {names[f'{owner}.{pname}']};")
+    return lines
+
+
+def _load(array: str, row: str, w: int, xx: str, ch: int, flat: bool,
+          first: str | None = None) -> str:
+    """Element (row, xx) of array, rows of w pixels of ch channels (flat: xx an element
+    of the row, else a pixel, its channel c_), its first column first (None: 0)."""
+    if flat:
+        shift = "" if first is None else f" - {ch} * {first}" if ch > 1 else f" - {first}"
+        return f"{array}[{row} * {w * ch} + {xx}{shift}]"
+    at = xx if first is None else f"{xx} - {first}"
+    return f"{array}[{ch} * ({row} * {w} + {at}) + (c_)]" if ch > 1 else \
+        f"{array}[{row} * {w} + {at}]"
 
 
 def _port_constants(m) -> list[str]:
@@ -601,6 +906,129 @@ def _float_literal(v: float) -> str:
     return (text if any(ch in text for ch in ".e") else text + ".0") + "f"
 
 
+class _Rows:
+    """The statements that compute rows of one pass of a kernel: a piece's border and
+    interior versions (fn, inner) stored into _row, for a frame of h x w pixels of
+    channels (flat: as w x channels elements), the interior edge_y rows and edge columns
+    or more from every edge (None: no interior version); args: what the functions are
+    called with.  cols: the pass's columns [a, b) (C expressions, pixels), else the whole
+    row; shift: the first column _row holds (a tile in local memory: the store of column
+    _x goes to _row[_x - shift]); stride: elements from one row of _row to the next."""
+
+    def __init__(self, fn: str, inner: str, edge: int | None, h: int, w: int, channels: int,
+                 flat: bool, args: str = "_ARGS", edge_y: int | None = None,
+                 cols: tuple[str, str] | None = None, shift: str | None = None,
+                 stride: int | None = None):
+        self.fn, self.inner, self.edge, self.h, self.w = fn, inner, edge, h, w
+        self.channels, self.flat, self.args = channels, flat, args
+        self.edge_y = edge if edge_y is None else edge_y
+        self.cols, self.shift = cols, shift
+        self.per_row = w * channels if flat else w
+        self.stride = stride or w * channels
+
+    def store(self, fn: str, pixel: bool = False) -> list[str]:
+        """The statements storing element (or pixel) _x of the row."""
+        channels, args = self.channels, self.args
+        call = f"{fn}({args}, _y, _x, {{c}})"
+        at = "_x"
+        if self.shift is not None:
+            at = f"(_x - {self.shift})" if not self.flat or channels == 1 else \
+                f"(_x - {channels} * {self.shift})"
+        if self.flat and pixel and channels > 1:  # an element of the flat row, by pixel
+            return [f"_row[{at}] = {fn}({args}, _y, _x / {channels}, _x % {channels});"]
+        if self.flat or channels == 1:
+            return [f"_row[{at}] = " + call.format(c=0) + ";"]
+        if channels <= MAX_UNROLLED_CHANNELS:
+            # one store a channel, not one vstoreN a pixel: PoCL vectorizes the row loop
+            # of these (interleaved stores) and not of a vstore3 (FlipHorizontal on RGB:
+            # 0.34 ms a 640x360 frame with vstore3, 0.10 ms so)
+            return [f"_row[{channels} * {at} + {c}] = " + call.format(c=c) + ";"
+                    for c in range(channels)]
+        return [f"for (int _c = 0; _c < {channels}; _c++)",
+                f"    _row[{channels} * {at} + _c] = " + call.format(c="_c") + ";"]
+
+    def block(self, head: str, fn: str, depth: int, pixel: bool = False,
+              rows: int = 1) -> list[str]:
+        """head (a loop or a branch) over the store statements, at depth levels: of row
+        _y, and of the rows - 1 next ones (_y + r, r rows further in the output)."""
+        pad, body = "    " * depth, self.store(fn, pixel)
+        body += [b.replace("_row[", f"_row[{r * self.stride} + ").replace(
+            f"({self.args}, _y,", f"({self.args}, _y + {r},") for r in range(1, rows)
+            for b in body]
+        if len(body) == 1:
+            return [pad + head, f"{pad}    {body[0]}"]
+        return [f"{pad}{head} {{", *(f"{pad}    {b}" for b in body), pad + "}"]
+
+    def _spans(self) -> tuple[str, str, str, str]:
+        """The loops over the row's left border, interior and right border, and over the
+        whole row (its columns in a tile)."""
+        loop = "for (int _x = {a}; _x < {b}; _x++)"
+        k = self.channels if self.flat else 1  # elements a pixel
+        # on a row narrower than two borders, the left border is the whole row
+        left = min(self.edge or 0, self.w)
+        right = max(left, self.w - (self.edge or 0))
+        if self.cols is None:
+            return (loop.format(a=0, b=left * k), loop.format(a=left * k, b=right * k),
+                    loop.format(a=right * k, b=self.per_row), loop.format(a=0, b=self.per_row))
+        a, b = self.cols
+        times = (lambda e: e) if k == 1 else (lambda e: f"{k} * {e}")
+        return (loop.format(a=times(a), b=times(f"min({b}, {left})")),
+                loop.format(a=times(f"max({a}, {left})"), b=times(f"min({b}, {right})")),
+                loop.format(a=times(f"max({a}, {right})"), b=times(b)),
+                loop.format(a=times(a), b=times(b)))
+
+    def row(self, depth: int, rows: int = 1) -> list[str]:
+        """Row _y (and the rows - 1 next ones, all interior rows) at depth levels, a
+        work-item's whole row ('runs')."""
+        left, middle, right, whole = self._spans()
+        block = self.block
+        if self.edge is None:
+            return block(whole, self.fn, depth)
+        if rows > 1:
+            # the rows' borders a row at a time (a few columns each: one call site of
+            # the border version, not one a row), then their interiors together
+            pad = "    " * depth
+            ends = [line.replace("_row[", f"_row[_r * {self.stride} + ").replace(
+                f"({self.args}, _y,", f"({self.args}, _y + _r,") for line in [
+                    *block(left, self.fn, depth + 1, True),
+                    *block(right, self.fn, depth + 1, True)]]
+            return [f"{pad}for (int _r = 0; _r < {rows}; _r++) {{", *ends, pad + "}",
+                    *block(middle, self.inner, depth, False, rows)]
+        parts = [*block(left, self.fn, depth, True),
+                 *block(middle, self.inner, depth),
+                 *block(right, self.fn, depth, True)]
+        pad = "    " * (depth - 1)
+        return [f"{pad}if (_y >= {self.edge_y} && _y < {self.h - self.edge_y}) {{", *parts,
+                f"{pad}}} else {{",
+                *block(whole, self.fn, depth, True), f"{pad}}}"]
+
+    def runs(self, lo: str, hi: str, row_decl: str, together: int, depth: int = 1,
+             split: bool = True) -> list[str]:
+        """The loop over rows [lo, hi) (C expressions), the work-group's items taking them
+        in turn ('runs'; split False: all of them this item's), together rows at a time
+        where they are interior rows; row_decl declares _row, row _y's first element."""
+        pad, edge, h, t = "    " * depth, self.edge_y, self.h, together
+        first, step = ("_k", "_n") if split else ("", "1")
+        if t == 1:
+            start = f"{lo} + _k" if split else lo
+            return [f"{pad}for (int _y = {start}; _y < {hi}; _y += {step}) {{",
+                    f"{pad}    {row_decl}",
+                    *self.row(depth + (2 if self.edge is not None else 1)), pad + "}"]
+        start = f"{lo} + {t} * {first}" if split else lo
+        return [f"{pad}for (int _p = {start}; _p < {hi}; _p += {t} * {step}) {{",
+                f"{pad}    if (_p >= {edge} && _p + {t - 1} < min({hi}, {h - edge})) {{",
+                f"{pad}        // rows _p to _p + {t - 1}, every one in the interior",
+                f"{pad}        const int _y = _p;", f"{pad}        {row_decl}",
+                *self.row(depth + 2, t),
+                f"{pad}        continue;",
+                f"{pad}    }}",
+                f"{pad}    for (int _y = _p; _y < min(_p + {t}, {hi}); _y++) {{",
+                f"{pad}        {row_decl}",
+                *self.row(depth + 3),
+                f"{pad}    }}",
+                pad + "}"]
+
+
 def _kernel(group: GroupNode, out_name: str, out_port, names, flat: bool,
             edge: int | None, how: str) -> list[str]:
     """The kernel: rows of the output; the row's elements split among block_x threads."""
@@ -611,37 +1039,9 @@ def _kernel(group: GroupNode, out_name: str, out_port, names, flat: bool,
     h, w = out_port.data.height, out_port.data.width
     per_row = w * channels if flat else w
     stride = w * channels
-
-    def store(fn: str, pixel: bool = False) -> list[str]:
-        """The statements storing element (or pixel) _x of the row."""
-        call = f"{fn}(_ARGS, _y, _x, {{c}})"
-        if flat and pixel and channels > 1:  # an element of the flat row, by pixel
-            return [f"_row[_x] = {fn}(_ARGS, _y, _x / {channels}, _x % {channels});"]
-        if flat or channels == 1:
-            return ["_row[_x] = " + call.format(c=0) + ";"]
-        if channels <= MAX_UNROLLED_CHANNELS:
-            # one store a channel, not one vstoreN a pixel: PoCL vectorizes the row loop
-            # of these (interleaved stores) and not of a vstore3 (FlipHorizontal on RGB:
-            # 0.34 ms a 640x360 frame with vstore3, 0.10 ms so)
-            return [f"_row[{channels} * _x + {c}] = " + call.format(c=c) + ";"
-                    for c in range(channels)]
-        return [f"for (int _c = 0; _c < {channels}; _c++)",
-                f"    _row[{channels} * _x + _c] = " + call.format(c="_c") + ";"]
-
-    def block(head: str, fn: str, depth: int, pixel: bool = False,
-              rows: int = 1) -> list[str]:
-        """head (a loop or a branch) over the store statements, at depth levels: of row
-        _y, and of the rows - 1 next ones (_y + r, r rows further in the output)."""
-        pad, body = "    " * depth, store(fn, pixel)
-        body += [b.replace("_row[", f"_row[{r * stride} + ").replace("(_ARGS, _y,",
-                                                                     f"(_ARGS, _y + {r},")
-                 for r in range(1, rows) for b in body]
-        if len(body) == 1:
-            return [pad + head, f"{pad}    {body[0]}"]
-        return [f"{pad}{head} {{", *(f"{pad}    {b}" for b in body), pad + "}"]
-
     border = _function(root.name, index, False)
     inner = _function(root.name, index, True)
+    rows = _Rows(border, inner, edge, h, w, channels, flat)
     if flat:
         what = f"{channels} channel{'s' if channels > 1 else ''} as {per_row} elements a row"
     elif channels == 1:
@@ -669,67 +1069,23 @@ def _kernel(group: GroupNode, out_name: str, out_port, names, flat: bool,
         f"    const int _y1 = min(_y0 + _tile, {h});"]
     k = channels if flat else 1  # elements a pixel
     if how == "runs":
-        loop = "for (int _x = {a}; _x < {b}; _x++)"
-        # the left border, the interior and the right border of a row: on a row narrower
-        # than two borders, the left border is the whole row
-        left = min(edge or 0, w)
-        right = max(left, w - (edge or 0))
-
-        def row(depth: int, rows: int = 1) -> list[str]:
-            """Row _y (and the rows - 1 next ones, all interior rows) at depth levels."""
-            if edge is None:
-                return block(loop.format(a=0, b=per_row), border, depth)
-            if rows > 1:
-                # the rows' borders a row at a time (a few columns each: one call site of
-                # the border version, not one a row), then their interiors together
-                pad = "    " * depth
-                ends = [line.replace("_row[", f"_row[_r * {stride} + ").replace(
-                    "(_ARGS, _y,", "(_ARGS, _y + _r,") for line in [
-                        *block(loop.format(a=0, b=left * k), border, depth + 1, True),
-                        *block(loop.format(a=right * k, b=per_row), border, depth + 1, True)]]
-                return [f"{pad}for (int _r = 0; _r < {rows}; _r++) {{", *ends, pad + "}",
-                        *block(loop.format(a=left * k, b=right * k), inner, depth, False,
-                               rows)]
-            parts = [*block(loop.format(a=0, b=left * k), border, depth, True),
-                     *block(loop.format(a=left * k, b=right * k), inner, depth),
-                     *block(loop.format(a=right * k, b=per_row), border, depth, True)]
-            pad = "    " * (depth - 1)
-            return [f"{pad}if (_y >= {edge} && _y < {h - edge}) {{", *parts,
-                    f"{pad}}} else {{",
-                    *block(loop.format(a=0, b=per_row), border, depth, True), f"{pad}}}"]
-
         out_row = f"__global {out_c} *_row = _out + (size_t)_y * {stride};"
         lines += ["    const int _k = get_local_id(1) * get_local_size(0) + get_local_id(0);",
-                  "    const int _n = get_local_size(0) * get_local_size(1);"]
-        if together == 1:
-            lines += ["    for (int _y = _y0 + _k; _y < _y1; _y += _n) {", f"        {out_row}",
-                      *row(3 if edge is not None else 2)]
-        else:
-            t = together
-            lines += [f"    for (int _p = _y0 + {t} * _k; _p < _y1; _p += {t} * _n) {{",
-                      f"        if (_p >= {edge} && _p + {t - 1} < min(_y1, {h - edge})) {{",
-                      f"            // rows _p to _p + {t - 1}, every one in the interior",
-                      "            const int _y = _p;", f"            {out_row}",
-                      *row(3, t),
-                      "            continue;",
-                      "        }",
-                      f"        for (int _y = _p; _y < min(_p + {t}, _y1); _y++) {{",
-                      f"            {out_row}",
-                      *row(4),
-                      "        }"]
+                  "    const int _n = get_local_size(0) * get_local_size(1);",
+                  *rows.runs("_y0", "_y1", out_row, together)[:-1]]
     else:
         lines += ["    const int _nx = get_local_size(0);",
                   "    for (int _y = _y0 + get_local_id(1); _y < _y1; _y += get_local_size(1)) {",
                   f"        __global {out_c} *_row = _out + (size_t)_y * {stride};"]
         loop = f"for (int _x = get_local_id(0); _x < {per_row}; _x += _nx)"
         if edge is None:
-            lines += block(loop, border, 2)
+            lines += rows.block(loop, border, 2)
         else:
             lines += [f"        const bool _inside = _y >= {edge} && _y < {h - edge};",
                       "        " + loop + " {",
-                      *block(f"if (_inside && _x >= {edge * k} && _x < {(w - edge) * k})",
-                             inner, 3),
-                      *block("else", border, 3, True),
+                      *rows.block(f"if (_inside && _x >= {edge * k} && _x < "
+                                  f"{(w - edge) * k})", inner, 3),
+                      *rows.block("else", border, 3, True),
                       "        }"]
     lines += ["    }", "}", ""]
     return lines
