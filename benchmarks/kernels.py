@@ -9,7 +9,7 @@ interleaved (so that a noisy machine slows every variant alike):
 
 - ``hand``: the type's hand-written kernel (its .cl file), launched with the type's
   preferred settings as a lone component is, where the type still has one;
-- ``gen``: the kernel the generator (backend/opencl/fused.py) writes for the operation
+- ``gen``: the kernel the generator (kernelgen/fused.py) writes for the operation
   alone, a group of one, launched as the system launches it (fused.launch_geometry);
 - ``cv2``: the same OpenCV call on the same cores (cv2.setNumThreads(0) means all).
 
@@ -277,7 +277,7 @@ class Variant:
 def hand_variant(ctx, queue, t, arrays, params, programs):
     import pyopencl as cl
 
-    from gpucompgen.backend.opencl.convention import kernel_parameters
+    from gpucompgen.c_convention import kernel_parameters
 
     if t.kernel_file is None:
         return None
@@ -315,7 +315,7 @@ def gen_variant(ctx, queue, t, arrays, params, device, settings=None):
     the system's preferred settings or the given (tile, block_x, block_y)."""
     import pyopencl as cl
 
-    from gpucompgen.backend.opencl import fused
+    from gpucompgen.kernelgen import fused
 
     if t.fusable is None:
         return None

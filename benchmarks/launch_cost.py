@@ -36,8 +36,8 @@ def merger(tmp: Path):
     import numpy as np
 
     from gpucompgen import runtime
-    from gpucompgen.backend.opencl.fused import group_kernel, group_of_one
     from gpucompgen.build import compile_model, write
+    from gpucompgen.kernelgen.fused import group_kernel, group_of_one
     from gpucompgen.model import library_types
 
     out = tmp / "vision"

@@ -169,7 +169,7 @@ class HandWritten:
     calls, one each, as a programmer would write them by hand with the device's API)."""
 
     def __init__(self, n: int, image: np.ndarray, context):
-        from .backend.opencl.fused import group_kernel, group_of_one, launch_geometry
+        from .kernelgen.fused import group_kernel, group_of_one, launch_geometry
         from .model import library_types
         from .passes.fuse import GROUP_GPU
 

@@ -11,7 +11,7 @@ A GPU-aware component's kernel takes, in this order:
 
 The order and the element types are the same for every backend: lowering sets a launch's
 arguments from this list (passes/lower.py), and each backend spells the types in its own
-kernel language (backend/opencl/convention.py: ``uchar``, ``int``...).  Nothing else
+kernel language (c_convention.py: ``uchar``, ``int``...).  Nothing else
 restates the order.
 """
 

@@ -37,7 +37,7 @@ dilation of it) may say so with ``stages``: each a named stencil of its own (an 
 type, a radius, its reads, a value reading the inputs and the stages before it, the
 type's border), and the type's value reads them as ``name(y, x, c)``, like inputs; the
 type's own radius and reads are then the value's own, over the stages.  The kernel
-generator decides how a stage is computed (backend/opencl/fused.py): inline, at every
+generator decides how a stage is computed (kernelgen/fused.py): inline, at every
 read of it (what the type would be without stages), or once a frame strip into local
 memory that the value then reads; the results are the same.
 

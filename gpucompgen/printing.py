@@ -170,6 +170,8 @@ def lib_file_text(src: LibSource, header: str) -> str:
     """A lib folder's copy of a checked source, under the generated header saying what it
     is."""
     users = ", ".join(src.users)
+    if src.kind == "group":  # the generator's text names the group's members
+        return f"// {header}\n{src.text}"
     if src.kind == "kernel":
         return (f"// {header}\n// Kernel of component type{'s' if len(src.users) > 1 else ''} "
                 f"{users}.\n\n{src.text}")

@@ -327,7 +327,7 @@ def _program(api, context, system, node):
     t = node.type
     backend = device_api.name_of(api)
     if isinstance(node, GroupNode):  # the kernel the build writes from the type's form
-        from .backend.opencl.fused import group_kernel
+        from .kernelgen.fused import group_kernel
 
         text = group_kernel(node, "tune", system.device)
     elif backend == "opencl":  # the type's kernel file as it is

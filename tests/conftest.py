@@ -103,7 +103,7 @@ def run_generated(context, queue, ctype, params: dict, arrays, out_shape: tuple,
     import numpy as np
     import pyopencl as cl
 
-    from gpucompgen.backend.opencl.fused import (
+    from gpucompgen.kernelgen.fused import (
         group_kernel,
         group_of_one,
         kernel_name,

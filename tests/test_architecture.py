@@ -35,6 +35,7 @@ LAYERS = [
     ("gpucompgen.errors", "records"),
     ("gpucompgen.output", "records"),
     ("gpucompgen.printing", "records"),
+    ("gpucompgen.c_convention", "records"),
     ("gpucompgen.runtime.opencl", "runtime-opencl"),
     ("gpucompgen.runtime.cuda", "runtime-cuda"),
     ("gpucompgen.runtime.__init__", "runtime-facade"),
@@ -80,27 +81,7 @@ EXTERNAL = {
 
 # Edges that break the table today, each with why it is still there.  Remove an entry with
 # its edge; never add one for new code.
-KNOWN_DEBT = {
-    # The kernel generator lives in the OpenCL backend: the CUDA printer asks it for the
-    # fused groups' kernels (a sibling's import) until it moves out of the backend.
-    ("gpucompgen.backend.cuda.render", "gpucompgen.backend.opencl.fused"):
-        "the group kernels come from the kernel generator in the OpenCL backend",
-    # The kernel generator works on the IR's groups and the model's types, and fusion asks
-    # it what a group's kernel costs; a neutral record per fused kernel (member bodies,
-    # accessors, borders, constant sizes) would cut these edges.
-    ("gpucompgen.backend.opencl.fused", "gpucompgen.ir"): "group kernels from IR groups",
-    ("gpucompgen.backend.opencl.fused", "gpucompgen.model"): "group kernels from model types",
-    ("gpucompgen.backend.opencl.fused", "gpucompgen.passes.fuse"): "the group GPU settings",
-    ("gpucompgen.backend.opencl.fused", "gpucompgen.device"): "the default device's facts",
-    ("gpucompgen.backend.opencl.fused", "gpucompgen.snippet"): "snippets printed as C",
-    ("gpucompgen.backend.opencl.fused", "gpucompgen.runtime.sizes"): "Size of constant sizes",
-    ("gpucompgen.passes.fuse", "gpucompgen.backend.opencl.fused"):
-        "fusion checks a group's generated kernel (the kernel generator is OpenCL's)",
-    ("gpucompgen.bench", "gpucompgen.backend.opencl.fused"):
-        "the hand-written reference runs the generator's VerticalMirror kernel",
-    ("gpucompgen.tune", "gpucompgen.backend.opencl.fused"):
-        "a fusable type's kernel is written by the generator to be measured",
-}
+KNOWN_DEBT: dict[tuple[str, str], str] = {}
 
 
 def layer_of(module: str) -> str:

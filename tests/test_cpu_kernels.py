@@ -2,7 +2,7 @@
 
 Each kernel is built from gpucompgen/library/*.cl and launched directly with pyopencl on
 the pinned device (PoCL in CI), its arguments in the order the calling convention
-declares (gpucompgen/backend/opencl/convention.py), with random sizes (odd ones, one
+declares (gpucompgen/c_convention.py), with random sizes (odd ones, one
 pixel high or wide), parameters, images and GPU settings; the CPU function must give
 the same bytes. Each CPU function is also compared with an independent reference:
 np.flipud and cv2.flip, np.hstack, the detector's rule written per pixel, and for the
@@ -55,7 +55,7 @@ class Kernels:
     def run(self, type_name: str, inputs: dict, outputs: dict, params: dict, setting):
         import pyopencl as cl
 
-        from gpucompgen.backend.opencl.convention import kernel_parameters
+        from gpucompgen.c_convention import kernel_parameters
         from gpucompgen.model import library_types
 
         ctype = library_types()[type_name]

@@ -90,7 +90,7 @@ def library_operation_kernels() -> dict[str, str]:
     """The kernel the generator writes for each fusable library type alone (a group of one,
     what a lone component runs), with its default parameters on a 37x53 frame and on
     a one-pixel frame, as the CUDA backend writes it: {type and size: .cu text}."""
-    from gpucompgen.backend.opencl.fused import group_kernel, group_of_one
+    from gpucompgen.kernelgen.fused import group_kernel, group_of_one
     from gpucompgen.model import library_types
 
     out = {}
@@ -280,7 +280,7 @@ class CudaKernels:
         return result
 
     def _generated(self, ctype, arrays, params, setting):
-        from gpucompgen.backend.opencl import fused
+        from gpucompgen.kernelgen import fused
         from gpucompgen.model import DTYPES
 
         cuda = self.cuda
@@ -316,7 +316,7 @@ class CudaKernels:
 
     def _hand(self, ctype, arrays, params, setting):
         from gpucompgen import sizeexpr
-        from gpucompgen.backend.opencl.convention import kernel_parameters
+        from gpucompgen.c_convention import kernel_parameters
         from gpucompgen.model import DTYPES
 
         cuda = self.cuda

@@ -100,7 +100,7 @@ def test_the_bench_kernel_compiles_for_cuda(major, arch, channels):
     from test_cuda import nvrtc_of
 
     from gpucompgen.backend import kernel_text
-    from gpucompgen.backend.opencl.fused import group_kernel, group_of_one
+    from gpucompgen.kernelgen.fused import group_kernel, group_of_one
     from gpucompgen.model import library_types
 
     mirror = library_types()["VerticalMirror"].specialized("uint8", channels)

@@ -322,8 +322,8 @@ def test_library_snippets_pass_the_check_and_compile(cl_context):
     library type with a fusable form, found by itself: new ones are covered too)."""
     import pyopencl as cl
 
-    from gpucompgen.backend.opencl.fused import group_kernel
     from gpucompgen.ir import ComponentNode, Data, GroupNode, Port
+    from gpucompgen.kernelgen.fused import group_kernel
     from gpucompgen.model import Endpoint
     from gpucompgen.runtime.sizes import Size
 

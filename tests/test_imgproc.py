@@ -206,7 +206,7 @@ class Kernels:
         import pyopencl as cl
 
         from gpucompgen import sizeexpr
-        from gpucompgen.backend.opencl.convention import kernel_parameters
+        from gpucompgen.c_convention import kernel_parameters
         from gpucompgen.model import DTYPES
 
         ctype = imgproc_types()[type_name]

@@ -1,4 +1,4 @@
-"""The kernel generator (backend/opencl/fused.py) and the fusion cost model (passes/fuse.py).
+"""The kernel generator (kernelgen/fused.py) and the fusion cost model (passes/fuse.py).
 
 - Names: whatever the model calls its components (like a port, like the generated
   kernel's own locals and macros, like a snippet's locals), every group kernel compiles
@@ -173,8 +173,8 @@ def test_index_maps_that_read_many_times_are_not_fused_into_an_explosion(tmp_pat
                                              ("portable", "runs"),
                                              ("nvidia-hopper", "strided")])
 def test_the_schedule_follows_the_device(device, expected):
-    from gpucompgen.backend.opencl.fused import schedule
     from gpucompgen.device import PROFILES
+    from gpucompgen.kernelgen.fused import schedule
 
     assert schedule(PROFILES.get(device)) == expected
 
@@ -247,8 +247,8 @@ def test_build_options_override_a_generated_kernels_model_values(cl_context, cl_
     import cv2
     import pyopencl as cl
 
-    from gpucompgen.backend.opencl.convention import group_constants
-    from gpucompgen.backend.opencl.fused import (
+    from gpucompgen.c_convention import group_constants
+    from gpucompgen.kernelgen.fused import (
         group_kernel,
         group_of_one,
         kernel_name,

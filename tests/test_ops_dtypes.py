@@ -102,7 +102,7 @@ def test_a_snippet_using_the_type_as_a_value_is_a_positioned_error(tmp_path):
 
 
 def _kernel(type_name: str, dtype: str, channels: int = 1) -> str:
-    from gpucompgen.backend.opencl.fused import group_kernel, group_of_one
+    from gpucompgen.kernelgen.fused import group_kernel, group_of_one
     from gpucompgen.model import library_types
 
     ctype = library_types()[type_name].specialized(dtype, channels)

@@ -282,7 +282,7 @@ def test_drawn_chains_are_placed_at_the_least_estimate_plan_reports(
 
 def test_a_window_of_windows_is_priced_at_the_reads_its_kernel_makes(tmp_path):
     """The estimate of a stencil counts what its kernel reads with its loops unrolled: a
-    5x5 opening, its erosion staged (backend/opencl/fused.py: computed once an element,
+    5x5 opening, its erosion staged (kernelgen/fused.py: computed once an element,
     then read at the dilation's 25 taps), 25 + 25 reads an element, twice its own 5x5
     erosion's 25; inline it would be 25 x 25 (it ran 27x OpenCV on this machine's PoCL
     while the window-only estimate priced it as an erosion, 9x staged)."""

@@ -1,5 +1,5 @@
 """Stencil borders an int parameter picks (OpenCV's codes) and the CPU schedule's rows
-computed together (backend/opencl/fused.py), against a numpy reference of their own: the
+computed together (kernelgen/fused.py), against a numpy reference of their own: the
 positions OpenCV's borderInterpolate reads, reflected step by step as it does (the kernel
 reflects by a modulo)."""
 
@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from conftest import require_opencl, run_generated
 
-from gpucompgen.backend.opencl import fused
+from gpucompgen.kernelgen import fused
 from gpucompgen.model import library_types
 
 BORDER_CODES = (0, 1, 2, 4)  # BORDER_CONSTANT, _REPLICATE, _REFLECT, _REFLECT_101

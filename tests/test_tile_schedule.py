@@ -1,4 +1,4 @@
-"""The staged schedule of the kernel generator (backend/opencl/fused.py: staged_pieces):
+"""The staged schedule of the kernel generator (kernelgen/fused.py: staged_pieces):
 a stencil read by a stencil — a stage of one type (Blur's row sums, an opening's
 erosion: fusable.Stage) or a stencil member fused behind another — computed once a tile
 into local memory, then read there, instead of at every read of it.  Decisions are
@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from conftest import require_opencl, run_generated
 
-from gpucompgen.backend.opencl import fused
+from gpucompgen.kernelgen import fused
 from gpucompgen.model import library_types
 
 
@@ -123,7 +123,7 @@ def test_a_stencil_behind_a_stencil_is_staged_and_equals_opencv(cl_context, cl_q
     import cv2
     import pyopencl as cl
 
-    from gpucompgen.backend.opencl.convention import group_parameters
+    from gpucompgen.c_convention import group_parameters
 
     require_opencl()
     h, w = 37, 101

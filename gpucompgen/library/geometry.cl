@@ -3,7 +3,7 @@
 // form). Each output pixel is a copy of (or, for bilinear resize, a mix of) input pixels
 // at positions computed from its own. OpenCV: resize, an ROI.
 //
-// Written for throughput as the generated kernels are (backend/opencl/fused.py): whole
+// Written for throughput as the generated kernels are (kernelgen/fused.py): whole
 // rows a work-group (the types' kernel cover: rows), each thread a contiguous run of the
 // row, straight-line code a pixel (no loop with data-dependent bounds inside the run),
 // what depends on the row alone computed once a row, no integer division or library call a

@@ -52,7 +52,7 @@ def _no_array_params(doc, rep, base, ctype: ComponentType) -> None:
 def _load_kernel(doc, rep, base, ctype: ComponentType, spec,
                  signature_check: bool = True) -> None:
     if "kernel" not in spec and "fusable" in spec:
-        # the kernel is generated from the fusable form (backend/opencl/fused.py), for a
+        # the kernel is generated from the fusable form (kernelgen/fused.py), for a
         # component alone as for a fused group: the operation is declared once
         ctype.grid = next(iter(ctype.outputs), "")
         ctype.cover = "rows"

@@ -63,13 +63,13 @@ from .base import Pass
 # (measured on PoCL, as for VerticalMirror: long runs of pixels per work-item)
 GROUP_GPU = GpuDecl((1, 2, 4, 8, 16, 32, 64, 128), (1,), (32, 8, 8, 1))
 # on a GPU: a work-group of 128 threads along a row, 4 rows at a time, adjacent threads
-# adjacent elements (backend/opencl/fused.py, schedule 'strided')
+# adjacent elements (kernelgen/fused.py, schedule 'strided')
 GROUP_GPU_STRIDED = GpuDecl((1, 2, 4, 8, 16, 32, 64, 128), (1,), (4, 128, 1, 1))
 
 
 def group_gpu_decl(device) -> GpuDecl:
     """The generated kernel's settings for the device: fused.schedule() decides."""
-    from ..backend.opencl.fused import schedule
+    from ..kernelgen.fused import schedule
 
     return GROUP_GPU if schedule(device) == "runs" else GROUP_GPU_STRIDED
 
@@ -152,7 +152,7 @@ def choose_groups(system: System, on_gpu=None) -> tuple[list[list[str]], dict[st
 
 def _generate_singles(system: System) -> None:
     """Every GPU component of a fusable type left outside a group becomes a group of one:
-    its kernel is generated from its form (backend/opencl/fused.py), like a group's."""
+    its kernel is generated from its form (kernelgen/fused.py), like a group's."""
     singles = [n for n in system.order if isinstance(system.nodes[n], ComponentNode)
                and system.nodes[n].on_gpu and system.nodes[n].type.fusable is not None]
     for name in singles:
@@ -281,7 +281,7 @@ def _reader(system: System, end: Endpoint) -> str:
 # the estimated fused time at that much more.  The GPU rows are not fitted on a device yet:
 # memory-bound element costs at an integrated GPU's (~100 GB/s) and a discrete GPU's
 # (~1 TB/s) bandwidth, and their launch costs.  "" (the 'portable' profile)
-# is scheduled as a CPU device is (backend/opencl/fused.py), so it takes the CPU row.
+# is scheduled as a CPU device is (kernelgen/fused.py), so it takes the CPU row.
 # To recalibrate: `python benchmarks/fusion_costs.py` on the device (PYOPENCL_CTX), paste
 # the row it prints under the device's class.
 FEATURES = {"launches": "launch_s", "ops": "op_s", "loads": "load_s", "stores": "store_s",
@@ -322,12 +322,12 @@ def reads(node, port: str) -> int:
 
 def staged_reads(decl, params) -> int:
     """Input elements the generated kernel reads an output element of a stencil with
-    stages: each stage the generator stages (backend/opencl/fused.py staged_pieces: read
+    stages: each stage the generator stages (kernelgen/fused.py staged_pieces: read
     more than MIN_STAGED_READS times through, reading more than one element) computed
     once an element, plus the value's own reads of it; a stage inline, at every read of
     it.  (A 5x5 opening: 25 + 25, not 25 x 25; its halo, about a tenth more, not
     counted.)"""
-    from ..backend.opencl.fused import MIN_STAGED_READS
+    from ..kernelgen.fused import MIN_STAGED_READS
 
     own = decl.reads_of(params)
     if not decl.stages:
@@ -542,7 +542,7 @@ def entry_name(name: str, members: list[ComponentNode]) -> str:
 def group_type(system: System, name: str, members: list[ComponentNode],
                inputs: dict[str, Port]) -> ComponentType:
     """The stand-in type of a group: its class name in generated code, its ports, and the
-    GPU preferences of the generated kernel (backend/opencl/fused.py: work-groups cover
+    GPU preferences of the generated kernel (kernelgen/fused.py: work-groups cover
     tile whole rows of the output, as the VerticalMirror kernel, and any tile)."""
     root = members[-1]
     rt = root.type

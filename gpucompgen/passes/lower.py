@@ -17,6 +17,7 @@ from dataclasses import dataclass, field, replace
 
 from ..convention import group_constants, group_parameters, kernel_parameters
 from ..ir import AdapterNode, ComponentNode, GroupNode, System
+from ..kernelgen.fused import group_kernel_body
 from ..model import DTYPES, ComponentType, Endpoint
 from ..plan import (
     Argument,
@@ -201,8 +202,9 @@ def lib_sources(system: System, files: dict[str, str]) -> tuple[LibSource, ...]:
                 t.python_text, t.python_file)
     for t in checked_kernel_types(system):
         add(kernel_key(t), "checked_kernel", [t.name], t.kernel_text, t.kernel_file)
-    for g in system.kernel_groups:  # the backend's kernel generator writes their text
-        found.append(LibSource(files[lib_key(g.type)], "group", (g.name,), ""))
+    for g in system.kernel_groups:  # the kernel generator writes their text
+        found.append(LibSource(files[lib_key(g.type)], "group", (g.name,),
+                               group_kernel_body(g, system.device)))
     return tuple(found)
 
 

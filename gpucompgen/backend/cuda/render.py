@@ -13,7 +13,6 @@ from __future__ import annotations
 from ... import printing
 from ...errors import Diagnostic, GpucompgenError
 from ...output import HEADER_PREFIX, OutputFile, source_path
-from ..opencl.fused import group_kernel
 from .prelude import PRELUDE, translate, unportable
 
 __all__ = ["HEADER_PREFIX", "OutputFile", "render", "source_path"]
@@ -49,16 +48,14 @@ def cuda_kernel_file(text: str) -> str:
 
 
 def render(system, source: str, model_dir: str = ".") -> list[OutputFile]:
-    """All files of one system for CUDA: the program, then its lib folder (.cu kernels,
-    user Python files as for OpenCL)."""
+    """All files of one system for CUDA, from the plan alone (system.plan): the program,
+    then its lib folder (.cu kernels, user Python files as for OpenCL)."""
     check_portable(system)
-    groups = {g.name: g for g in system.kernel_groups}
 
     def lib_text(src, header: str) -> str:
-        if src.kind == "group":
-            return cuda_kernel_file(group_kernel(groups[src.users[0]], header, system.device))
         text = printing.lib_file_text(src, header)
-        return cuda_kernel_file(text) if src.kind in ("kernel", "checked_kernel") else text
+        return cuda_kernel_file(text) if src.kind in ("kernel", "checked_kernel", "group") \
+            else text
 
     plan = system.plan.with_kernel_suffix(KERNEL_SUFFIX)
     return printing.render(plan, system.name, source, model_dir, TEMPLATE, lib_text)

@@ -1,6 +1,5 @@
 """The OpenCL backend (pyopencl host code, OpenCL C kernels).
 
-    convention.py   the kernel calling convention (kernel_parameters) and the C type names
     reserved.py     OpenCL C reserved words, which no model name may take
     render.py       prints a ProgramPlan through the templates (templates/opencl/ at the top
                     of the checkout) into the program's files

@@ -14,7 +14,7 @@ import re
 from collections.abc import Iterator
 from dataclasses import dataclass
 
-from .convention import KernelParam, kernel_parameters
+from ...c_convention import KernelParam, kernel_parameters
 
 ADDRESS_SPACES = {"__global": "global", "global": "global", "__local": "local",
                   "local": "local", "__constant": "constant", "constant": "constant",

@@ -76,9 +76,9 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass, replace
 
-from ...ir import GroupNode
-from ...model import DTYPES, Endpoint
-from ...snippet import accessor_calls, is_name, is_shifted, uses_outside_calls
+from ..ir import GroupNode
+from ..model import DTYPES, Endpoint
+from ..snippet import accessor_calls, is_name, is_shifted, uses_outside_calls
 
 MAX_UNROLLED_CHANNELS = 4  # a pixel of at most this many channels: one store statement each
 # On a CPU a work-item computes this many rows of a stencil group's interior in one loop, so
@@ -205,7 +205,7 @@ def is_cpu(device) -> bool:
     a CPU keeps resident as many threads as one work-group holds (runtime/facts.py), a GPU
     thousands.  No facts, or the 'portable' profile (any OpenCL 1.2 device, which the
     default build runs on PoCL as often as on a GPU): the CPU schedule, correct on both."""
-    from ...device import PROFILES
+    from ..device import PROFILES
 
     if device is None or device == PROFILES["portable"]:
         return True
@@ -224,7 +224,7 @@ def kernel_name(group: GroupNode) -> str:
 
 def preferred_settings(group: GroupNode, device) -> tuple[int, int, int, int]:
     """(tile, block_x, block_y, block_z) the system prefers for the group's kernel."""
-    from ...passes.fuse import group_gpu_decl
+    from ..passes.fuse import group_gpu_decl
 
     return group_gpu_decl(device).prefer
 
@@ -241,8 +241,8 @@ def group_of_one(ctype, params: dict, shapes: dict[str, tuple[int, int]], member
     """The group of one component (named member) of a fusable type, for ports of the
     given (height, width) sizes: what the generator writes for the operation alone (the
     tests and benchmarks/kernels.py run it)."""
-    from ...ir import ComponentNode, Data, Port
-    from ...runtime.sizes import Size
+    from ..ir import ComponentNode, Data, Port
+    from ..runtime.sizes import Size
 
     def port(p, direction, d):
         h, w = shapes[p]
@@ -265,7 +265,7 @@ def launch_arguments(group: GroupNode, inputs: dict, output, tile: int) -> list:
     kernel text (its defaults: the values group_of_one was given)."""
     import numpy as np
 
-    from .convention import group_parameters
+    from ..c_convention import group_parameters
 
     assert len(group.members) == 1, group.name
     args = []
@@ -546,8 +546,8 @@ def expand(group: GroupNode) -> tuple[GroupNode, dict[Endpoint, str]]:
         return group, feeds
     from types import SimpleNamespace
 
-    from ...ir import Data, Edge, Port
-    from ...runtime.sizes import Size
+    from ..ir import Data, Edge, Port
+    from ..runtime.sizes import Size
 
     producer = {e.target: e.source for e in group.internal}
     members, internal = [], []
@@ -578,8 +578,14 @@ def expand(group: GroupNode) -> tuple[GroupNode, dict[Endpoint, str]]:
     return replace(group, members=members, internal=internal), feeds
 
 
+def group_kernel_body(group: GroupNode, device=None) -> str:
+    """The group's kernel file below its first line, the generated-file header: what
+    lowering keeps in the plan (LibSource.text), and a printer puts its header above."""
+    return group_kernel(group, "", device).split("\n", 1)[1]
+
+
 def group_kernel(group: GroupNode, header: str, device=None) -> str:
-    from .convention import group_constants, group_parameters
+    from ..c_convention import group_constants, group_parameters
 
     params = group_parameters(group)
     constants = group_constants(group)
@@ -680,7 +686,7 @@ def _constants(group: GroupNode, constants) -> list[str]:
     """The members' parameters as macros: the program builds the file with -D NAME=VALUE
     (runtime.build_program's defines, after --set); the model's values are the defaults of
     a build without them (tests, tune, benchmarks)."""
-    from ...convention import c_literal
+    from ..convention import c_literal
 
     if not constants:
         return []

@@ -1,22 +1,23 @@
-"""The kernel calling convention in OpenCL C: the neutral order (gpucompgen.convention)
-with its element types spelled as OpenCL C names.
+"""The kernel calling convention in the portable C subset: the neutral order
+(gpucompgen.convention) with its element types spelled as OpenCL C names, which the
+CUDA prelude (backend/cuda/prelude.py) defines too.
 
 A GPU-aware component's kernel takes ``__global`` pointers for its ports (inputs may be
 ``const``), each port's height and width as ``int``, its parameters (``float`` for float
 parameters, ``int`` for int and bool ones) and ``int tile``, in the order
 :func:`gpucompgen.convention.kernel_parameters` declares.  The ``check`` command compares
-a user's kernel with it (signature.py) and the kernel generator declares its kernels
-with it (fused.py).
+a user's kernel with it (backend/opencl/signature.py) and the kernel generator declares
+its kernels with it (kernelgen/fused.py).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
-from ...convention import HOST_TYPES, Param
-from ...convention import group_constants as _group_constants
-from ...convention import group_parameters as _group_parameters
-from ...convention import kernel_parameters as _kernel_parameters
+from .convention import HOST_TYPES, Param
+from .convention import group_constants as _group_constants
+from .convention import group_parameters as _group_parameters
+from .convention import kernel_parameters as _kernel_parameters
 
 # element type -> OpenCL C type
 C_TYPES = {
