@@ -274,6 +274,9 @@ def _param(decl: ParamDecl) -> str:
         low = "" if decl.minimum is None else _number(decl.minimum)
         high = "" if decl.maximum is None else _number(decl.maximum)
         parts.append(f"range {low}..{high}")
+    if decl.aliases:
+        parts.append(f"old name{'s' if len(decl.aliases) > 1 else ''}: "
+                     + ", ".join(decl.aliases))
     return ", ".join(parts)
 
 

@@ -69,6 +69,7 @@ class ParamDecl:
     # a float matrix (2x2, 3x3, or 2x3: its left 2x2) whose determinant must not be 0: a
     # warp's matrix, a camera matrix ('invertible: true' in the type file)
     invertible: bool = False
+    aliases: tuple[str, ...] = ()  # old names of the parameter, still accepted (deprecated)
 
     @property
     def element(self) -> str:
@@ -199,6 +200,12 @@ class ComponentType:
             return name
         return next((p.name for p in (*self.inputs.values(), *self.outputs.values())
                      if name in p.aliases), None)
+
+    def canonical_param(self, name: str) -> str | None:
+        """The parameter a name (its own or a deprecated alias) stands for, or None."""
+        if name in self.params:
+            return name
+        return next((p.name for p in self.params.values() if name in p.aliases), None)
 
     def specialized(self, dtype: str | None = None, channels: int | None = None) -> ComponentType:
         """A copy whose generic ports are fixed: inputs that accept several take dtype and

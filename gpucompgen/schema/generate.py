@@ -239,7 +239,10 @@ def types_schema() -> dict[str, Any]:
         "type": param_types, "default": VALUE, "min": {"type": "number"},
         "max": {"type": "number"}, "description": TEXT,
         "invertible": {"type": "boolean", "description": "a float matrix (2x2, 3x3, 2x3) "
-                       "whose determinant must not be 0"}}, ("type",))]}
+                       "whose determinant must not be 0"},
+        "aliases": {"type": "array", "items": NAME, "uniqueItems": True,
+                    "description": "old names of the parameter, still accepted "
+                                   "(deprecated)"}}, ("type",))]}
     port = _port()
     inputs = _named_map(_object(tuple(k for k in model.PORT_KEYS if k in port), port))
     outputs = _named_map(_object(model.PORT_KEYS, dict(port, height=SIZE_EXPR,

@@ -516,12 +516,14 @@ def _member(m, feeds: dict[Endpoint, str], producer: dict[Endpoint, Endpoint], i
 
 
 def _port_constants(m) -> list[str]:
-    """What the snippet is given of each port: its sizes, and its element type and that
+    """What the snippet is given of each port: its sizes (its channels where named), and its element type and that
     type's least and greatest values where the snippet names them (src_t, src_min)."""
     names, lines = m.type.fusable.names, []
     for pname, port in {**m.inputs, **m.outputs}.items():
         lines.append(f"    const int {pname}_height = {port.data.height}, "
                      f"{pname}_width = {port.data.width};")
+        if names.get(f"{pname}_channels") == "size":  # only where named (InRange's)
+            lines.append(f"    const int {pname}_channels = {port.channels};")
         ctype = DTYPES[port.dtype][1]
         if names.get(f"{pname}_t") == "type":
             lines.append(f"    typedef {ctype} {pname}_t;")
