@@ -120,3 +120,36 @@ def test_crop_any_element_type(dtype, which, photos, gpu):
         src = src.view(np.uint16)
     params = {"left": 5, "top": 3, "width": 21, "height": 17}
     check("Crop", [src], params, np.ascontiguousarray(src[3:20, 5:26]), gpu, dtype)
+
+
+# -- element types for Blur and MorphologyEx ---------------------------------------------
+WIDE = ("int16", "float32")  # the element types new to these operations
+
+
+@pytest.mark.parametrize("dtype", WIDE)
+def test_blur_element_types_on_photographs(dtype, photos, gpu):
+    """int16: sums in int, rounded to nearest (negative ones too), as OpenCV; float32:
+    OpenCV's sum in double (exact for these frames) divided, which the kernel's exact
+    two-float sum gives bit for bit."""
+    for which, ksize, border in ((0, 3, 4), (1, 5, 0), (1, 7, 2)):
+        src = photos[dtype][which]
+        reference = cv2.blur(src, (ksize, ksize), borderType=border)
+        check("Blur", [src], {"ksize": ksize, "border_type": border}, reference, gpu,
+              f"{dtype} ksize {ksize} border {border}")
+
+
+@pytest.mark.parametrize("dtype", WIDE)
+def test_morphology_ex_element_types_on_photographs(dtype, photos, gpu):
+    """The minimum and maximum of any element type; gradient, top hat and black hat
+    saturated as OpenCV's subtract (int16: dilate - erode reaches 65535)."""
+    for which, op, shape, ksize in ((0, 4, 0, 3), (1, 5, 2, 5), (0, 6, 1, 3)):
+        src = photos[dtype][which]
+        element = cv2.getStructuringElement(shape, (ksize, ksize))
+        reference = cv2.morphologyEx(src, op, element)
+        params = {"op": op, "shape": shape, "ksize": ksize, "iterations": 1}
+        check("MorphologyEx", [src], params, reference, gpu, dtype)
+        if dtype == "int16" and op == 4:  # the photograph's edges at the type's ends
+            edges = np.where(src > 0, 32767, -32768).astype(np.int16)
+            reference = cv2.morphologyEx(edges, op, element)
+            assert (reference == 32767).any(), "a gradient that saturates"
+            check("MorphologyEx", [edges], params, reference, gpu, "int16 edges")

@@ -113,12 +113,13 @@ def blur(src: np.ndarray, *, ksize: int, border_type: int,
     """Blur / BlurGray: cv2.blur(src, (ksize, ksize), borderType=border_type): the mean of
     the ksize x ksize window (ksize odd, 1..31, so the mean is never a tie), rounded, with
     OpenCV's border rule of that code: 0 CONSTANT (zeros), 1 REPLICATE, 2 REFLECT,
-    4 REFLECT_101."""
-    _image("Blur", "src", src)
+    4 REFLECT_101.  uint8, int16 (sums in int, as OpenCV) or float32 (OpenCV sums in
+    double)."""
+    _channels("Blur", "src", src, DTYPES3)
     ksize, border = _odd_ksize("Blur", ksize), int(border_type)
     if border not in BORDERS:
         raise ValueError(f"Blur: border_type must be one of {sorted(BORDERS)}, not {border}")
-    return cv2.blur(src, (ksize, ksize), dst=_output(out, src.shape, "Blur", "dst"),
+    return cv2.blur(src, (ksize, ksize), dst=_output(out, src.shape, "Blur", "dst", src.dtype),
                     borderType=border)
 
 
@@ -171,8 +172,9 @@ def morphology_ex(src: np.ndarray, *, op: int, shape: int, ksize: int, iteration
     """MorphologyEx / MorphologyExGray: cv2.morphologyEx(src, op,
     cv2.getStructuringElement(shape, (ksize, ksize)), iterations=iterations); op and shape
     are OpenCV's codes (MORPH_ERODE 0 .. MORPH_BLACKHAT 6; MORPH_RECT 0, MORPH_CROSS 1,
-    MORPH_ELLIPSE 2), pixels outside the frame ignored (OpenCV's default)."""
-    _image("MorphologyEx", "src", src)
+    MORPH_ELLIPSE 2), pixels outside the frame ignored (OpenCV's default); uint8, int16
+    or float32."""
+    _channels("MorphologyEx", "src", src, DTYPES3)
     op, shape, iterations = int(op), int(shape), int(iterations)
     ksize = int(ksize)
     if ksize < 1 or ksize > MAX_MORPH_KSIZE or ksize % 2 == 0:
@@ -184,7 +186,7 @@ def morphology_ex(src: np.ndarray, *, op: int, shape: int, ksize: int, iteration
                          f"for shape 0 (MORPH_RECT) only, not {iterations} (shape {shape})")
     element = cv2.getStructuringElement(shape, (ksize, ksize))
     return cv2.morphologyEx(src, op, element, iterations=iterations,
-                            dst=_output(out, src.shape, "MorphologyEx", "dst"))
+                            dst=_output(out, src.shape, "MorphologyEx", "dst", src.dtype))
 
 
 # -- helpers -------------------------------------------------------------------------------
@@ -223,5 +225,5 @@ CPU_OPS = {
 
 # last, so that either module may be imported first: cpu_kernels imports CPU_OPS at its
 # end, and these helpers are defined before that import runs
-from .cpu_kernels import ANY_DTYPE, _channels, _output
+from .cpu_kernels import ANY_DTYPE, DTYPES3, _channels, _output
 from .cpu_kernels import _same_shape as _pair
