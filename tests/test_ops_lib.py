@@ -43,18 +43,28 @@ def gpu(cl_context, cl_queue):
     types = library_types()
 
     def run(type_name, arrays, params, shape):
-        return run_generated(cl_context, cl_queue, types[type_name], params, arrays, shape)
+        ctype, first = types[type_name], np.asarray(arrays[0])
+        # the ports a component fed these arrays with these parameters gets (Filter2D's
+        # ddepth gives its output's element type)
+        ctype = ctype.specialized(first.dtype.name, first.shape[2] if first.ndim == 3 else 1,
+                                  params)
+        return run_generated(cl_context, cl_queue, ctype, params, arrays, shape)
     return run
 
 
 def check(type_name: str, arrays: list, params: dict, reference: np.ndarray, gpu,
-          what: str = "") -> None:
-    """CPU form = GPU kernel = reference, bit for bit."""
+          what: str = "", within_one: float = 0.0) -> None:
+    """CPU form = GPU kernel = reference, bit for bit; or the GPU within 1 of it on at
+    most the fraction within_one of the elements (a stated bound)."""
     cpu = cpu_kernels.CPU_IMPLEMENTATIONS[type_name](*arrays, **params)
     assert cpu.dtype == reference.dtype, what
     np.testing.assert_array_equal(cpu.reshape(reference.shape), reference,
                                   err_msg=f"CPU {type_name} {what} {params}")
     found = gpu(type_name, arrays, params, reference.shape)
+    if within_one:
+        differ = found != reference
+        assert differ.mean() <= within_one, f"GPU {type_name} {what}: {differ.mean():.2%}"
+        found = np.where(np.abs(found.astype(np.int64) - reference) <= 1, reference, found)
     np.testing.assert_array_equal(found, reference, err_msg=f"GPU {type_name} {what} {params}")
 
 
@@ -153,3 +163,46 @@ def test_morphology_ex_element_types_on_photographs(dtype, photos, gpu):
             reference = cv2.morphologyEx(edges, op, element)
             assert (reference == 32767).any(), "a gradient that saturates"
             check("MorphologyEx", [edges], params, reference, gpu, "int16 edges")
+
+
+# -- Filter2D's output depth ---------------------------------------------------------------
+FILTER_CASES = [  # (which photograph, weights, delta, border_type)
+    (0, [[0, -1, 0], [-1, 5, -1], [0, -1, 0]], 0.0, 4),
+    (1, [[0.31, -1.7, 0.25], [2.5, -0.61, 0.0], [0.125, 1.1, -3.3], [0.7, 0.0, -0.2],
+         [-0.9, 0.45, 1.3]], 3.25, 0),
+]
+
+
+@pytest.mark.parametrize("ddepth", [3, 5])
+def test_filter2d_int16_and_float32_outputs(ddepth, photos, gpu):
+    """int16 (CV_16S): OpenCV's fma sums rounded and saturated, as for uint8 (and, as
+    for uint8, within 1 where OpenCV's code for the last elements of a row rounds a
+    product first and the sum is within a rounding of a half: 1 element of 2,183 here);
+    float32 (CV_32F): each product rounded, then added, as OpenCV's filter without
+    vector code, bit-exact."""
+    for which, weights, delta, border in FILTER_CASES:
+        src = photos["uint8"][which]
+        reference = cv2.filter2D(src, ddepth, np.float32(weights), delta=delta,
+                                 borderType=border)
+        assert reference.dtype == {3: np.int16, 5: np.float32}[ddepth]
+        params = {"weights": tuple(tuple(r) for r in weights), "delta": delta,
+                  "border_type": border, "ddepth": ddepth}
+        check("Filter2D", [src], params, reference, gpu, f"ddepth {ddepth}",
+              within_one=0.001 if ddepth == 3 else 0.0)
+        if ddepth == 3:
+            assert reference.min() < 0 and reference.max() > 255, "beyond uint8"
+
+
+def test_filter2d_float32_from_130_elements_within_the_bound(photos, gpu):
+    """From 130 weights OpenCV convolves by DFT: the direct sum is within 2^-22 * 255 *
+    sum(|weights|) of it (docs/library.md; 1.2e-7 of that scale at most on photographs)."""
+    weights = (np.random.default_rng(3).standard_normal((13, 11)) * 0.3).astype(np.float32)
+    src = photos["uint8"][0]
+    params = {"weights": tuple(map(tuple, weights.tolist())), "delta": 1.5,
+              "border_type": 4, "ddepth": 5}
+    opencv = cv2.filter2D(src, cv2.CV_32F, weights, delta=1.5, borderType=4)
+    found = gpu("Filter2D", [src], params, opencv.shape)
+    bound = 2.0 ** -22 * 255 * float(np.abs(weights).sum())
+    assert np.abs(found - opencv).max() <= bound
+    np.testing.assert_array_equal(cpu_kernels.CPU_IMPLEMENTATIONS["Filter2D"](src, **params),
+                                  opencv)

@@ -123,11 +123,15 @@ def blur(src: np.ndarray, *, ksize: int, border_type: int,
                     borderType=border)
 
 
+FILTER_DEPTHS = {-1: np.uint8, 0: np.uint8, 3: np.int16, 5: np.float32}  # OpenCV's codes
+
+
 def filter_2d(src: np.ndarray, *, weights, delta: float = 0.0, border_type: int = 4,
-              out: np.ndarray | None = None) -> np.ndarray:
-    """Filter2D: cv2.filter2D(src, -1, np.float32(weights), delta=delta,
+              ddepth: int = -1, out: np.ndarray | None = None) -> np.ndarray:
+    """Filter2D: cv2.filter2D(src, ddepth, np.float32(weights), delta=delta,
     borderType=border_type): the correlation with the kernel weights (rows x cols, 1..15
-    each, anchored at (cols / 2, rows / 2)) plus delta, rounded and saturated to uint8."""
+    each, anchored at (cols / 2, rows / 2)) plus delta, rounded and saturated to uint8
+    (ddepth -1 or 0) or int16 (3), or float32 (5)."""
     _image("Filter2D", "src", src)
     weights = np.array(weights, np.float32)
     if weights.ndim != 2 or not (1 <= weights.shape[0] <= 15 and 1 <= weights.shape[1] <= 15):
@@ -137,8 +141,12 @@ def filter_2d(src: np.ndarray, *, weights, delta: float = 0.0, border_type: int 
     if border not in BORDERS:
         raise ValueError(f"Filter2D: border_type must be one of {sorted(BORDERS)}, "
                          f"not {border}")
-    return cv2.filter2D(src, -1, weights, dst=_output(out, src.shape, "Filter2D", "dst"),
-                        delta=float(delta), borderType=border)
+    depth = int(ddepth)
+    if depth not in FILTER_DEPTHS:
+        raise ValueError(f"Filter2D: ddepth must be -1 or 0 (uint8), 3 (int16) or 5 (float32), "
+                         f"not {depth}")
+    return cv2.filter2D(src, depth, weights, delta=float(delta), borderType=border,
+                        dst=_output(out, src.shape, "Filter2D", "dst", FILTER_DEPTHS[depth]))
 
 
 def laplacian(src: np.ndarray, *, ksize: int, out: np.ndarray | None = None) -> np.ndarray:
