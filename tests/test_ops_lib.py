@@ -206,3 +206,87 @@ def test_filter2d_float32_from_130_elements_within_the_bound(photos, gpu):
     assert np.abs(found - opencv).max() <= bound
     np.testing.assert_array_equal(cpu_kernels.CPU_IMPLEMENTATIONS["Filter2D"](src, **params),
                                   opencv)
+
+
+# -- one generated program: the types above over their element types and channel counts,
+# and the old names with their old parameters, fused, unfused and on the CPU -----------------
+SHARPEN = [[0, -1, 0], [-1, 5, -1], [0, -1, 0]]  # integer weights: every order sums alike
+CHAIN: dict[str, tuple[str, dict, tuple[str, ...]]] = {
+    "small": ("Resize", {"width": 137, "height": 91, "interpolation": 1}, ("camera",)),
+    "mask": ("InRange", {"lowerb_0": 60, "upperb_0": 230.5, "lowerb_1": 20, "upperb_1": 200,
+                         "lowerb_2": 0, "upperb_2": 180}, ("small",)),
+    "dx": ("Sobel", {"dx": 1, "dy": 0}, ("camera",)),
+    "dx_near": ("Resize", {"width": 211, "height": 157, "interpolation": 0}, ("dx",)),
+    "dx_crop": ("Crop", {"left": 7, "top": 5, "width": 190, "height": 140}, ("dx_near",)),
+    "dx_blur": ("Blur", {"ksize": 5, "border_type": 1}, ("dx_crop",)),
+    "dx_grad": ("MorphologyEx", {"op": 4, "shape": 0, "ksize": 3, "iterations": 1},
+                ("dx_blur",)),
+    "dx_in": ("InRange", {"lowerb_0": -200, "upperb_0": 150.5, "lowerb_1": -300,
+                          "upperb_1": 0, "lowerb_2": 0, "upperb_2": 400}, ("dx_grad",)),
+    "gray": ("RgbToGray", {}, ("camera",)),
+    "sharp": ("Filter2D", {"weights": SHARPEN, "delta": 0.5, "border_type": 4, "ddepth": 5},
+              ("gray",)),
+    "sharp_blur": ("Blur", {"ksize": 3, "border_type": 4}, ("sharp",)),
+    "sharp_small": ("Resize", {"width": 160, "height": 100, "interpolation": 0},
+                    ("sharp_blur",)),
+    "sharp_in": ("InRange", {"lowerb_0": -20.25, "upperb_0": 120.75}, ("sharp_small",)),
+    "edges": ("Filter2D", {"weights": SHARPEN, "ddepth": 3}, ("gray",)),
+    "edges_min": ("MorphologyEx", {"op": 0, "shape": 1, "ksize": 3, "iterations": 1},
+                  ("edges",)),
+    # the one-channel names of before, with their old parameter names
+    "old_crop": ("CropGray", {"x": 11, "y": 13, "width": 120, "height": 80}, ("gray",)),
+    "old_resize": ("ResizeGray", {"width": 64, "height": 48, "interpolation": 1},
+                   ("old_crop",)),
+    "old_in": ("InRangeGray", {"lowerb": 50, "upperb": 170}, ("old_resize",)),
+}
+
+
+def _opencv(type_name: str, params: dict, src: np.ndarray) -> np.ndarray:
+    """The chain's components as OpenCV's calls."""
+    p = params
+    if type_name in ("Resize", "ResizeGray"):
+        return cv2.resize(src, (p["width"], p["height"]), interpolation=p["interpolation"])
+    if type_name in ("InRange", "InRangeGray"):
+        n = src.shape[2] if src.ndim == 3 else 1
+        lower = [p.get(f"lowerb_{c}", p.get("lowerb")) for c in range(n)]
+        upper = [p.get(f"upperb_{c}", p.get("upperb")) for c in range(n)]
+        bounds = [np.float64(np.float32(b)) for b in (*lower, *upper)]
+        return cv2.inRange(src, np.array(bounds[:n]), np.array(bounds[n:]))
+    if type_name in ("Crop", "CropGray"):
+        x, y = p.get("left", p.get("x")), p.get("top", p.get("y"))
+        return np.ascontiguousarray(src[y:y + p["height"], x:x + p["width"]])
+    if type_name == "Sobel":
+        return cv2.Sobel(src, cv2.CV_16S, p["dx"], p["dy"], ksize=3)
+    if type_name == "RgbToGray":
+        return cv2.cvtColor(src, cv2.COLOR_RGB2GRAY)
+    if type_name == "Blur":
+        return cv2.blur(src, (p["ksize"], p["ksize"]), borderType=p["border_type"])
+    if type_name == "MorphologyEx":
+        element = cv2.getStructuringElement(p["shape"], (p["ksize"], p["ksize"]))
+        return cv2.morphologyEx(src, p["op"], element, iterations=p["iterations"])
+    assert type_name == "Filter2D"
+    return cv2.filter2D(src, p["ddepth"], np.float32(p["weights"]), delta=p.get("delta", 0),
+                        borderType=p.get("border_type", 4))
+
+
+def test_generated_program_equals_opencv_fused_unfused_and_on_the_cpu(tmp_path, cl_context):
+    """The chain's ends built fused (every legal group formed), unfused and on the CPU,
+    each equal to OpenCV's calls on the camera's photographs (int16 and float32 frames
+    through Resize, Crop, Blur, MorphologyEx and InRange; the old names and parameters
+    run unchanged)."""
+    require_opencl()
+    from test_imgproc_ops import _camera_frames
+    from test_ops_yuv import fused_builds
+
+    found = fused_builds(tmp_path, "lib_ops", CHAIN, cl_context)
+    grouped = {m.type.name for g in found["fused"][0].system.groups for m in g.members}
+    assert {"Resize", "Crop", "InRange", "Blur", "MorphologyEx"} <= grouped, grouped
+    for i, camera in enumerate(_camera_frames()):
+        values = {"camera": camera}
+        for name, (type_name, params, inputs) in CHAIN.items():
+            values[name] = _opencv(type_name, params, values[inputs[0]])
+        for variant, (_, frames) in found.items():
+            assert frames, variant
+            for name, got in frames.items():
+                np.testing.assert_array_equal(got[i].reshape(values[name].shape), values[name],
+                                              err_msg=f"{variant}: {name}, frame {i}")
