@@ -96,7 +96,7 @@ def _cases(cv2):
         "MedianBlurGray": ("MedianBlurGray", {}, lambda a: cv2.medianBlur(a, 3)),
         "BoxBlur r1": ("BoxBlur", {"radius": 1}, lambda a: cv2.blur(
             a, (3, 3), borderType=cv2.BORDER_REPLICATE)),
-        "Crop": ("Crop", {"x": 16, "y": 8, "width": 320, "height": 240},
+        "Crop": ("Crop", {"left": 16, "top": 8, "width": 320, "height": 240},
                  lambda a: a[8:248, 16:336].copy()),
         "Resize nearest": ("Resize", {"width": 320, "height": 180, "interpolation": 0},
                            lambda a: cv2.resize(a, (320, 180),
@@ -104,7 +104,7 @@ def _cases(cv2):
         "Resize linear": ("Resize", {"width": 320, "height": 180, "interpolation": 1},
                           lambda a: cv2.resize(a, (320, 180), interpolation=cv2.INTER_LINEAR)),
         # the kernel's other paths: a whole factor along x only (640 -> 320, 1280 -> 320),
-        # and a ratio that is none (a table of columns a chunk: geometry.cl)
+        # and a ratio that is none
         "Resize linear 320x240": ("Resize", {"width": 320, "height": 240, "interpolation": 1},
                                   lambda a: cv2.resize(a, (320, 240),
                                                        interpolation=cv2.INTER_LINEAR)),

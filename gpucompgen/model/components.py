@@ -76,13 +76,12 @@ def _instance_params(doc, rep, cpath, ctype: ComponentType, given) -> dict[str, 
     for written, value in given.items():
         pname = ctype.canonical_param(written) or written  # an old name: the parameter's
         decl = ctype.params.get(pname)
-        if pname != written:
-            if pname in given:
-                rep.error(doc.key_pos(*cpath, "params", written),
-                          f"'{written}' is an old name of parameter '{pname}', given too",
-                          f"keep '{pname}' only")
-                continue
-        if decl is None:
+        if pname != written and pname in given:
+            rep.error(doc.key_pos(*cpath, "params", written),
+                      f"'{written}' is an old name of parameter '{pname}', given too",
+                      f"keep '{pname}' only")
+            continue
+        if decl is None:  # (pname is written: no alias named it)
             rep.error(doc.key_pos(*cpath, "params", pname),
                       f"'{ctype.name}' has no parameter '{pname}'",
                       did_you_mean(pname, ctype.params) or f"'{ctype.name}' takes no parameters")
@@ -112,8 +111,8 @@ def _instance_params(doc, rep, cpath, ctype: ComponentType, given) -> dict[str, 
                           "path": "a path, relative to the model file or absolute",
                           "input": "an input URI or a path relative to the model file"}
                 hint = f"give {wanted[decl.type]}, e.g. '{pname}: {py_yaml(example)}'"
-            rep.error(doc.pos(*cpath, "params", pname, *at),
-                      f"parameter '{pname}' of '{ctype.name}' {problem}", hint)
+            rep.error(doc.pos(*cpath, "params", written, *at),
+                      f"parameter '{written}' of '{ctype.name}' {problem}", hint)
             continue
         params[pname] = param_value(value, decl)
     for pname, decl in ctype.params.items():
