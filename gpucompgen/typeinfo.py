@@ -249,11 +249,12 @@ def _either(values) -> str:
 
 
 def dtypes_text(port: PortDecl) -> str:
-    """'uint8', 'uint8, int16 or float32', 'any dtype', 'the dtype of src'."""
+    """'uint8', 'uint8, int16 or float32', 'any dtype', 'the dtype of src', 'the dtype of
+    parameter ddepth' (OpenCV's depth code)."""
     if port.dtype_of:
         return f"the dtype of {port.dtype_of}"
     if port.dtype_param:
-        return f"dtype: parameter {port.dtype_param} (OpenCV's depth code)"
+        return f"the dtype of parameter {port.dtype_param}"
     if len(port.dtypes) == len(DEPTHS):
         return "any dtype"
     return _either(port.dtypes or [port.dtype])
