@@ -53,7 +53,7 @@ def _cases(cv2):
         "RgbToHsv": ("RgbToHsv", {}, lambda a: cv2.cvtColor(a, cv2.COLOR_RGB2HSV)),
         "InRange": ("InRange", inr, lambda a: cv2.inRange(
             a, np.array([100, 0, 50]), np.array([255, 120, 200]))),
-        "InRangeGray": ("InRangeGray", {"lowerb": 60, "upperb": 180},
+        "InRangeGray": ("InRangeGray", {**inr, "lowerb_0": 60, "upperb_0": 180},
                         lambda a: cv2.inRange(a, 60, 180)),
         "Threshold": ("Threshold", {"thresh": 100, "maxval": 200, "thresh_type": 0},
                       lambda a: cv2.threshold(a, 100, 200, 0)[1]),
