@@ -59,6 +59,47 @@ def _fail(file: str, mark: Any, message: str, hint: str = "") -> GpucompgenError
     return GpucompgenError([Diagnostic(file, line, col, "error", message, hint)])
 
 
+_C_LOADER = getattr(yaml, "CSafeLoader", None)  # None where PyYAML was built without libyaml
+
+
+def _fast(text: str, file: str) -> Document | None:
+    """The Document of an ASCII text read with libyaml (PyYAML's C parser, 15x faster),
+    or None where load_text must read it.
+
+    Only the library's own type files are read so (load_file(fast=True)), as every
+    command reads all sixteen: libyaml accepts texts the pure-Python parser refuses
+    (a tab after a value, '|#'), so a user's file is always read by load_text, which
+    alone writes the messages.  tests/test_fuzz_loader.py checks that both readings
+    give the same Document for every shipped file, and wherever both accept a text.
+    """
+    if _C_LOADER is None or not text.isascii() or len(text) > MAX_FILE_BYTES:
+        return None
+    try:
+        depth = 0
+        for event in yaml.parse(text, Loader=_C_LOADER):
+            if isinstance(event, yaml.AliasEvent) or getattr(event, "anchor", None) is not None \
+                    or getattr(event, "tag", None) is not None:
+                return None  # an alias, anchor or explicit tag: refused with its position
+            if isinstance(event, yaml.ScalarEvent) and not event.value and not event.style:
+                return None  # an empty value: libyaml places it a column further
+            if isinstance(event, (yaml.MappingStartEvent, yaml.SequenceStartEvent)):
+                depth += 1
+                if depth > MAX_DEPTH:
+                    return None
+            elif isinstance(event, (yaml.MappingEndEvent, yaml.SequenceEndEvent)):
+                depth -= 1
+        node = yaml.compose(text, Loader=_C_LOADER)
+    except yaml.YAMLError:
+        return None
+    problems: list[Diagnostic] = []
+    doc = Document(file, None)
+    if node is None:
+        doc.positions[()] = Pos(file, 1, 1)
+        return doc
+    doc.data = _convert(node, (), doc, problems, text)
+    return None if problems else doc
+
+
 def load_text(text: str, file: str) -> Document:
     """Parse YAML text into a Document, or raise GpucompgenError with every problem found.
 
@@ -130,7 +171,7 @@ def load_text(text: str, file: str) -> Document:
         doc.data = None
         doc.positions[()] = Pos(file, 1, 1)
     else:
-        doc.data = _convert(node, (), doc, problems)
+        doc.data = _convert(node, (), doc, problems, text)
     if problems:
         raise GpucompgenError(problems)
     return doc
@@ -232,15 +273,17 @@ def starts_with_key(text: str, key: str) -> bool:
     return False
 
 
-def load_file(path: Path, display: str | None = None, what: str = "file") -> Document:
-    """Read and parse a YAML file; display is the name used in messages."""
+def load_file(path: Path, display: str | None = None, what: str = "file",
+              fast: bool = False) -> Document:
+    """Read and parse a YAML file; display is the name used in messages; fast: a file
+    shipped with gpucompgen, read with libyaml where _fast can."""
     shown = display or str(path)
     try:
         text = read_text(path, MAX_FILE_BYTES, what)
     except FileProblem as exc:
         raise GpucompgenError([Diagnostic(shown, exc.line, exc.col, "error", exc.message,
                                           exc.hint)]) from None
-    return load_text(text, shown)
+    return (fast and _fast(text, shown)) or load_text(text, shown)
 
 
 INT_TAG = "tag:yaml.org,2002:int"
@@ -264,7 +307,7 @@ def _scalar(node: yaml.ScalarNode, doc: Document, problems: list[Diagnostic]) ->
     # 1000: a model says what it means in plain decimal, or quotes a string.
     surprising = (node.tag == INT_TAG and not PLAIN_INT.match(node.value)) or (
         node.tag == FLOAT_TAG and ":" in node.value)
-    if surprising and node.style is None:
+    if surprising and not node.style:  # plain (libyaml: "", Python: None)
         problems.extend(_fail(doc.file, node.start_mark,
                               f"{node.value!r} is read by YAML 1.1 as the number {value!r}",
                               f"write {value!r} if that is meant, or quote '{node.value}' if it "
@@ -274,16 +317,17 @@ def _scalar(node: yaml.ScalarNode, doc: Document, problems: list[Diagnostic]) ->
 
 
 def _convert(node: yaml.Node, path: PathKey, doc: Document,
-             problems: list[Diagnostic]) -> Any:
+             problems: list[Diagnostic], text: str) -> Any:
     doc.positions[path] = Pos(doc.file, node.start_mark.line + 1, node.start_mark.column + 1)
     if isinstance(node, yaml.ScalarNode):
         value = _scalar(node, doc, problems)
-        if isinstance(value, str) and node.start_mark.buffer is not None:
-            doc.sources[path] = (node.start_mark.buffer[node.start_mark.pointer:
-                                                        node.end_mark.pointer], node.style)
+        if isinstance(value, str):  # marks count characters of the text (both parsers)
+            doc.sources[path] = (text[node.start_mark.index:node.end_mark.index],
+                                 node.style or None)  # libyaml: "" for plain
         return value
     if isinstance(node, yaml.SequenceNode):
-        return [_convert(item, path + (i,), doc, problems) for i, item in enumerate(node.value)]
+        return [_convert(item, path + (i,), doc, problems, text)
+                for i, item in enumerate(node.value)]
     if isinstance(node, yaml.MappingNode):
         result: dict[Any, Any] = {}
         for key_node, value_node in node.value:
@@ -317,6 +361,6 @@ def _convert(node: yaml.Node, path: PathKey, doc: Document,
                 continue
             doc.key_positions[path + (key,)] = Pos(doc.file, key_node.start_mark.line + 1,
                                                    key_node.start_mark.column + 1)
-            result[key] = _convert(value_node, path + (key,), doc, problems)
+            result[key] = _convert(value_node, path + (key,), doc, problems, text)
         return result
     raise _fail(doc.file, node.start_mark, "unsupported YAML node")  # pragma: no cover

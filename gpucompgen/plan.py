@@ -13,6 +13,7 @@ import posixpath
 import re
 import textwrap
 from dataclasses import dataclass, field, replace
+from pathlib import PurePosixPath
 from typing import Any
 
 from .dataflow import Data, Endpoint
@@ -307,6 +308,25 @@ class ProgramPlan:
                            for la in self.launches),
             programs=tuple(replace(pr, defines=arguments(pr.defines))
                            for pr in self.programs))
+
+    def with_kernel_suffix(self, suffix: str) -> ProgramPlan:
+        """The plan with its kernel files named as a backend writes them (``.cu`` for CUDA,
+        which compiles the same portable kernels under its prelude): every record that
+        names a kernel file in the lib folder, and nothing else."""
+        kernels = {s.file for s in self.lib_sources
+                   if s.kind in ("kernel", "checked_kernel", "group")}
+
+        def name(file: str) -> str:
+            return str(PurePosixPath(file).with_suffix(suffix)) if file in kernels else file
+
+        return replace(
+            self,
+            programs=tuple(replace(p, file=name(p.file)) for p in self.programs),
+            kernel_classes=tuple(replace(k, file=name(k.file)) for k in self.kernel_classes),
+            groups=tuple(replace(g, file=name(g.file)) for g in self.groups),
+            generated=tuple((part, t, form, name(file)) for part, t, form, file in self.generated),
+            lib_files={name(f): what for f, what in self.lib_files.items()},
+            lib_sources=tuple(replace(s, file=name(s.file)) for s in self.lib_sources))
 
     # --- the facts everything reads --------------------------------------------------------
     def device_buffers(self) -> list[Buffer]:

@@ -100,3 +100,67 @@ def test_load_system_returns_a_model_or_our_error(text):
             assert exc.errors, "raised without an error"
             return
         assert result.files and not result.files[0].text.startswith(" ")
+
+
+# -- the fast reading (libyaml) gives what the reference reading (pure Python) gives ------
+def _same_document(fast, reference) -> None:
+    assert repr(fast.data) == repr(reference.data)  # repr: .nan equals .nan
+    assert fast.positions == reference.positions
+    assert fast.key_positions == reference.key_positions
+    assert fast.sources == reference.sources
+
+
+@FUZZ
+@given(st.one_of(texts, st.text(alphabet=st.characters(max_codepoint=127), max_size=200))
+       .map(lambda t: t.encode("ascii", "ignore").decode("ascii")))
+@example(SEED)
+@example("a: 'it''s'\nb: \"x\\ty\"\nc: |\n  two\n  lines\nd: >-\n  folded\n  text\n")
+@example("a:\r\n  - 1\r\n  - {b: c}\r\nd: e\r")
+@example("a: b\n---\nc: d\n")
+@example("a: {b: }\nc:\nd: [e, ]\n")  # empty values: libyaml places them a column on
+def test_the_fast_reading_gives_the_reference_document(text):
+    """The library's files are read with libyaml: wherever it and the pure-Python reading
+    (which writes every message) both accept a text, they read the same data, the
+    position of every value and key, and every string as written.  (libyaml accepts a
+    few texts the pure-Python parser refuses, '0\\t' and '|#': a user's file is never
+    read by it.)"""
+    from gpucompgen.loader import _fast
+
+    fast = _fast(text, "m.yaml")
+    if fast is None:
+        return
+    try:
+        reference = load_text(text, "m.yaml")
+    except GpucompgenError:
+        return
+    _same_document(fast, reference)
+
+
+def test_every_yaml_file_of_the_project_is_read_fast_and_the_same():
+    """The library's type files, the example models and the tests' models: every one the
+    reference reading accepts is read by libyaml (the speed every command relies on) to
+    the same Document."""
+    from gpucompgen.loader import _fast
+
+    fast_read = 0
+    for path in sorted(ROOT.glob("**/*.yaml")):
+        if any(part.startswith(".") for part in path.relative_to(ROOT).parts):
+            continue  # .venv, a developer's hidden copies
+        try:
+            text = path.read_text(encoding="utf-8")
+        except UnicodeDecodeError:  # a bad model of the tests
+            continue
+        try:
+            reference = load_text(text, path.name)
+        except GpucompgenError:
+            continue
+        if not text.isascii():
+            continue
+        fast = _fast(text, path.name)
+        if fast is None:  # an empty value, say: a test's model may need the slow reading
+            assert path.parts[-3:-1] != ("gpucompgen", "library") \
+                and path.parent.name != "models", f"{path} is read by the slow reading"
+            continue
+        _same_document(fast, reference)
+        fast_read += 1
+    assert fast_read > 40

@@ -1,18 +1,13 @@
-"""The imgproc types' fusable forms: the same bytes as their kernels, fused and unfused.
+"""The imgproc types' fusable forms: the same bytes fused and unfused.
 
-1. Each type's snippet alone: the generated group kernel of a one-member group (what the
-   fuse pass would emit, with the group input read through the accessor) runs on PoCL on
-   the photographs (chelsea 300x451, coffee 400x600, astronaut 512x512 and their gray
-   versions) with every parameter set test_imgproc compares, and on frames of tiny and
-   odd sizes (1x1, 1x7, 2x2, 3x1, 5x9), where every window reaches past two borders. It
-   must equal the type's numpy function, which test_imgproc shows equals its kernel and
-   OpenCV.
-2. In generated programs: one model of chains over models/photos/ in which every fusable
-   imgproc type sits inside a fused group (pointwise and index-map members recomputed by
-   a stencil root, two-input joins reading a shared producer; launches made so dear that
-   the cost model fuses wherever fusion is legal), built with fusion on, with fusion off
-   and placed on the CPU: the three give the same bytes, and those equal the
-   same chains composed from OpenCV's functions.
+A type's form alone is the kernel a lone component runs (a group of one): test_imgproc
+runs it on photographs with every parameter set and on random frames of every size from
+1x1. Here, in generated programs: one model of chains over models/photos/ in which every
+fusable imgproc type sits inside a fused group (pointwise and index-map members
+recomputed by a stencil root, two-input joins reading a shared producer; launches made so
+dear that the cost model fuses wherever fusion is legal), built with fusion on, with
+fusion off and placed on the CPU: the three give the same bytes, and those equal the same
+chains composed from OpenCV's functions.
 """
 
 from __future__ import annotations
@@ -20,126 +15,20 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from conftest import ROOT, keep_type_for, load_generated, require_opencl, write_keep_types
-from test_imgproc import SPECS, imgproc_types, inputs_for, random_frame, variant_id, variants
+from test_imgproc import SPECS, imgproc_types
 
-from gpucompgen.library import cpu_kernels
 from gpucompgen.passes.fuse import FUSION_COSTS
 
 cv2 = pytest.importorskip("cv2")
-skdata = pytest.importorskip("skimage.data")
 Image = pytest.importorskip("PIL.Image")
 
 FUSABLE = sorted(n for n, t in imgproc_types().items() if t.fusable is not None)
-# not fusable, and why (docs/library.md says the same)
-OPAQUE = {"Crop": "its parameters x and y are the names a snippet's coordinates have",
-          "CropGray": "its parameters x and y are the names a snippet's coordinates have",
-          "Resize": "nearest needs OpenCV's double arithmetic; bilinear reads 4 positions",
-          "ResizeGray": "nearest needs OpenCV's double arithmetic; bilinear reads 4 positions"}
-TINY = [(1, 1), (1, 7), (2, 2), (3, 1), (5, 9)]
+# fused in tests/test_ops_lib.py's program (over int16 and float32 as well), not here
+ELSEWHERE = {"Crop", "CropGray", "Resize", "ResizeGray"}
 
 
-def test_every_imgproc_type_is_fusable_but_crop_and_resize():
-    assert set(FUSABLE) | set(OPAQUE) == set(imgproc_types())
-    assert not set(FUSABLE) & set(OPAQUE)
-
-
-def one_member_group(type_name: str, params: dict, shapes: dict[str, tuple], arrays):
-    """The group kernel's source and its parameter list for one member named 'm', for
-    ports of the given (height, width) shapes: sizes are constants of a group kernel."""
-    from gpucompgen.backend.opencl.convention import group_parameters
-    from gpucompgen.backend.opencl.fused import group_kernel, group_of_one
-
-    group = group_of_one(specialized(type_name, arrays), params, shapes)
-    return group_kernel(group, f"test of {type_name}"), group_parameters(group)
-
-
-def specialized(type_name: str, arrays):
-    """The type with the ports a component fed these arrays gets (resolve-types)."""
-    t = imgproc_types()[type_name]
-    return t.specialized(arrays[0].dtype.name, arrays[0].shape[2] if arrays[0].ndim == 3
-                         else 1) if t.generic else t
-
-
-class Snippets:
-    """Build each type's one-member group kernel once per frame shape; run it."""
-
-    def __init__(self, context, queue):
-        self.context, self.queue, self.built = context, queue, {}
-
-    def run(self, type_name: str, arrays: list[np.ndarray], params: dict):
-        import pyopencl as cl
-
-        t = imgproc_types()[type_name]
-        expected = cpu_kernels.CPU_IMPLEMENTATIONS[type_name](*arrays, **params)
-        shapes = {p: a.shape[:2] for p, a in zip(t.inputs, arrays, strict=True)}
-        (oname,) = t.outputs
-        shapes[oname] = expected.shape[:2]
-        # sizes and parameter values are constants of the kernel: one build for each (and
-        # for each element type and channel count of a generic type)
-        key = (type_name, tuple(sorted(shapes.items())), tuple(sorted(params.items())),
-               arrays[0].dtype.str, arrays[0].shape[2:])
-        if key not in self.built:
-            source, kparams = one_member_group(type_name, params, shapes, arrays)
-            self.built[key] = cl.Program(self.context, source).build(), kparams
-        program, kparams = self.built[key]
-        kernel = cl.Kernel(program, "only")
-        mf = cl.mem_flags
-        buffers = {f"m_{p}": cl.Buffer(self.context, mf.READ_ONLY | mf.COPY_HOST_PTR,
-                                       hostbuf=np.ascontiguousarray(a))
-                   for p, a in zip(t.inputs, arrays, strict=True)}
-        result = np.zeros(expected.shape, expected.dtype)
-        out = cl.Buffer(self.context, mf.WRITE_ONLY, max(result.nbytes, 1))
-        args, tile = [], 16
-        for p in kparams:
-            if p.kind == "buffer":
-                args.append(out if p.role == "output" else buffers[p.port])
-            elif p.role == "tile":
-                args.append(np.int32(tile))
-            else:
-                raise AssertionError(f"unexpected group kernel parameter {p}")
-        kernel.set_args(*args)
-        h = result.shape[0]
-        # rows: work-group g computes rows [g * tile, g * tile + tile)
-        cl.enqueue_nd_range_kernel(self.queue, kernel, (16, -(-h // tile) * 16, 1), (16, 16, 1))
-        cl.enqueue_copy(self.queue, result, out)
-        self.queue.finish()
-        for b in [*buffers.values(), out]:
-            b.release()
-        return result, expected
-
-
-@pytest.fixture(scope="module")
-def snippets(cl_context, cl_queue):
-    require_opencl()
-    return Snippets(cl_context, cl_queue)
-
-
-@pytest.fixture(scope="module")
-def photos():
-    out = []
-    for load in (skdata.chelsea, skdata.coffee, skdata.astronaut):
-        rgb = np.ascontiguousarray(load())
-        out.append({3: rgb, 1: cv2.cvtColor(rgb, cv2.COLOR_RGB2GRAY)})
-    return out
-
-
-@pytest.mark.parametrize("type_name,n,dtype", [
-    (name, c, d) for name in FUSABLE if not imgproc_types()[name].alias_of
-    for c, d in variants(name)], ids=variant_id)
-def test_snippet_gives_the_kernels_bytes_on_photos_and_tiny_frames(snippets, photos,
-                                                                   type_name, n, dtype):
-    """Every channel count and element type of a generic type: the kernel is generated
-    for each component's resolved ports."""
-    rng = np.random.default_rng(17)
-    frames = [p[n] for p in photos]
-    frames += [random_frame(rng, (h, w, 3) if n == 3 else (h, w), "uint8") for h, w in TINY]
-    for params in SPECS[type_name].cases:
-        for frame in frames:
-            got, expected = snippets.run(type_name, inputs_for(type_name, frame, dtype),
-                                         params)
-            assert got.dtype == expected.dtype
-            np.testing.assert_array_equal(got, expected, err_msg=f"{type_name} {params} "
-                                                                 f"{frame.shape}")
+def test_every_imgproc_type_is_fusable():
+    assert set(FUSABLE) == set(imgproc_types())
 
 
 # -- fused groups in generated programs ------------------------------------------------
@@ -259,7 +148,7 @@ def test_every_fusable_type_runs_inside_a_group(programs):
     groups = built.system.groups
     grouped = {m.name: m.type.name for g in groups for m in g.members}
     assert set(grouped) == set(CHAIN), sorted(set(CHAIN) - set(grouped))
-    assert set(grouped.values()) == set(FUSABLE)
+    assert set(grouped.values()) == set(FUSABLE) - ELSEWHERE
     assert len(groups) == len(ENDS)  # one kernel, one launch per chain
     assert not programs["unfused"][0].system.groups
     assert not programs["cpu"][0].system.groups
@@ -272,7 +161,9 @@ def test_fused_unfused_cpu_and_opencv_give_the_same_bytes(programs, end):
         with Image.open(path) as im:
             values = {"camera": np.asarray(im.convert("RGB"))}
         for name, (type_name, params, inputs) in CHAIN.items():
-            values[name] = SPECS[type_name].opencv(*(values[s] for s in inputs), **params)
+            ctype = imgproc_types()[type_name]  # old parameter names: the parameters'
+            given = {ctype.canonical_param(k): v for k, v in params.items()}
+            values[name] = SPECS[type_name].opencv(*(values[s] for s in inputs), **given)
         reference.append(values[end])
     for variant, (_, outputs) in programs.items():
         assert len(outputs[end]) == FRAMES

@@ -280,7 +280,8 @@ def test_generated_program_equals_opencv_fused_unfused_and_on_the_cpu(tmp_path, 
 
     found = fused_builds(tmp_path, "lib_ops", CHAIN, cl_context)
     grouped = {m.type.name for g in found["fused"][0].system.groups for m in g.members}
-    assert {"Resize", "Crop", "InRange", "Blur", "MorphologyEx"} <= grouped, grouped
+    assert {"Resize", "Crop", "InRange", "Blur", "MorphologyEx", "CropGray", "ResizeGray",
+            "InRangeGray"} <= grouped, grouped
     for i, camera in enumerate(_camera_frames()):
         values = {"camera": camera}
         for name, (type_name, params, inputs) in CHAIN.items():

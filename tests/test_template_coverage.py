@@ -23,11 +23,11 @@ import pytest
 from conftest import ROOT, load_generated, require_opencl
 from jinja2 import nodes
 
-from gpucompgen import cli
-from gpucompgen.backend.opencl import render
+from gpucompgen import cli, printing
 from gpucompgen.library.camera import Camera
 
-TEMPLATE = ROOT / "templates" / "opencl" / "program.py.j2"
+# the common program and each backend's, which extends it
+TEMPLATES = ("common/program.py.j2", "opencl/program.py.j2", "cuda/program.py.j2")
 REGEN = runpy.run_path(str(ROOT / "scripts" / "regen_golden.py"))
 MARKER = "__branch_taken__"
 
@@ -50,10 +50,12 @@ def branches(tree: nodes.Template) -> list[tuple[str, list[nodes.Node]]]:
     return found
 
 
-def instrumented(tree: nodes.Template) -> list[str]:
-    """Put a marker call first in every branch body of tree; the branches' labels."""
+def instrumented(tree: nodes.Template, prefix: str = "") -> list[str]:
+    """Put a marker call first in every branch body of tree; the branches' labels (each
+    after prefix: the template's name)."""
     labels = []
-    for label, body in branches(tree):
+    for where, body in branches(tree):
+        label = prefix + where
         call = nodes.Call(nodes.Name(MARKER, "load"), [nodes.Const(label)], [], None, None)
         body.insert(0, nodes.ExprStmt(call))
         labels.append(label)
@@ -62,9 +64,10 @@ def instrumented(tree: nodes.Template) -> list[str]:
 
 @contextlib.contextmanager
 def recording(taken: set[str]):
-    """While inside, the OpenCL printer (and the CUDA printer, which runs it) renders with
-    the instrumented template, adding the label of each branch taken to `taken`."""
-    original = render.environment
+    """While inside, every backend's printer renders with the instrumented templates (its
+    own and the common one it extends), adding the label of each branch taken to
+    `taken`."""
+    original = printing.environment
 
     def environment() -> jinja2.Environment:
         env = original()
@@ -72,22 +75,23 @@ def recording(taken: set[str]):
         def get_template(name, parent=None, globals=None):
             source, filename, _ = env.loader.get_source(env, name)
             tree = env.parse(source, name, filename)
-            instrumented(tree)
+            instrumented(tree, f"{name}:")
             return env.from_string(tree)
 
         env.globals[MARKER] = lambda label: taken.add(label) or ""
         env.get_template = get_template
         return env
 
-    render.environment = environment
+    printing.environment = environment
     try:
         yield
     finally:
-        render.environment = original
+        printing.environment = original
 
 
 def template_branches() -> list[str]:
-    return [label for label, _ in branches(jinja2.Environment().parse(TEMPLATE.read_text()))]
+    return [f"{name}:{label}" for name in TEMPLATES for label, _ in branches(
+        jinja2.Environment().parse((ROOT / "templates" / name).read_text()))]
 
 
 def golden_coverage(builds, capsys) -> dict[str, set[str]]:
@@ -107,10 +111,14 @@ def golden_coverage(builds, capsys) -> dict[str, set[str]]:
 
 
 def _missing(labels: list[str], taken: set[str]) -> list[str]:
-    lines = TEMPLATE.read_text().splitlines()
-    return [f"templates/opencl/program.py.j2:{label.split()[0]}: {label.split()[1]}: "
-            f"{lines[int(label.split()[0]) - 1].strip()}" for label in labels
-            if label not in taken]
+    missing = []
+    for label in labels:
+        if label not in taken:
+            name, where = label.split(":")
+            line, kind = where.split()
+            text = (ROOT / "templates" / name).read_text().splitlines()[int(line) - 1]
+            missing.append(f"templates/{name}:{line}: {kind}: {text.strip()}")
+    return missing
 
 
 def test_every_template_branch_is_taken_by_a_golden_and_by_the_designed_model(
@@ -135,21 +143,23 @@ def test_the_marker_finds_a_branch_not_taken():
     env = jinja2.Environment()
     tree = env.parse("{% if a %}A{% elif b %}B{% else %}C{% endif %}\n"
                      "{% for x in xs %}{{ x }}{% else %}none{% endfor %}\n")
-    labels = instrumented(tree)
-    assert labels == ["1 if", "1 elif", "1 else", "2 for", "2 for-else"]
+    name = TEMPLATES[0]
+    labels = instrumented(tree, f"{name}:")
+    assert labels == [f"{name}:{x}" for x in ("1 if", "1 elif", "1 else", "2 for", "2 for-else")]
     taken: set[str] = set()
     env.globals[MARKER] = lambda label: taken.add(label) or ""
     assert env.from_string(tree).render(a=False, b=True, xs=[1, 2]) == "B\n12"
-    assert taken == {"1 elif", "2 for"}
+    assert taken == {f"{name}:1 elif", f"{name}:2 for"}
     assert _missing(labels, taken) != []
 
 
 def test_branch_labels_name_the_template_lines():
     """A label names the line of its tag, or of the `if`/`for` whose else it is (what a
     failure prints)."""
-    lines = TEMPLATE.read_text().splitlines()
     for label in template_branches():
-        line, kind = label.split()
+        name, where = label.split(":")
+        lines = (ROOT / "templates" / name).read_text().splitlines()
+        line, kind = where.split()
         tag = {"else": "if", "for-else": "for"}.get(kind, kind)
         assert "{% " + tag + " " in lines[int(line) - 1], label
 

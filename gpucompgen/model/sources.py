@@ -5,6 +5,7 @@ function, checked with ast (never imported)."""
 from __future__ import annotations
 
 import ast
+import functools
 from pathlib import Path
 from typing import Any
 
@@ -138,6 +139,13 @@ def _load_python(doc, rep, base, ctype: ComponentType, spec) -> None:
                       "rename the file to a valid module name")
 
 
+@functools.lru_cache(maxsize=16)
+def _parsed(text: str, filename: str) -> ast.Module:
+    """A Python file's tree, parsed once: the library's sixty CPU forms live in a few
+    modules (the tree is only read)."""
+    return ast.parse(text, filename)
+
+
 def _load_cpu(doc, rep, base, ctype: ComponentType, spec) -> None:
     """A flexible type's CPU side: ``cpu: {file: x.py, function: f}``.
 
@@ -176,7 +184,7 @@ def _load_cpu(doc, rep, base, ctype: ComponentType, spec) -> None:
         if problem:
             rep.error(doc.pos(*path, "file"), problem, "rename the file to a valid module name")
     try:
-        tree = ast.parse(cpu_text, str(ctype.cpu_file))
+        tree = _parsed(cpu_text, str(ctype.cpu_file))
     except SyntaxError as exc:
         rep.error(doc.pos(*path, "file"), f"{ctype.cpu_file.name}:{exc.lineno}: {exc.msg}",
                   "fix the Python syntax of the CPU implementation")

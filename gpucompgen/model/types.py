@@ -279,8 +279,9 @@ def library_types() -> dict[str, ComponentType]:
         rep = Reporter()
         types: dict[str, ComponentType] = {}
         for path in sorted(LIBRARY_DIR.glob("*.yaml")):
-            types.update(load_types_file(path, f"<gpucompgen>/library/{path.name}", "library",
-                                         rep))
+            shown = f"<gpucompgen>/library/{path.name}"
+            types.update(load_types_file(path, shown, "library", rep,
+                                         load_file(path, shown, fast=True)))
         rep.raise_if_errors()
         _LIBRARY_CACHE = types
     return dict(_LIBRARY_CACHE)
