@@ -48,6 +48,8 @@ static inline __attribute__((overloadable)) float _max(const float a, const floa
 static inline __attribute__((always_inline)) uchar _f0_clean(_PARAMS, const int y, const int x, const int c)
 {
     const int src_height = 480, src_width = 640;
+    typedef uchar src_t;
+    const uchar src_min = 0, src_max = 255;
     const int dst_height = 480, dst_width = 640;
     const int op = 2;
     const int shape = _m0_shape;
@@ -57,8 +59,8 @@ static inline __attribute__((always_inline)) uchar _f0_clean(_PARAMS, const int 
     const int r = shape == 0 ? side * iterations : side;
     const bool nested = op == 2 || op == 3 || op == 5 || op == 6;
     const bool erode_first = op == 2 || op == 5;
-    uchar lo = 255, hi = 0;
-    uchar outer = erode_first ? 0 : 255;
+    src_t lo = src_max, hi = src_min;
+    src_t outer = erode_first ? src_min : src_max;
     #pragma unroll
     for (int dy = -r; dy <= r; dy++) {
         int w = shape == 0 ? r : shape == 1 ? (dy == 0 ? r : 0) : 0;
@@ -66,11 +68,11 @@ static inline __attribute__((always_inline)) uchar _f0_clean(_PARAMS, const int 
         for (int k = 1; k <= side && shape == 2; k++)
             w += (2 * k - 1) * (2 * k - 1) < 4 * (side * side - dy * dy);
         if (!nested) {
-            uchar row_lo = src(y + dy, x - w, c);
-            uchar row_hi = row_lo;
+            src_t row_lo = src(y + dy, x - w, c);
+            src_t row_hi = row_lo;
             #pragma unroll
             for (int dx = 1 - w; dx <= w; dx++) {
-                const uchar v = src(y + dy, x + dx, c);
+                const src_t v = src(y + dy, x + dx, c);
                 row_lo = _min(row_lo, v);
                 row_hi = _max(row_hi, v);
             }
@@ -80,14 +82,14 @@ static inline __attribute__((always_inline)) uchar _f0_clean(_PARAMS, const int 
         }
         #pragma unroll
         for (int dx = -w; dx <= w; dx++) {
-            uchar inner = erode_first ? 255 : 0;
+            src_t inner = erode_first ? src_max : src_min;
             #pragma unroll
             for (int ey = -r; ey <= r; ey++) {
                 int ew = shape == 0 ? r : shape == 1 ? (ey == 0 ? r : 0) : 0;
                 #pragma unroll
                 for (int k = 1; k <= side && shape == 2; k++)
                     ew += (2 * k - 1) * (2 * k - 1) < 4 * (side * side - ey * ey);
-                uchar row = src(y + dy + ey, x + dx - ew, c);
+                src_t row = src(y + dy + ey, x + dx - ew, c);
                 #pragma unroll
                 for (int ex = 1 - ew; ex <= ew; ex++)
                     row = erode_first ? _min(row, src(y + dy + ey, x + dx + ex, c))
@@ -95,7 +97,7 @@ static inline __attribute__((always_inline)) uchar _f0_clean(_PARAMS, const int 
                 inner = erode_first ? _min(inner, row) : _max(inner, row);
             }
             const bool inside = y + dy >= 0 && y + dy < src_height && x + dx >= 0 && x + dx < src_width;
-            const uchar tap = inside ? inner : erode_first ? 0 : 255;
+            const src_t tap = inside ? inner : erode_first ? src_min : src_max;
             outer = erode_first ? _max(outer, tap) : _min(outer, tap);
         }
     }
@@ -104,11 +106,12 @@ static inline __attribute__((always_inline)) uchar _f0_clean(_PARAMS, const int 
     if (op == 1)
         return hi;
     if (op == 4)
-        return hi - lo;
+        return hi - lo > src_max ? src_max : hi - lo;
     if (op == 2 || op == 3)
         return outer;
-    const uchar p = src(y, x, c);
-    return op == 5 ? (p > outer ? p - outer : 0) : (outer > p ? outer - p : 0);
+    const src_t p = src(y, x, c);
+    const src_t more = op == 5 ? p : outer, less = op == 5 ? outer : p;
+    return more > less ? (more - less > src_max ? src_max : more - less) : 0;
 }
 #undef src
 
@@ -117,6 +120,8 @@ static inline __attribute__((always_inline)) uchar _f0_clean(_PARAMS, const int 
 static inline __attribute__((always_inline)) uchar _f0_clean_in(_PARAMS, const int y, const int x, const int c)
 {
     const int src_height = 480, src_width = 640;
+    typedef uchar src_t;
+    const uchar src_min = 0, src_max = 255;
     const int dst_height = 480, dst_width = 640;
     const int op = 2;
     const int shape = _m0_shape;
@@ -126,8 +131,8 @@ static inline __attribute__((always_inline)) uchar _f0_clean_in(_PARAMS, const i
     const int r = shape == 0 ? side * iterations : side;
     const bool nested = op == 2 || op == 3 || op == 5 || op == 6;
     const bool erode_first = op == 2 || op == 5;
-    uchar lo = 255, hi = 0;
-    uchar outer = erode_first ? 0 : 255;
+    src_t lo = src_max, hi = src_min;
+    src_t outer = erode_first ? src_min : src_max;
     #pragma unroll
     for (int dy = -r; dy <= r; dy++) {
         int w = shape == 0 ? r : shape == 1 ? (dy == 0 ? r : 0) : 0;
@@ -135,11 +140,11 @@ static inline __attribute__((always_inline)) uchar _f0_clean_in(_PARAMS, const i
         for (int k = 1; k <= side && shape == 2; k++)
             w += (2 * k - 1) * (2 * k - 1) < 4 * (side * side - dy * dy);
         if (!nested) {
-            uchar row_lo = src(y + dy, x - w, c);
-            uchar row_hi = row_lo;
+            src_t row_lo = src(y + dy, x - w, c);
+            src_t row_hi = row_lo;
             #pragma unroll
             for (int dx = 1 - w; dx <= w; dx++) {
-                const uchar v = src(y + dy, x + dx, c);
+                const src_t v = src(y + dy, x + dx, c);
                 row_lo = _min(row_lo, v);
                 row_hi = _max(row_hi, v);
             }
@@ -149,14 +154,14 @@ static inline __attribute__((always_inline)) uchar _f0_clean_in(_PARAMS, const i
         }
         #pragma unroll
         for (int dx = -w; dx <= w; dx++) {
-            uchar inner = erode_first ? 255 : 0;
+            src_t inner = erode_first ? src_max : src_min;
             #pragma unroll
             for (int ey = -r; ey <= r; ey++) {
                 int ew = shape == 0 ? r : shape == 1 ? (ey == 0 ? r : 0) : 0;
                 #pragma unroll
                 for (int k = 1; k <= side && shape == 2; k++)
                     ew += (2 * k - 1) * (2 * k - 1) < 4 * (side * side - ey * ey);
-                uchar row = src(y + dy + ey, x + dx - ew, c);
+                src_t row = src(y + dy + ey, x + dx - ew, c);
                 #pragma unroll
                 for (int ex = 1 - ew; ex <= ew; ex++)
                     row = erode_first ? _min(row, src(y + dy + ey, x + dx + ex, c))
@@ -164,7 +169,7 @@ static inline __attribute__((always_inline)) uchar _f0_clean_in(_PARAMS, const i
                 inner = erode_first ? _min(inner, row) : _max(inner, row);
             }
             const bool inside = y + dy >= 0 && y + dy < src_height && x + dx >= 0 && x + dx < src_width;
-            const uchar tap = inside ? inner : erode_first ? 0 : 255;
+            const src_t tap = inside ? inner : erode_first ? src_min : src_max;
             outer = erode_first ? _max(outer, tap) : _min(outer, tap);
         }
     }
@@ -173,11 +178,12 @@ static inline __attribute__((always_inline)) uchar _f0_clean_in(_PARAMS, const i
     if (op == 1)
         return hi;
     if (op == 4)
-        return hi - lo;
+        return hi - lo > src_max ? src_max : hi - lo;
     if (op == 2 || op == 3)
         return outer;
-    const uchar p = src(y, x, c);
-    return op == 5 ? (p > outer ? p - outer : 0) : (outer > p ? outer - p : 0);
+    const src_t p = src(y, x, c);
+    const src_t more = op == 5 ? p : outer, less = op == 5 ? outer : p;
+    return more > less ? (more - less > src_max ? src_max : more - less) : 0;
 }
 #undef src
 
