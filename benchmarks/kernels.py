@@ -53,7 +53,7 @@ def _cases(cv2):
         "RgbToHsv": ("RgbToHsv", {}, lambda a: cv2.cvtColor(a, cv2.COLOR_RGB2HSV)),
         "InRange": ("InRange", inr, lambda a: cv2.inRange(
             a, np.array([100, 0, 50]), np.array([255, 120, 200]))),
-        "InRangeGray": ("InRangeGray", {"lowerb": 60, "upperb": 180},
+        "InRangeGray": ("InRangeGray", {**inr, "lowerb_0": 60, "upperb_0": 180},
                         lambda a: cv2.inRange(a, 60, 180)),
         "Threshold": ("Threshold", {"thresh": 100, "maxval": 200, "thresh_type": 0},
                       lambda a: cv2.threshold(a, 100, 200, 0)[1]),
@@ -96,7 +96,7 @@ def _cases(cv2):
         "MedianBlurGray": ("MedianBlurGray", {}, lambda a: cv2.medianBlur(a, 3)),
         "BoxBlur r1": ("BoxBlur", {"radius": 1}, lambda a: cv2.blur(
             a, (3, 3), borderType=cv2.BORDER_REPLICATE)),
-        "Crop": ("Crop", {"x": 16, "y": 8, "width": 320, "height": 240},
+        "Crop": ("Crop", {"left": 16, "top": 8, "width": 320, "height": 240},
                  lambda a: a[8:248, 16:336].copy()),
         "Resize nearest": ("Resize", {"width": 320, "height": 180, "interpolation": 0},
                            lambda a: cv2.resize(a, (320, 180),
@@ -104,7 +104,7 @@ def _cases(cv2):
         "Resize linear": ("Resize", {"width": 320, "height": 180, "interpolation": 1},
                           lambda a: cv2.resize(a, (320, 180), interpolation=cv2.INTER_LINEAR)),
         # the kernel's other paths: a whole factor along x only (640 -> 320, 1280 -> 320),
-        # and a ratio that is none (a table of columns a chunk: geometry.cl)
+        # and a ratio that is none
         "Resize linear 320x240": ("Resize", {"width": 320, "height": 240, "interpolation": 1},
                                   lambda a: cv2.resize(a, (320, 240),
                                                        interpolation=cv2.INTER_LINEAR)),

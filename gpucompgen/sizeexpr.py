@@ -16,9 +16,10 @@ import ast
 from collections.abc import Mapping
 
 DIMS = ("height", "width")
-# a requirement may also compare an input's channels ('channel < src.channels'); sizes
-# never follow them
-CONDITION_ATTRS = DIMS + ("channels",)
+# a requirement may also compare an input's channels ('channel < src.channels') and the
+# bytes of its element type ('src.itemsize == 1': uint8 among uint8, int16 and float32);
+# sizes never follow them
+CONDITION_ATTRS = DIMS + ("channels", "itemsize")
 FUNCS = ("min", "max")
 MAX_SOURCE = 200  # characters of one expression
 MAX_VALUE = 1 << 62  # bound on every value while evaluating (an int64 with room to spare)
@@ -106,8 +107,8 @@ class _Checker:
                                 f"{self.source!r}")
             if node.attr not in self.attrs:
                 raise self.fail(f"'{ast.unparse(node)}': a port has only .height and .width"
-                                + (" (and .channels, in a requirement)"
-                                   if node.attr == "channels" else ""))
+                                + (" (and .channels and .itemsize, in a requirement)"
+                                   if node.attr in CONDITION_ATTRS[2:] else ""))
         elif isinstance(node, ast.Name):
             if node.id in self.params:
                 return
@@ -129,8 +130,8 @@ class _Checker:
 def evaluate(tree: ast.Expression, sizes: Mapping[str, tuple[int, ...]],
              params: Mapping[str, object]) -> int | bool:
     """Evaluate a validated expression with concrete sizes (height, width) and params;
-    a requirement that compares an input's channels needs them: (height, width,
-    channels).
+    a requirement that compares an input's channels or element size needs them: (height,
+    width, channels, itemsize).
 
     A requirement gives True or False; a size gives an integer of at most MAX_SIDE (it
     may be zero or negative: the caller says which port would get it)."""

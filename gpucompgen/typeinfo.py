@@ -86,6 +86,8 @@ def signature(ctype: ComponentType) -> str:
     8UC3' (a source), '2 x 8UC1|3' (a second input like the first)."""
     def port(p: PortDecl) -> str:
         dtype = "" if p.dtype_of else "|".join(DEPTHS[d] for d in p.dtypes or (p.dtype,))
+        if p.dtype_param:
+            dtype = f"D({p.dtype_param})"
         if len(p.dtypes) == len(DEPTHS):  # 'dtype: any'
             dtype = "*"
         if p.channels_of:
@@ -247,9 +249,12 @@ def _either(values) -> str:
 
 
 def dtypes_text(port: PortDecl) -> str:
-    """'uint8', 'uint8, int16 or float32', 'any dtype', 'the dtype of src'."""
+    """'uint8', 'uint8, int16 or float32', 'any dtype', 'the dtype of src', 'the dtype of
+    parameter ddepth' (OpenCV's depth code)."""
     if port.dtype_of:
         return f"the dtype of {port.dtype_of}"
+    if port.dtype_param:
+        return f"the dtype of parameter {port.dtype_param}"
     if len(port.dtypes) == len(DEPTHS):
         return "any dtype"
     return _either(port.dtypes or [port.dtype])
@@ -274,6 +279,9 @@ def _param(decl: ParamDecl) -> str:
         low = "" if decl.minimum is None else _number(decl.minimum)
         high = "" if decl.maximum is None else _number(decl.maximum)
         parts.append(f"range {low}..{high}")
+    if decl.aliases:
+        parts.append(f"old name{'s' if len(decl.aliases) > 1 else ''}: "
+                     + ", ".join(decl.aliases))
     return ", ".join(parts)
 
 

@@ -12,6 +12,8 @@ from __future__ import annotations
 
 from typing import Any
 
+from .model.decls import DEPTH_CODES
+
 Value = tuple[str, int]  # (dtype, channels)
 
 
@@ -37,6 +39,15 @@ def param_channels(decl, params: dict[str, Any]) -> int:
         else decl.channels
 
 
+def param_dtype(decl, params: dict[str, Any], resolved: dict[str, Value]) -> str:
+    """An output's element type from its int parameter, OpenCV's depth code (-1: the
+    first input's); its declared dtype where the value is no code."""
+    code = params.get(decl.dtype_param)
+    if code == -1 and resolved:
+        return next(iter(resolved.values()))[0]
+    return DEPTH_CODES.get(code, decl.dtype) if isinstance(code, int) else decl.dtype
+
+
 def resolve_ports(ctype, given: dict[str, tuple[str | None, int | None]],
                   params: dict[str, Any]) -> dict[str, Value]:
     """Every port's (dtype, channels) for a component whose inputs are fed given[port]
@@ -48,6 +59,8 @@ def resolve_ports(ctype, given: dict[str, tuple[str | None, int | None]],
         gd, gc = given.get(pname, (None, None)) if decl.direction == "in" else (None, None)
         if decl.dtype_of:
             dtype = out[decl.dtype_of][0] if decl.dtype_of in out else decl.dtype
+        elif decl.dtype_param:
+            dtype = param_dtype(decl, params, out)
         elif gd is not None and accepts_dtype(decl, gd):
             dtype = gd
         else:

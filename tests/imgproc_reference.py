@@ -73,21 +73,19 @@ def rgb_to_hsv(image: np.ndarray, *, out: np.ndarray | None = None) -> np.ndarra
     return hsv
 
 
-def in_range(image: np.ndarray, *, out: np.ndarray | None = None, **bounds: int) -> np.ndarray:
-    """InRange / InRangeGray: cv2.inRange, bit-exact: 255 where every channel c has
-    lowerb_c <= value <= upperb_c, else 0; the mask is height x width.
-
-    Bounds as keywords: lowerb_0, lowerb_1, lowerb_2, upperb_0, upperb_1, upperb_2 for
-    three channels, lowerb and upperb for one.
-    """
-    planes = _planes("InRange", "image", image)
+def in_range(image: np.ndarray, *, lowerb_0: float = 0, lowerb_1: float = 0,
+             lowerb_2: float = 0, upperb_0: float = 255, upperb_1: float = 255,
+             upperb_2: float = 255, out: np.ndarray | None = None) -> np.ndarray:
+    """InRange: cv2.inRange, bit-exact: 255 where every channel c has lowerb_c <= value
+    <= upperb_c, else 0; the mask is height x width.  The bounds are float32; an integer
+    frame compares with them rounded half to even (numpy's rint), a float32 frame with
+    them as they are."""
+    planes = _planes("InRange", "image", image, WIDE)
     n = planes.shape[2]
-    names = ["lowerb", "upperb"] if n == 1 else [f"{w}_{c}" for w in ("lowerb", "upperb")
-                                                 for c in range(3)]
-    if sorted(bounds) != sorted(names):
-        raise TypeError(f"InRange: give the bounds {', '.join(names)}, not {sorted(bounds)}")
-    lower = [int(bounds[names[c]]) for c in range(n)]
-    upper = [int(bounds[names[n + c]]) for c in range(n)]
+    lower = np.float32([lowerb_0, lowerb_1, lowerb_2][:n]).astype(np.float64)
+    upper = np.float32([upperb_0, upperb_1, upperb_2][:n]).astype(np.float64)
+    if image.dtype != np.float32:
+        lower, upper = np.rint(lower), np.rint(upper)
     hit = np.ones(planes.shape[:2], bool)
     for c in range(n):
         hit &= (planes[..., c] >= lower[c]) & (planes[..., c] <= upper[c])
@@ -194,21 +192,53 @@ def absdiff(src1: np.ndarray, src2: np.ndarray, *,
 
 def resize(image: np.ndarray, *, width: int, height: int, interpolation: int,
            out: np.ndarray | None = None) -> np.ndarray:
-    """Resize / ResizeGray with 0 INTER_NEAREST: output column x reads column
-    floor(x * (1 / (width / image width))) computed in double, as OpenCV does (the exact
-    x * w / width differs where the double rounds an integer down), at most the last
-    column; rows alike.  (Bilinear Resize is numpy in the library itself.)"""
-    planes = _planes("Resize", "image", image)
-    assert int(interpolation) == INTER_NEAREST
-    rows = _nearest(int(height), planes.shape[0])
-    cols = _nearest(int(width), planes.shape[1])
-    return _store(_unplanes(planes[rows][:, cols], image), out, "Resize", "resized")
+    """Resize / ResizeGray.  0 INTER_NEAREST: output column x reads column floor(x * (1 /
+    (width / image width))) computed in double, as OpenCV does (the exact x * w / width
+    differs where the double rounds an integer down), at most the last column; rows
+    alike.  1 INTER_LINEAR of uint8: OpenCV's fixed point (_linear_weights), each row
+    blended along x in int, then along y as OpenCV's vector code rounds:
+    ((b0 (top >> 4)) >> 16 + (b1 (bottom >> 4)) >> 16 + 2) >> 2."""
+    planes = _planes("Resize", "image", image, WIDE)
+    height, width = int(height), int(width)
+    if int(interpolation) == INTER_NEAREST:
+        rows = _nearest(height, planes.shape[0])
+        cols = _nearest(width, planes.shape[1])
+        return _store(_unplanes(planes[rows][:, cols], image), out, "Resize", "resized",
+                      image.dtype)
+    assert image.dtype == np.uint8
+    y0, y1, b0, b1 = _linear_weights(height, planes.shape[0], edge=False)
+    x0, x1, a0, a1 = _linear_weights(width, planes.shape[1], edge=True)
+    p = planes.astype(np.int64)
+    top = p[y0][:, x0] * a0[None, :, None] + p[y0][:, x1] * a1[None, :, None]
+    bottom = p[y1][:, x0] * a0[None, :, None] + p[y1][:, x1] * a1[None, :, None]
+    values = (((b0[:, None, None] * (top >> 4)) >> 16)
+              + ((b1[:, None, None] * (bottom >> 4)) >> 16) + 2) >> 2
+    return _store(_unplanes(values, image), out, "Resize", "resized")
 
 
 def _nearest(dst: int, src: int) -> np.ndarray:
     """OpenCV's INTER_NEAREST source index of each output index (double arithmetic)."""
     scale = 1.0 / (dst / src)
     return np.minimum(np.floor(np.arange(dst) * scale).astype(np.int64), src - 1)
+
+
+def _linear_weights(dst: int, src: int, edge: bool):
+    """OpenCV's INTER_LINEAR neighbours and weights of each output index: the position
+    (d + 0.5) (1 / (dst / src)) - 0.5 in double rounded to float32, its floor s and
+    fraction f; the weights round((1 - f) 2048) and round(f 2048) (half to even, each on
+    its own); along x (edge) a position outside the frame moves to the edge pixel with
+    weight 0, along y only the rows are clamped."""
+    scale = 1.0 / (dst / src)
+    f = ((np.arange(dst) + 0.5) * scale - 0.5).astype(np.float32)
+    s = np.floor(f).astype(np.int64)
+    f = (f - s.astype(np.float32)).astype(np.float32)
+    if edge:
+        outside = (s < 0) | (s >= src - 1)
+        f[outside] = 0
+        s = np.clip(s, 0, src - 1)
+    w0 = np.rint((np.float32(1) - f) * np.float32(2048)).astype(np.int64)
+    w1 = np.rint(f * np.float32(2048)).astype(np.int64)
+    return np.clip(s, 0, src - 1), np.clip(s + 1, 0, src - 1), w0, w1
 
 
 def flip_horizontal(image: np.ndarray, *, out: np.ndarray | None = None) -> np.ndarray:

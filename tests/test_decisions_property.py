@@ -48,7 +48,7 @@ from hypothesis import strategies as st
 from gpucompgen import sizeexpr
 from gpucompgen.build import compile_model, write
 from gpucompgen.errors import Reporter
-from gpucompgen.model import library_types, load_types_file
+from gpucompgen.model import DTYPES, library_types, load_types_file
 from gpucompgen.runtime import Monitor
 
 DATA = ROOT / "tests" / "data"
@@ -182,8 +182,9 @@ def systems(draw):
             fitting = [s for s in streams if s[1] == _kind(port)]
             k = len(fitting) - 1
             feeds.append(fitting[k if draw(st.booleans()) else draw(st.integers(0, k))])
-        # (height, width, channels): a requirement may compare channels (ExtractChannel)
-        sizes = {p: (*f[2], f[1][1]) for p, f in zip(ctype.inputs, feeds)}
+        # (height, width, channels, itemsize): a requirement may compare channels
+        # (ExtractChannel) or the element's size (Resize's bilinear)
+        sizes = {p: (*f[2], f[1][1], DTYPES[f[1][0]][2]) for p, f in zip(ctype.inputs, feeds)}
         params = _params(draw, ctype)
         ints = {k: v for k, v in params.items() if ctype.params[k].type == "int"}
         if not all(sizeexpr.evaluate(tree, sizes, ints) for tree, _ in ctype.requires):

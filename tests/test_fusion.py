@@ -28,7 +28,7 @@ from gpucompgen.build import compile_model, write
 from gpucompgen.errors import GpucompgenError
 from gpucompgen.library import cpu_kernels
 from gpucompgen.library.still_image import still_frame
-from gpucompgen.model import library_types
+from gpucompgen.model import DTYPES, library_types
 
 MODELS = sorted((ROOT / "models").glob("*.yaml"))
 _built = itertools.count()
@@ -442,8 +442,9 @@ def fusable_systems(draw):
         for port in ctype.inputs.values():
             fitting = [s for s in streams if s[2] == _kind(port)]
             feeds.append(fitting[draw(st.integers(0, len(fitting) - 1))])
-        # (height, width, channels): a requirement may compare channels (ExtractChannel)
-        sizes = {p: (*ref.shape[:2], kind[1])
+        # (height, width, channels, itemsize): a requirement may compare channels
+        # (ExtractChannel) or the element's size (Resize's bilinear)
+        sizes = {p: (*ref.shape[:2], kind[1], DTYPES[kind[0]][2])
                  for p, (_, ref, kind) in zip(ctype.inputs, feeds)}
         params = _param_values(draw, ctype)
         ints = {k: v for k, v in params.items() if ctype.params[k].type == "int"}

@@ -371,7 +371,7 @@ def test_every_library_snippet_compiles_printed_with_every_name_renamed(cl_conte
         rename = {n: f"{name}_{n}" for n, kind in f.names.items()
                   if kind not in ("builtin", "constant")}
         rename.update({f"{p}_{d}": f"{name}_{p}_{d}" for p in [*t.inputs, *t.outputs]
-                       for d in ("height", "width")})
+                       for d in ("height", "width", "channels")})
         rename.update({p: f"{name}_{p}" for p in t.params})
         rename.update({p: f"{name}_{p}" for p in t.inputs})
         rename.update({n: f"{name}_{n}" for n in "yxc"})
@@ -383,6 +383,7 @@ def test_every_library_snippet_compiles_printed_with_every_name_renamed(cl_conte
         lines.append("{")
         lines += [f"    const int {name}_{p}_{d} = 5;" for p in [*t.inputs, *t.outputs]
                   for d in ("height", "width")]
+        lines += [f"    const int {name}_{p}_channels = 3;" for p in [*t.inputs, *t.outputs]]
         for p in [*t.inputs, *t.outputs]:  # each port's element type and its bounds
             rename.update({f"{p}_{d}": f"{name}_{p}_{d}" for d in ("t", "min", "max")})
             lines += [f"    typedef uchar {name}_{p}_t;",

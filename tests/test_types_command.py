@@ -34,8 +34,9 @@ def test_listing_names_every_library_type_once_with_its_kind(capsys):
     assert all(len(line) <= 100 for line in out.splitlines())
     # the one-line description is the first sentence
     # (cut with '...' where the columns before it leave too little room)
-    assert re.search(r"^  Resize +flexible   8UC3 -> 8UC3 +Scales a frame to width x h"
-                     r"(eight\.|\S*\.\.\.)$", out, re.MULTILINE)
+    assert re.search(r"^  Resize +flexible   8U\|16S\|32F C1\|3 -> same +Scales a frame"
+                     r".*\.\.\.$", out, re.MULTILINE)
+    assert re.search(r"^  Filter2D +flexible   8UC1\|3 -> D\(ddepth\) ", out, re.MULTILINE)
     assert re.search(r"^  Sobel +flexible   8UC1\|3 -> 16S +First derivative", out, re.MULTILINE)
     assert re.search(r"^  ConvertScale +flexible   8U\|16S\|32F C1\|3 -> 8U ", out, re.MULTILINE)
     assert re.search(r"^  AbsDiff +flexible   2 x 8U\|16S\|32F C1\|3 -> same ", out, re.MULTILINE)

@@ -558,7 +558,8 @@ def expand(group: GroupNode) -> tuple[GroupNode, dict[Endpoint, str]]:
         made: dict[str, Port] = {}  # stage -> its port, as its readers' input
         for st in decl.stages.values():
             name = f"{m.name}.{st.name}"
-            port = Port(st.name, "in", "gpu", st.dtype, ch, Data(Size(h, w, ch), st.dtype))
+            dtype = st.dtype if st.dtype in DTYPES else m.inputs[st.dtype.split(".")[0]].dtype
+            port = Port(st.name, "in", "gpu", dtype, ch, Data(Size(h, w, ch), dtype))
             # fixed: the component's parameters fixed at build time (its accessors'
             # border, its windows), constants of the stage's function too
             ctype = SimpleNamespace(name=f"{m.type.name} stage {st.name}", fusable=st.decl,
@@ -827,12 +828,14 @@ def _load(array: str, row: str, w: int, xx: str, ch: int, flat: bool,
 
 
 def _port_constants(m) -> list[str]:
-    """What the snippet is given of each port: its sizes, and its element type and that
+    """What the snippet is given of each port: its sizes (its channels where named), and its element type and that
     type's least and greatest values where the snippet names them (src_t, src_min)."""
     names, lines = m.type.fusable.names, []
     for pname, port in {**m.inputs, **m.outputs}.items():
         lines.append(f"    const int {pname}_height = {port.data.height}, "
                      f"{pname}_width = {port.data.width};")
+        if names.get(f"{pname}_channels") == "size":  # only where named (InRange's)
+            lines.append(f"    const int {pname}_channels = {port.channels};")
         ctype = DTYPES[port.dtype][1]
         if names.get(f"{pname}_t") == "type":
             lines.append(f"    typedef {ctype} {pname}_t;")

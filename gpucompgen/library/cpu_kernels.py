@@ -7,8 +7,7 @@ array out.  The library's operations are OpenCV's, so wherever OpenCV has the op
 the function calls cv2 (as RGB: the library's frames are RGB, and cv2's colour codes
 say so, COLOR_RGB2GRAY and COLOR_RGB2HSV); the CPU form is then OpenCV's result by
 construction and as fast as OpenCV on these cores.  numpy remains only where OpenCV has
-no equal: ObjectDetector's rule, Crop (a slice), bilinear Resize (the kernel's rounding,
-which differs from cv2's by at most 1, see docs/library.md).  Every function gives the
+no equal: ObjectDetector's rule, Crop (a slice).  Every function gives the
 same bytes as the type's OpenCL kernel in this folder for every size and parameter the
 kernel accepts: tests/test_cpu_kernels.py and tests/test_imgproc.py run both on PoCL and
 compare, and compare the CPU functions with independent numpy references
@@ -101,7 +100,6 @@ def box_blur(src: np.ndarray, *, radius: int, out: np.ndarray | None = None) -> 
 # OpenCV's codes for Threshold's thresh_type and Resize's interpolation
 THRESH_BINARY, THRESH_BINARY_INV, THRESH_TRUNC, THRESH_TOZERO, THRESH_TOZERO_INV = range(5)
 INTER_NEAREST, INTER_LINEAR = 0, 1
-RESIZE_BITS = 11  # bilinear weights in 1/2048, as OpenCV's INTER_RESIZE_COEF_BITS
 MORPH_KERNEL = np.ones((3, 3), np.uint8)  # Erode and Dilate: the 3x3 rectangle
 
 
@@ -120,23 +118,19 @@ def rgb_to_hsv(src: np.ndarray, *, out: np.ndarray | None = None) -> np.ndarray:
                         dst=_output(out, src.shape, "RgbToHsv", "dst"))
 
 
-def in_range(src: np.ndarray, *, out: np.ndarray | None = None, **bounds: int) -> np.ndarray:
-    """InRange / InRangeGray: cv2.inRange: 255 where every channel c has lowerb_c <= value
-    <= upperb_c, else 0; the mask is height x width.
-
-    Bounds as keywords: lowerb_0, lowerb_1, lowerb_2, upperb_0, upperb_1, upperb_2 for
-    three channels, lowerb and upperb for one.
-    """
-    n = _channels("InRange", "src", src)
-    names = ["lowerb", "upperb"] if n == 1 else [f"{w}_{c}" for w in ("lowerb", "upperb")
-                                                 for c in range(3)]
-    if sorted(bounds) != sorted(names):
-        raise TypeError(f"InRange: give the bounds {', '.join(names)}, not {sorted(bounds)}")
+def in_range(src: np.ndarray, *, lowerb_0: float = 0, lowerb_1: float = 0,
+             lowerb_2: float = 0, upperb_0: float = 255, upperb_1: float = 255,
+             upperb_2: float = 255, out: np.ndarray | None = None) -> np.ndarray:
+    """InRange: cv2.inRange(src, lowerb, upperb): 255 where every channel c has lowerb_c
+    <= value <= upperb_c, else 0; the mask is height x width.  uint8, int16 or float32
+    frames of one channel (lowerb_0, upperb_0) or three; the bounds are float32, as the
+    kernel's parameters, which OpenCV rounds (half to even) for an integer frame."""
+    n = _channels("InRange", "src", src, DTYPES3)
     mask = _output(out, src.shape[:2], "InRange", "dst")
+    lower = np.float32([lowerb_0, lowerb_1, lowerb_2][:n]).astype(np.float64)
+    upper = np.float32([upperb_0, upperb_1, upperb_2][:n]).astype(np.float64)
     if n == 1:
-        return cv2.inRange(src, int(bounds["lowerb"]), int(bounds["upperb"]), dst=mask)
-    lower = np.array([int(bounds[names[c]]) for c in range(3)], np.float64)
-    upper = np.array([int(bounds[names[3 + c]]) for c in range(3)], np.float64)
+        return cv2.inRange(src, float(lower[0]), float(upper[0]), dst=mask)
     return cv2.inRange(src, lower, upper, dst=mask)
 
 
@@ -194,71 +188,38 @@ def absdiff(src1: np.ndarray, src2: np.ndarray, *,
 
 def resize(src: np.ndarray, *, width: int, height: int, interpolation: int,
            out: np.ndarray | None = None) -> np.ndarray:
-    """Resize / ResizeGray: cv2.resize(image, (width, height), interpolation=).
-
-    0 INTER_NEAREST: cv2.resize itself.  1 INTER_LINEAR, in numpy (OpenCV's own bilinear
-    rounding is not the kernel's): the source position (x + 0.5) * w / width - 0.5 in
-    exact integers, weights in 1/2048 rounded half up, neighbours clamped to the frame,
-    the weighted sum rounded half up (differs from OpenCV's by at most 1: see
-    docs/library.md).
-    """
-    n = _channels("Resize", "src", src)
+    """Resize: cv2.resize(src, (width, height), interpolation=interpolation): 0
+    INTER_NEAREST of uint8, int16 or float32 frames, 1 INTER_LINEAR of uint8 ones (OpenCV's
+    fixed point; the type's requirement refuses others)."""
+    _channels("Resize", "src", src, DTYPES3)
     width, height, mode = int(width), int(height), int(interpolation)
     if width < 1 or height < 1:
         raise ValueError(f"Resize: width and height must be 1 or more, not {width}x{height}")
-    shape = (height, width) + src.shape[2:]
-    if mode == INTER_NEAREST:
-        return cv2.resize(src, (width, height), dst=_output(out, shape, "Resize", "dst"),
-                          interpolation=cv2.INTER_NEAREST)
-    if mode != INTER_LINEAR:
+    if mode not in (INTER_NEAREST, INTER_LINEAR):
         raise ValueError(f"Resize: interpolation must be 0 (nearest) or 1 (linear), not {mode}")
-    planes = src.reshape(src.shape[:2] + (n,))
-    y0, y1, wy = _linear(height, planes.shape[0])
-    x0, x1, wx = _linear(width, planes.shape[1])
-    # int32 is exact (255 x 2048 x 2048 + 2^21 < 2^31); a band of output rows at a time,
-    # so that the temporaries stay a few MB whatever the output's size (a 16384 x 16384
-    # output at once took 10 GB of int64 and 78 s)
-    p = planes.astype(np.int32)
-    wx0, wx1 = (1 << RESIZE_BITS) - wx[:, None], wx[:, None]
-    wx0, wx1 = wx0.astype(np.int32), wx1.astype(np.int32)
-    result = _output(out, shape, "Resize", "dst")
-    rows = result.reshape((height, width, n))
-    band = max(1, (1 << 20) // (width * n))
-    for top_row in range(0, height, band):
-        span = slice(top_row, top_row + band)
-        ra, rb = p[y0[span]], p[y1[span]]
-        top = ra[:, x0] * wx0 + ra[:, x1] * wx1
-        bottom = rb[:, x0] * wx0 + rb[:, x1] * wx1
-        wy0 = ((1 << RESIZE_BITS) - wy[span, None, None]).astype(np.int32)
-        wy1 = wy[span, None, None].astype(np.int32)
-        rows[span] = (top * wy0 + bottom * wy1 + (1 << (2 * RESIZE_BITS - 1))) \
-            >> (2 * RESIZE_BITS)
-    return result
+    if mode == INTER_LINEAR and src.dtype != np.uint8:
+        raise TypeError(f"Resize: INTER_LINEAR takes uint8 frames, not {src.dtype}")
+    shape = (height, width) + src.shape[2:]
+    return cv2.resize(src, (width, height), dst=_output(out, shape, "Resize", "dst", src.dtype),
+                      interpolation=mode)
 
 
-def _linear(dst: int, src: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Bilinear neighbours and the weight of the second, per output index.
-
-    The source position of output d is ((2 d + 1) src - dst) / (2 dst): its floor s and
-    the fraction in 1/2048, rounded half up; the neighbours s, s + 1 clamped to 0..src-1.
-    """
-    num = (2 * np.arange(dst, dtype=np.int64) + 1) * src - dst
-    s = num // (2 * dst)
-    frac = num - s * 2 * dst
-    weight = (frac * (1 << RESIZE_BITS) + dst) // (2 * dst)
-    return np.clip(s, 0, src - 1), np.clip(s + 1, 0, src - 1), weight
-
-
-def crop(src: np.ndarray, *, x: int, y: int, width: int, height: int,
+def crop(src: np.ndarray, *, left: int, top: int, width: int, height: int,
          out: np.ndarray | None = None) -> np.ndarray:
-    """Crop / CropGray: image[y:y + height, x:x + width], the rectangle inside the frame."""
-    _channels("Crop", "src", src)
-    x, y, width, height = int(x), int(y), int(width), int(height)
+    """Crop: src[top:top + height, left:left + width], the rectangle inside the frame, of
+    any element type."""
+    _channels("Crop", "src", src, ANY_DTYPE)
+    x, y, width, height = int(left), int(top), int(width), int(height)
     if (min(x, y) < 0 or width < 1 or height < 1 or x + width > src.shape[1]
             or y + height > src.shape[0]):
-        raise ValueError(f"Crop: the rectangle x={x} y={y} {width}x{height} must lie inside "
-                         f"the {src.shape[1]}x{src.shape[0]} frame")
-    return _store(src[y:y + height, x:x + width], out, "Crop", "dst")
+        raise ValueError(f"Crop: the rectangle left={x} top={y} {width}x{height} must lie "
+                         f"inside the {src.shape[1]}x{src.shape[0]} frame")
+    values = src[y:y + height, x:x + width]
+    if out is None:
+        return np.ascontiguousarray(values)
+    target = _output(out, values.shape, "Crop", "dst", src.dtype)
+    np.copyto(target, values)
+    return target
 
 
 def flip_horizontal(src: np.ndarray, *, out: np.ndarray | None = None) -> np.ndarray:
@@ -402,16 +363,6 @@ def _output(out: np.ndarray | None, shape: tuple[int, ...], type_name: str,
                          f"{getattr(out, 'dtype', type(out).__name__)} "
                          f"{getattr(out, 'shape', '')}")
     return out
-
-
-def _store(values: np.ndarray, out: np.ndarray | None, type_name: str,
-           port: str) -> np.ndarray:
-    """values as a new C-contiguous uint8 array, or copied into out."""
-    if out is None:
-        return np.ascontiguousarray(values, dtype=np.uint8)
-    target = _output(out, values.shape, type_name, port)
-    np.copyto(target, values, casting="unsafe")  # the values are 0..255
-    return target
 
 
 # the operations of issue 26 (bitwise.yaml, convert.yaml, filters2.yaml, ...): their CPU

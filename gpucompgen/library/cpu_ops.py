@@ -113,20 +113,25 @@ def blur(src: np.ndarray, *, ksize: int, border_type: int,
     """Blur / BlurGray: cv2.blur(src, (ksize, ksize), borderType=border_type): the mean of
     the ksize x ksize window (ksize odd, 1..31, so the mean is never a tie), rounded, with
     OpenCV's border rule of that code: 0 CONSTANT (zeros), 1 REPLICATE, 2 REFLECT,
-    4 REFLECT_101."""
-    _image("Blur", "src", src)
+    4 REFLECT_101.  uint8, int16 (sums in int, as OpenCV) or float32 (OpenCV sums in
+    double)."""
+    _channels("Blur", "src", src, DTYPES3)
     ksize, border = _odd_ksize("Blur", ksize), int(border_type)
     if border not in BORDERS:
         raise ValueError(f"Blur: border_type must be one of {sorted(BORDERS)}, not {border}")
-    return cv2.blur(src, (ksize, ksize), dst=_output(out, src.shape, "Blur", "dst"),
+    return cv2.blur(src, (ksize, ksize), dst=_output(out, src.shape, "Blur", "dst", src.dtype),
                     borderType=border)
 
 
+FILTER_DEPTHS = {-1: np.uint8, 0: np.uint8, 3: np.int16, 5: np.float32}  # OpenCV's codes
+
+
 def filter_2d(src: np.ndarray, *, weights, delta: float = 0.0, border_type: int = 4,
-              out: np.ndarray | None = None) -> np.ndarray:
-    """Filter2D: cv2.filter2D(src, -1, np.float32(weights), delta=delta,
+              ddepth: int = -1, out: np.ndarray | None = None) -> np.ndarray:
+    """Filter2D: cv2.filter2D(src, ddepth, np.float32(weights), delta=delta,
     borderType=border_type): the correlation with the kernel weights (rows x cols, 1..15
-    each, anchored at (cols / 2, rows / 2)) plus delta, rounded and saturated to uint8."""
+    each, anchored at (cols / 2, rows / 2)) plus delta, rounded and saturated to uint8
+    (ddepth -1 or 0) or int16 (3), or float32 (5)."""
     _image("Filter2D", "src", src)
     weights = np.array(weights, np.float32)
     if weights.ndim != 2 or not (1 <= weights.shape[0] <= 15 and 1 <= weights.shape[1] <= 15):
@@ -136,8 +141,12 @@ def filter_2d(src: np.ndarray, *, weights, delta: float = 0.0, border_type: int 
     if border not in BORDERS:
         raise ValueError(f"Filter2D: border_type must be one of {sorted(BORDERS)}, "
                          f"not {border}")
-    return cv2.filter2D(src, -1, weights, dst=_output(out, src.shape, "Filter2D", "dst"),
-                        delta=float(delta), borderType=border)
+    depth = int(ddepth)
+    if depth not in FILTER_DEPTHS:
+        raise ValueError(f"Filter2D: ddepth must be -1 or 0 (uint8), 3 (int16) or 5 (float32), "
+                         f"not {depth}")
+    return cv2.filter2D(src, depth, weights, delta=float(delta), borderType=border,
+                        dst=_output(out, src.shape, "Filter2D", "dst", FILTER_DEPTHS[depth]))
 
 
 def laplacian(src: np.ndarray, *, ksize: int, out: np.ndarray | None = None) -> np.ndarray:
@@ -171,8 +180,9 @@ def morphology_ex(src: np.ndarray, *, op: int, shape: int, ksize: int, iteration
     """MorphologyEx / MorphologyExGray: cv2.morphologyEx(src, op,
     cv2.getStructuringElement(shape, (ksize, ksize)), iterations=iterations); op and shape
     are OpenCV's codes (MORPH_ERODE 0 .. MORPH_BLACKHAT 6; MORPH_RECT 0, MORPH_CROSS 1,
-    MORPH_ELLIPSE 2), pixels outside the frame ignored (OpenCV's default)."""
-    _image("MorphologyEx", "src", src)
+    MORPH_ELLIPSE 2), pixels outside the frame ignored (OpenCV's default); uint8, int16
+    or float32."""
+    _channels("MorphologyEx", "src", src, DTYPES3)
     op, shape, iterations = int(op), int(shape), int(iterations)
     ksize = int(ksize)
     if ksize < 1 or ksize > MAX_MORPH_KSIZE or ksize % 2 == 0:
@@ -184,7 +194,7 @@ def morphology_ex(src: np.ndarray, *, op: int, shape: int, ksize: int, iteration
                          f"for shape 0 (MORPH_RECT) only, not {iterations} (shape {shape})")
     element = cv2.getStructuringElement(shape, (ksize, ksize))
     return cv2.morphologyEx(src, op, element, iterations=iterations,
-                            dst=_output(out, src.shape, "MorphologyEx", "dst"))
+                            dst=_output(out, src.shape, "MorphologyEx", "dst", src.dtype))
 
 
 # -- helpers -------------------------------------------------------------------------------
@@ -223,5 +233,5 @@ CPU_OPS = {
 
 # last, so that either module may be imported first: cpu_kernels imports CPU_OPS at its
 # end, and these helpers are defined before that import runs
-from .cpu_kernels import ANY_DTYPE, _channels, _output
+from .cpu_kernels import ANY_DTYPE, DTYPES3, _channels, _output
 from .cpu_kernels import _same_shape as _pair

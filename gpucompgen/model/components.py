@@ -73,9 +73,15 @@ def placement_problem(rep: Reporter, pos: Pos, cname: str, ctype: ComponentType,
 def _instance_params(doc, rep, cpath, ctype: ComponentType, given) -> dict[str, Any]:
     given = _expect_map(doc, rep, cpath + ("params",), given, "params")
     params: dict[str, Any] = {}
-    for pname, value in given.items():
+    for written, value in given.items():
+        pname = ctype.canonical_param(written) or written  # an old name: the parameter's
         decl = ctype.params.get(pname)
-        if decl is None:
+        if pname != written and pname in given:
+            rep.error(doc.key_pos(*cpath, "params", written),
+                      f"'{written}' is an old name of parameter '{pname}', given too",
+                      f"keep '{pname}' only")
+            continue
+        if decl is None:  # (pname is written: no alias named it)
             rep.error(doc.key_pos(*cpath, "params", pname),
                       f"'{ctype.name}' has no parameter '{pname}'",
                       did_you_mean(pname, ctype.params) or f"'{ctype.name}' takes no parameters")
@@ -105,8 +111,8 @@ def _instance_params(doc, rep, cpath, ctype: ComponentType, given) -> dict[str, 
                           "path": "a path, relative to the model file or absolute",
                           "input": "an input URI or a path relative to the model file"}
                 hint = f"give {wanted[decl.type]}, e.g. '{pname}: {py_yaml(example)}'"
-            rep.error(doc.pos(*cpath, "params", pname, *at),
-                      f"parameter '{pname}' of '{ctype.name}' {problem}", hint)
+            rep.error(doc.pos(*cpath, "params", written, *at),
+                      f"parameter '{written}' of '{ctype.name}' {problem}", hint)
             continue
         params[pname] = param_value(value, decl)
     for pname, decl in ctype.params.items():
@@ -196,6 +202,19 @@ def _deprecation_notes(doc: Document, components: dict[str, Instance],
                                     f"write 'type: {t.alias_of}': it takes "
                                     f"{_generic_channels(types.get(t.alias_of))} channels, "
                                     "from what feeds it"))
+        spec = doc.data["components"][inst.name]
+        given = spec.get("params") if isinstance(spec, dict) else None
+        old_params = {p: t.canonical_param(p) for p in given or ()
+                      if p not in t.params and t.canonical_param(p)} \
+            if isinstance(given, dict) else {}
+        if old_params:
+            pos = doc.key_pos("components", inst.name, "params", next(iter(old_params)))
+            notes.append(Diagnostic(pos.file, pos.line, pos.col, "note",
+                                    f"'{inst.name}' ({t.name}) sets parameters by old names: "
+                                    + ", ".join(f"'{o}' is now '{n}'"
+                                                for o, n in old_params.items()),
+                                    "the old names work for now; write "
+                                    + ", ".join(f"'{n}'" for n in old_params.values())))
         if inst.name in renamed:
             pos, old = renamed[inst.name]
             notes.append(Diagnostic(pos.file, pos.line, pos.col, "note",

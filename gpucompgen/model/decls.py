@@ -26,6 +26,9 @@ DTYPES = {  # element type → (numpy name, OpenCL C type, bytes)
     "uint32": ("uint32", "uint", 4),
     "float32": ("float32", "float", 4),
 }
+# OpenCV's depth codes (CV_8U .. CV_32F), for an output whose element type an int
+# parameter gives ('dtype: ddepth', as cv2.filter2D's ddepth; -1: the first input's)
+DEPTH_CODES = {0: "uint8", 1: "int8", 2: "uint16", 3: "int16", 4: "int32", 5: "float32"}
 MEMORIES = ("gpu", "cpu")
 # a generic port's 'dtype: any' (every element type) or 'channels: any' (any count)
 ANY = ("any",)
@@ -69,6 +72,7 @@ class ParamDecl:
     # a float matrix (2x2, 3x3, or 2x3: its left 2x2) whose determinant must not be 0: a
     # warp's matrix, a camera matrix ('invertible: true' in the type file)
     invertible: bool = False
+    aliases: tuple[str, ...] = ()  # old names of the parameter, still accepted (deprecated)
 
     @property
     def element(self) -> str:
@@ -91,6 +95,8 @@ class PortDecl:
     # feeds it or from the port or parameter it follows.  Empty: the fixed dtype/channels.
     dtypes: tuple[str, ...] = ()  # 'dtype: [uint8, int16]': any of these
     dtype_of: str = ""  # 'dtype: src.dtype': the element type of input port src
+    dtype_param: str = ""  # 'dtype: ddepth' (outputs): int parameter ddepth, OpenCV's
+    # depth code (DEPTH_CODES; -1: the first input's element type)
     channel_counts: tuple[int, ...] = ()  # 'channels: [1, 3]': any of these
     any_channels: bool = False  # 'channels: any'
     channels_of: str = ""  # 'channels: src.channels': those of input port src
@@ -103,13 +109,16 @@ class PortDecl:
 
     @property
     def generic(self) -> bool:
-        return bool(self.dtypes or self.dtype_of or self.channel_counts or self.any_channels
+        return bool(self.dtypes or self.dtype_of or self.dtype_param or self.channel_counts
+                    or self.any_channels
                     or self.channels_of or self.channels_param)
 
     def dtype_text(self) -> str:
         """The element type as declared: 'uint8', 'uint8|int16' or 'as src'."""
         if self.dtype_of:
             return f"as {self.dtype_of}"
+        if self.dtype_param:
+            return f"parameter {self.dtype_param}"
         return "|".join(self.dtypes) if self.dtypes else self.dtype
 
     def channels_text(self) -> str:
@@ -200,15 +209,24 @@ class ComponentType:
         return next((p.name for p in (*self.inputs.values(), *self.outputs.values())
                      if name in p.aliases), None)
 
-    def specialized(self, dtype: str | None = None, channels: int | None = None) -> ComponentType:
+    def canonical_param(self, name: str) -> str | None:
+        """The parameter a name (its own or a deprecated alias) stands for, or None."""
+        if name in self.params:
+            return name
+        return next((p.name for p in self.params.values() if name in p.aliases), None)
+
+    def specialized(self, dtype: str | None = None, channels: int | None = None,
+                    params: dict[str, Any] | None = None) -> ComponentType:
         """A copy whose generic ports are fixed: inputs that accept several take dtype and
         channels (their first choice when not given), ports that follow another port or a
-        parameter take its value.  For tests, benchmarks and examples: a model's
-        components are resolved from what feeds them (passes/resolve_types.py)."""
+        parameter take its value (params: the parameters' values, else their defaults).
+        For tests, benchmarks and examples: a model's components are resolved from what
+        feeds them (passes/resolve_types.py)."""
         from ..typeresolve import resolve_ports
 
         given = {p: (dtype, channels) for p in self.inputs}
-        ports = resolve_ports(self, given, {p: d.default for p, d in self.params.items()})
+        ports = resolve_ports(self, given, {**{p: d.default for p, d in self.params.items()},
+                                            **(params or {})})
         twin = copy.copy(self)
         twin.inputs = {p: d.fixed(*ports[p]) for p, d in self.inputs.items()}
         twin.outputs = {p: d.fixed(*ports[p]) for p, d in self.outputs.items()}

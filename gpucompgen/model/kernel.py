@@ -281,10 +281,12 @@ def _load_stages(doc, rep, path, ctype: ComponentType, fspec, tables,
         _unknown_keys(doc, rep, where, sspec, STAGE_KEYS, "stage")
         dtype, value = sspec.get("dtype"), sspec.get("value")
         radius, reads = sspec.get("radius"), sspec.get("reads")
-        if not _named(dtype, DTYPES):
+        of_input = [f"{p}.dtype" for p in ctype.inputs]  # a generic type's element type
+        if not _named(dtype, DTYPES) and dtype not in of_input:
             rep.error(doc.pos(*where, "dtype") if "dtype" in sspec else doc.key_pos(*where),
                       f"stage '{name}' of '{ctype.name}' needs 'dtype', one of "
-                      f"{', '.join(DTYPES)}" + (f", not {dtype!r}" if "dtype" in sspec else ""),
+                      f"{', '.join([*DTYPES, *of_input])}"
+                      + (f", not {dtype!r}" if "dtype" in sspec else ""),
                       "the element type of the stage's values, e.g. dtype: int32")
             return None
         for key, what, least in (("radius", radius, 0), ("reads", reads, 1)):

@@ -26,7 +26,7 @@ ARRAY_TYPE = re.compile(ARRAY_TYPE_PATTERN)
 MAX_ARRAY_ELEMENTS = 65536  # of one array parameter (a 256 x 256 table)
 
 
-PARAM_KEYS = ("type", "default", "min", "max", "description", "invertible")
+PARAM_KEYS = ("type", "default", "min", "max", "description", "invertible", "aliases")
 
 
 def gpu_kernel_param_problem(kind: str, ptype: str) -> bool:
@@ -188,6 +188,17 @@ def _load_params(doc: Document, rep: Reporter, base: tuple, ctype: ComponentType
         decl = _load_param(doc, rep, base + ("params", pname), ctype, pname, written)
         if decl is not None:
             ctype.params[pname] = decl
+    seen: dict[str, str] = {}
+    for pname, decl in ctype.params.items():
+        for alias in decl.aliases:
+            other = pname if alias in ctype.params else seen.get(alias)
+            if other is not None:
+                rep.error(doc.pos(*base, "params", pname, "aliases"),
+                          f"alias '{alias}' of parameter '{pname}' is also "
+                          + (f"parameter '{alias}'" if alias in ctype.params
+                             else f"an alias of '{other}'"),
+                          "an old name stands for one parameter: remove or rename it")
+            seen.setdefault(alias, pname)
     return True
 
 
@@ -228,11 +239,18 @@ def _load_param(doc: Document, rep: Reporter, ppath: tuple, ctype: ComponentType
                   f"give a {ptype} default within min and max, or none to make "
                   "the parameter required")
         default = None
+    aliases = pspec.get("aliases", [])
+    if not isinstance(aliases, list) or any(not isinstance(a, str)
+                                            or name_problem(a, "parameter alias")
+                                            for a in aliases):
+        rep.error(doc.pos(*ppath, "aliases"), f"aliases of parameter '{pname}' must be a "
+                  "list of parameter names", "e.g. 'aliases: [x]': old names still accepted")
+        aliases = []
     return ParamDecl(pname, ptype, param_value(default, decl), "default" not in pspec,
                      bounds["min"], bounds["max"],
                      _text(doc, rep, ppath + ("description",), pspec.get("description"),
                            "description"),
-                     shape, invertible)
+                     shape, invertible, tuple(aliases))
 
 
 def _param_type(doc: Document, rep: Reporter, ppath: tuple, ctype: ComponentType, pname: str,

@@ -93,10 +93,14 @@ def _generic_spec(doc, rep, path, ctype, pname, pspec) -> tuple[str, int, dict] 
         if len(choices) > 1:
             extra["dtypes"] = tuple(choices)
         dtype = choices[0]
+    elif isinstance(dtype, str) and dtype.isidentifier() and dtype not in DTYPES \
+            and dtype in ctype.params:
+        extra["dtype_param"], dtype = dtype, "uint8"
     elif not _named(dtype, DTYPES):
         rep.error(doc.pos(*path, "dtype"), f"port '{pname}': unknown element type {dtype!r}",
                   did_you_mean(str(dtype), DTYPES) or
-                  "an element type, a list of them, 'any', or '<input>.dtype'")
+                  "an element type, a list of them, 'any', '<input>.dtype' or an int "
+                  "parameter holding OpenCV's depth code")
         return None
     channels = pspec.get("channels")
     follow = FOLLOW_RE.match(channels) if isinstance(channels, str) else None
@@ -139,6 +143,14 @@ def _check_generic(doc, rep, base, ctype: ComponentType, spec: dict) -> None:
                               + ("earlier input" if key == "inputs" else "input") + " port",
                               did_you_mean(followed, earlier) or
                               f"write '{what}: <input>.{what}' with one of its inputs")
+            if port.dtype_param and (key == "inputs" or ctype.params[
+                    port.dtype_param].type != "int"):
+                rep.error(doc.pos(*path, "dtype"), f"dtype of port '{pname}' of "
+                          f"'{ctype.name}' names parameter {port.dtype_param!r}, which "
+                          + ("an input cannot follow" if key == "inputs"
+                             else "is no int parameter"),
+                          "an output's element type may follow an int parameter holding "
+                          "OpenCV's depth code (-1: the first input's)")
             if port.channels_param and ctype.params.get(port.channels_param, ParamDecl(
                     "", "")).type != "int":
                 rep.error(doc.pos(*path, "channels"), f"channels of port '{pname}' of "

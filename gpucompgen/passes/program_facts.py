@@ -27,6 +27,7 @@ def size_names(t) -> set[str]:
     names = {n.id for e in exprs for n in ast.walk(e) if isinstance(n, ast.Name)}
     names |= {d.channels_param for d in (*t.inputs.values(), *t.outputs.values())
               if d.channels_param}
+    names |= {d.dtype_param for d in t.outputs.values() if d.dtype_param}
     decl = getattr(t, "fusable", None)
     if decl is not None:
         names |= decl.radius_names()

@@ -17,7 +17,7 @@ class PropagateSizes(Pass):
     def apply(self, system, rep):
         for name in system.order:
             node = system.nodes[name]
-            in_sizes: dict[str, tuple[int, int, int]] = {}  # height, width, channels
+            in_sizes: dict[str, tuple[int, ...]] = {}  # height, width, channels, itemsize
             complete = True
             for pname, port in node.inputs.items():
                 src = system.writer(Endpoint(name, pname))
@@ -26,7 +26,8 @@ class PropagateSizes(Pass):
                     complete = False
                     break
                 port.data = Data(Size(data.height, data.width, port.channels), port.dtype)
-                in_sizes[pname] = (data.height, data.width, port.channels)
+                in_sizes[pname] = (data.height, data.width, port.channels,
+                                   DTYPES[port.dtype][2])
             for edge in system.edges:
                 if edge.target.component == name:
                     edge.data = system.data(edge.source)
@@ -88,10 +89,11 @@ class PropagateSizes(Pass):
 
 def _shown(port: str, size: tuple[int, int, int], tree) -> str:
     """'src is 7x10', with the channels where the requirement compares them."""
-    h, w, channels = size
-    counted = f"{port}.channels" in ast.unparse(tree.body)
+    h, w, channels, itemsize = size
+    text = ast.unparse(tree.body)
     return f"{port} is {h}x{w}" + (f" with {channels} channel" + "s" * (channels != 1)
-                                   if counted else "")
+                                   if f"{port}.channels" in text else "") \
+        + (f" of {itemsize}-byte elements" if f"{port}.itemsize" in text else "")
 
 
 def _unmet(name: str, tname: str, message: str, tree, in_sizes) -> tuple[str, str]:

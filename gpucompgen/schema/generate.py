@@ -171,7 +171,7 @@ def _local_file(suffix: str) -> dict[str, Any]:
                            "'..', no link out of the folder)"}
 
 
-def _port() -> dict[str, Any]:
+def _port(output: bool = False) -> dict[str, Any]:
     """A port's keys: memory, a dtype and channels that may be generic, old names."""
     follows = "^" + NAME["pattern"].strip("^$") + "\\.{}$"
     dtype = {"oneOf": [
@@ -192,6 +192,12 @@ def _port() -> dict[str, Any]:
         dict(NAME, **{"not": _enum(model.ANY)}, description="an int parameter's value")],
         "description": "channels: a number, a list, 'any', '<input>.channels' or an int "
                        "parameter (generic ports, resolved for each component)"}
+    if output:  # an output's may also be an int parameter's, OpenCV's depth code
+        dtype = {"oneOf": [*dtype["oneOf"], dict(NAME, **{"not": {"anyOf": [
+            _enum(model.DTYPES), _enum(model.ANY)]}}, description="an int parameter "
+            "holding OpenCV's depth code (-1: the first input's)")],
+            "description": "element type: one, a list, 'any', '<input>.dtype' or an int "
+                           "parameter (generic ports, resolved for each component)"}
     return {"memory": _enum(model.MEMORIES), "dtype": dtype,
             "channels": channels, "description": TEXT,
             "aliases": {"type": "array", "items": NAME, "uniqueItems": True,
@@ -221,7 +227,10 @@ def _fusable() -> dict:
                    "constant, 0; or an int parameter holding OpenCV's border code "
                    "(0 constant, 1 clamp, 2 reflect, 4 reflect101)"},
         "stages": {"type": "object", "additionalProperties": _object(model.STAGE_KEYS, {
-            "dtype": _enum(model.DTYPES, "the stage's element type"),
+            "dtype": {"anyOf": [_enum(model.DTYPES, "the stage's element type"),
+                                {"type": "string", "pattern": r"^[A-Za-z_][A-Za-z0-9_]*\.dtype$",
+                                 "description": "an input's element type (<port>.dtype), "
+                                                "for a type generic over element types"}]},
             "radius": {"type": ["integer", "string"],
                        "description": "the stage's window radius, a number or an int "
                                       "parameter or an expression of them"},
@@ -259,10 +268,13 @@ def types_schema() -> dict[str, Any]:
         "type": param_types, "default": VALUE, "min": {"type": "number"},
         "max": {"type": "number"}, "description": TEXT,
         "invertible": {"type": "boolean", "description": "a float matrix (2x2, 3x3, 2x3) "
-                       "whose determinant must not be 0"}}, ("type",))]}
+                       "whose determinant must not be 0"},
+        "aliases": {"type": "array", "items": NAME, "uniqueItems": True,
+                    "description": "old names of the parameter, still accepted "
+                                   "(deprecated)"}}, ("type",))]}
     port = _port()
     inputs = _named_map(_object(tuple(k for k in model.PORT_KEYS if k in port), port))
-    outputs = _named_map(_object(model.PORT_KEYS, dict(port, height=SIZE_EXPR,
+    outputs = _named_map(_object(model.PORT_KEYS, dict(_port(output=True), height=SIZE_EXPR,
                                                          width=SIZE_EXPR)))
     condition = {"type": ["string", "integer"], "maxLength": sizeexpr.MAX_SOURCE}
     requires = {"type": "array", "items": {"oneOf": [

@@ -105,7 +105,7 @@ class Analysis:
 
 def port_names(inputs: list[str], outputs: list[str]) -> dict[str, str]:
     """The names a snippet gets for its ports beyond their accessors, each with what it
-    names: <port>_height and <port>_width (sizes), <port>_t (the port's element type,
+    names: <port>_height, <port>_width and <port>_channels (sizes), <port>_t (the port's element type,
     uchar, short or float as the model resolves it; not where <port>_t is already a word
     of OpenCL C, such as size_t), <port>_min and <port>_max (the least and the greatest
     value of that type: OpenCV's saturation bounds).  A type's parameters and ports must
@@ -114,6 +114,7 @@ def port_names(inputs: list[str], outputs: list[str]) -> dict[str, str]:
     for p in (*inputs, *outputs):
         names[f"{p}_height"] = f"the height of port '{p}'"
         names[f"{p}_width"] = f"the width of port '{p}'"
+        names[f"{p}_channels"] = f"the channels of port '{p}'"
         names[f"{p}_min"] = f"the least value of port '{p}''s element type"
         names[f"{p}_max"] = f"the greatest value of port '{p}''s element type"
         if f"{p}_t" not in KEYWORDS:
@@ -145,7 +146,8 @@ def analyse(text: str, form: str, inputs: list[str], outputs: list[str],
     except SnippetError as exc:
         return Analysis(None, problems=[exc.problem])
     given = {n: "coordinate" for n in COORDINATES}
-    given.update({f"{p}_{d}": "size" for p in inputs + outputs for d in ("height", "width")})
+    given.update({f"{p}_{d}": "size" for p in inputs + outputs
+                  for d in ("height", "width", "channels")})
     given.update({f"{p}_{d}": "limit" for p in inputs + outputs for d in ("min", "max")})
     given.update({p: "param" for p in params})
     resolver = _Resolver(form, given, set(inputs), set(outputs), frozenset(arrays),

@@ -85,12 +85,12 @@ PARAMS = {
     'camera.seed': runtime.Param('int', 1, minimum=0),
     'camera.source': runtime.Param('input', ''),
     'camera.video': runtime.Param('input', ''),
-    'red.lowerb_0': runtime.Param('int', 0, minimum=0, maximum=255),
-    'red.lowerb_1': runtime.Param('int', 140, minimum=0, maximum=255),
-    'red.lowerb_2': runtime.Param('int', 60, minimum=0, maximum=255),
-    'red.upperb_0': runtime.Param('int', 6, minimum=0, maximum=255),
-    'red.upperb_1': runtime.Param('int', 255, minimum=0, maximum=255),
-    'red.upperb_2': runtime.Param('int', 255, minimum=0, maximum=255),
+    'red.lowerb_0': runtime.Param('float', 0.0),
+    'red.lowerb_1': runtime.Param('float', 140.0),
+    'red.lowerb_2': runtime.Param('float', 60.0),
+    'red.upperb_0': runtime.Param('float', 6.0),
+    'red.upperb_1': runtime.Param('float', 255.0),
+    'red.upperb_2': runtime.Param('float', 255.0),
     'writer.folder': runtime.Param('str', ''),
     'writer.min_area': runtime.Param('int', 150, minimum=1),
     'writer.output': runtime.Param('str', ''),
@@ -187,12 +187,12 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
     fused_hsv_red_program = runtime.build_program(
         context, LIB_DIR / 'group_hsv_red.cl', 'hsv_red (FusedHsvRed)',
         defines={  # the kernel's constants, its members' parameters: -D NAME=VALUE
-            '_m1_lowerb_0': np.int32(params['red.lowerb_0']),
-            '_m1_lowerb_1': np.int32(params['red.lowerb_1']),
-            '_m1_lowerb_2': np.int32(params['red.lowerb_2']),
-            '_m1_upperb_0': np.int32(params['red.upperb_0']),
-            '_m1_upperb_1': np.int32(params['red.upperb_1']),
-            '_m1_upperb_2': np.int32(params['red.upperb_2']),
+            '_m1_lowerb_0': np.float32(params['red.lowerb_0']),
+            '_m1_lowerb_1': np.float32(params['red.lowerb_1']),
+            '_m1_lowerb_2': np.float32(params['red.lowerb_2']),
+            '_m1_upperb_0': np.float32(params['red.upperb_0']),
+            '_m1_upperb_1': np.float32(params['red.upperb_1']),
+            '_m1_upperb_2': np.float32(params['red.upperb_2']),
         })
     erode_gray_program = runtime.build_program(context, LIB_DIR / 'erode.cl', 'erode (ErodeGray)')
     dilate_gray_program = runtime.build_program(

@@ -15,7 +15,8 @@ What the prelude maps:
 - ``get_global_id(d)``, ``get_local_id``, ``get_group_id``, ``get_local_size``,
   ``get_num_groups``, ``get_global_size`` -> blockIdx, blockDim, threadIdx, gridDim
   (a launch's grid is OpenCL's global size / local size, its block the local size).
-- ``clamp``, ``mad24``, ``mul24``, ``convert_uchar_sat``, ``convert_uchar_sat_rte``,
+- ``clamp``, ``mad24``, ``mul24``, ``as_int``, ``as_float`` (of float and int),
+  ``convert_uchar_sat``, ``convert_uchar_sat_rte``,
   ``vstore2/3/4`` and ``vload2/3/4`` -> ``__device__`` functions with OpenCL's results.
 - Vector literals ``(uchar3)(a, b, c)`` and ``(int2)(v)`` -> ``make_uchar3(a, b, c)``,
   ``make_int2(v)`` (a textual rewrite of the literal's opening, see ``translate``; the
@@ -99,6 +100,9 @@ PRELUDE_LINES = [
     ("__device__ inline unsigned int mad24(const unsigned int a, const unsigned int b, "
     "const unsigned int c) { return a * b + c; }"),
     "__device__ inline int mul24(const int a, const int b) { return a * b; }",
+    # a float's bits as an int and back (a snippet may call them: Blur's float32 mean)
+    "__device__ inline int as_int(const float v) { return __float_as_int(v); }",
+    "__device__ inline float as_float(const int v) { return __int_as_float(v); }",
     *_clamps(),
     *_saturating(),
     *_vector_helpers(),

@@ -28,6 +28,8 @@ __device__ inline size_t get_global_size(const unsigned d) { return d == 0 ? (si
 __device__ inline int mad24(const int a, const int b, const int c) { return a * b + c; }
 __device__ inline unsigned int mad24(const unsigned int a, const unsigned int b, const unsigned int c) { return a * b + c; }
 __device__ inline int mul24(const int a, const int b) { return a * b; }
+__device__ inline int as_int(const float v) { return __float_as_int(v); }
+__device__ inline float as_float(const int v) { return __int_as_float(v); }
 __device__ inline int clamp(const int v, const int lo, const int hi) { return v < lo ? lo : v > hi ? hi : v; }
 __device__ inline unsigned int clamp(const unsigned int v, const unsigned int lo, const unsigned int hi) { return v < lo ? lo : v > hi ? hi : v; }
 __device__ inline long clamp(const long v, const long lo, const long hi) { return v < lo ? lo : v > hi ? hi : v; }
@@ -155,6 +157,8 @@ static inline __attribute__((overloadable)) float _max(const float a, const floa
 static inline __attribute__((noinline)) uchar _f0_clean_inner(_PARAMS, _LOCALS, const int y, const int x, const int c)
 {
     const int src_height = 480, src_width = 640;
+    typedef uchar src_t;
+    const uchar src_min = 0, src_max = 255;
     const int inner_height = 480, inner_width = 640;
     const int op = 2;
     const int shape = _m0_shape;
@@ -165,14 +169,14 @@ static inline __attribute__((noinline)) uchar _f0_clean_inner(_PARAMS, _LOCALS, 
     const bool erode_first = op == 2 || op == 5;
     const int r = !nested ? 0 : shape == 0 ? side * iterations : side;
     const int eside = nested ? side : 0;
-    uchar v = erode_first ? 255 : 0;
+    src_t v = erode_first ? src_max : src_min;
     #pragma unroll
     for (int dy = -r; dy <= r; dy++) {
         int w = shape == 0 ? r : shape == 1 ? (dy == 0 ? r : 0) : 0;
         #pragma unroll
         for (int k = 1; k <= eside && shape == 2; k++)
             w += (2 * k - 1) * (2 * k - 1) < 4 * (eside * eside - dy * dy);
-        uchar row = src(y + dy, x - w, c);
+        src_t row = src(y + dy, x - w, c);
         #pragma unroll
         for (int dx = 1 - w; dx <= w; dx++)
             row = erode_first ? _min(row, src(y + dy, x + dx, c))
@@ -189,6 +193,8 @@ static inline __attribute__((noinline)) uchar _f0_clean_inner(_PARAMS, _LOCALS, 
 static inline __attribute__((noinline)) uchar _f1_clean(_PARAMS, _LOCALS, const int y, const int x, const int c)
 {
     const int src_height = 480, src_width = 640;
+    typedef uchar src_t;
+    const uchar src_min = 0, src_max = 255;
     const int inner_height = 480, inner_width = 640;
     const int dst_height = 480, dst_width = 640;
     const int op = 2;
@@ -199,8 +205,8 @@ static inline __attribute__((noinline)) uchar _f1_clean(_PARAMS, _LOCALS, const 
     const int r = shape == 0 ? side * iterations : side;
     const bool nested = op == 2 || op == 3 || op == 5 || op == 6;
     const bool erode_first = op == 2 || op == 5;
-    uchar lo = 255, hi = 0;
-    uchar outer = erode_first ? 0 : 255;
+    src_t lo = src_max, hi = src_min;
+    src_t outer = erode_first ? src_min : src_max;
     #pragma unroll
     for (int dy = -r; dy <= r; dy++) {
         int w = shape == 0 ? r : shape == 1 ? (dy == 0 ? r : 0) : 0;
@@ -208,11 +214,11 @@ static inline __attribute__((noinline)) uchar _f1_clean(_PARAMS, _LOCALS, const 
         for (int k = 1; k <= side && shape == 2; k++)
             w += (2 * k - 1) * (2 * k - 1) < 4 * (side * side - dy * dy);
         if (!nested) {
-            uchar row_lo = src(y + dy, x - w, c);
-            uchar row_hi = row_lo;
+            src_t row_lo = src(y + dy, x - w, c);
+            src_t row_hi = row_lo;
             #pragma unroll
             for (int dx = 1 - w; dx <= w; dx++) {
-                const uchar v = src(y + dy, x + dx, c);
+                const src_t v = src(y + dy, x + dx, c);
                 row_lo = _min(row_lo, v);
                 row_hi = _max(row_hi, v);
             }
@@ -223,8 +229,8 @@ static inline __attribute__((noinline)) uchar _f1_clean(_PARAMS, _LOCALS, const 
         #pragma unroll
         for (int dx = -w; dx <= w; dx++) {
             const bool inside = y + dy >= 0 && y + dy < src_height && x + dx >= 0 && x + dx < src_width;
-            const uchar v = inner(y + dy, x + dx, c);
-            const uchar tap = inside ? v : erode_first ? 0 : 255;
+            const src_t v = inner(y + dy, x + dx, c);
+            const src_t tap = inside ? v : erode_first ? src_min : src_max;
             outer = erode_first ? _max(outer, tap) : _min(outer, tap);
         }
     }
@@ -233,11 +239,12 @@ static inline __attribute__((noinline)) uchar _f1_clean(_PARAMS, _LOCALS, const 
     if (op == 1)
         return hi;
     if (op == 4)
-        return hi - lo;
+        return hi - lo > src_max ? src_max : hi - lo;
     if (op == 2 || op == 3)
         return outer;
-    const uchar p = src(y, x, c);
-    return op == 5 ? (p > outer ? p - outer : 0) : (outer > p ? outer - p : 0);
+    const src_t p = src(y, x, c);
+    const src_t more = op == 5 ? p : outer, less = op == 5 ? outer : p;
+    return more > less ? (more - less > src_max ? src_max : more - less) : 0;
 }
 #undef src
 #undef inner
@@ -247,6 +254,8 @@ static inline __attribute__((noinline)) uchar _f1_clean(_PARAMS, _LOCALS, const 
 static inline __attribute__((always_inline)) uchar _f0_clean_inner_in(_PARAMS, _LOCALS, const int y, const int x, const int c)
 {
     const int src_height = 480, src_width = 640;
+    typedef uchar src_t;
+    const uchar src_min = 0, src_max = 255;
     const int inner_height = 480, inner_width = 640;
     const int op = 2;
     const int shape = _m0_shape;
@@ -257,14 +266,14 @@ static inline __attribute__((always_inline)) uchar _f0_clean_inner_in(_PARAMS, _
     const bool erode_first = op == 2 || op == 5;
     const int r = !nested ? 0 : shape == 0 ? side * iterations : side;
     const int eside = nested ? side : 0;
-    uchar v = erode_first ? 255 : 0;
+    src_t v = erode_first ? src_max : src_min;
     #pragma unroll
     for (int dy = -r; dy <= r; dy++) {
         int w = shape == 0 ? r : shape == 1 ? (dy == 0 ? r : 0) : 0;
         #pragma unroll
         for (int k = 1; k <= eside && shape == 2; k++)
             w += (2 * k - 1) * (2 * k - 1) < 4 * (eside * eside - dy * dy);
-        uchar row = src(y + dy, x - w, c);
+        src_t row = src(y + dy, x - w, c);
         #pragma unroll
         for (int dx = 1 - w; dx <= w; dx++)
             row = erode_first ? _min(row, src(y + dy, x + dx, c))
@@ -281,6 +290,8 @@ static inline __attribute__((always_inline)) uchar _f0_clean_inner_in(_PARAMS, _
 static inline __attribute__((always_inline)) uchar _f1_clean_in(_PARAMS, _LOCALS, const int y, const int x, const int c)
 {
     const int src_height = 480, src_width = 640;
+    typedef uchar src_t;
+    const uchar src_min = 0, src_max = 255;
     const int inner_height = 480, inner_width = 640;
     const int dst_height = 480, dst_width = 640;
     const int op = 2;
@@ -291,8 +302,8 @@ static inline __attribute__((always_inline)) uchar _f1_clean_in(_PARAMS, _LOCALS
     const int r = shape == 0 ? side * iterations : side;
     const bool nested = op == 2 || op == 3 || op == 5 || op == 6;
     const bool erode_first = op == 2 || op == 5;
-    uchar lo = 255, hi = 0;
-    uchar outer = erode_first ? 0 : 255;
+    src_t lo = src_max, hi = src_min;
+    src_t outer = erode_first ? src_min : src_max;
     #pragma unroll
     for (int dy = -r; dy <= r; dy++) {
         int w = shape == 0 ? r : shape == 1 ? (dy == 0 ? r : 0) : 0;
@@ -300,11 +311,11 @@ static inline __attribute__((always_inline)) uchar _f1_clean_in(_PARAMS, _LOCALS
         for (int k = 1; k <= side && shape == 2; k++)
             w += (2 * k - 1) * (2 * k - 1) < 4 * (side * side - dy * dy);
         if (!nested) {
-            uchar row_lo = src(y + dy, x - w, c);
-            uchar row_hi = row_lo;
+            src_t row_lo = src(y + dy, x - w, c);
+            src_t row_hi = row_lo;
             #pragma unroll
             for (int dx = 1 - w; dx <= w; dx++) {
-                const uchar v = src(y + dy, x + dx, c);
+                const src_t v = src(y + dy, x + dx, c);
                 row_lo = _min(row_lo, v);
                 row_hi = _max(row_hi, v);
             }
@@ -315,8 +326,8 @@ static inline __attribute__((always_inline)) uchar _f1_clean_in(_PARAMS, _LOCALS
         #pragma unroll
         for (int dx = -w; dx <= w; dx++) {
             const bool inside = y + dy >= 0 && y + dy < src_height && x + dx >= 0 && x + dx < src_width;
-            const uchar v = inner(y + dy, x + dx, c);
-            const uchar tap = inside ? v : erode_first ? 0 : 255;
+            const src_t v = inner(y + dy, x + dx, c);
+            const src_t tap = inside ? v : erode_first ? src_min : src_max;
             outer = erode_first ? _max(outer, tap) : _min(outer, tap);
         }
     }
@@ -325,11 +336,12 @@ static inline __attribute__((always_inline)) uchar _f1_clean_in(_PARAMS, _LOCALS
     if (op == 1)
         return hi;
     if (op == 4)
-        return hi - lo;
+        return hi - lo > src_max ? src_max : hi - lo;
     if (op == 2 || op == 3)
         return outer;
-    const uchar p = src(y, x, c);
-    return op == 5 ? (p > outer ? p - outer : 0) : (outer > p ? outer - p : 0);
+    const src_t p = src(y, x, c);
+    const src_t more = op == 5 ? p : outer, less = op == 5 ? outer : p;
+    return more > less ? (more - less > src_max ? src_max : more - less) : 0;
 }
 #undef src
 #undef inner

@@ -28,6 +28,8 @@ __device__ inline size_t get_global_size(const unsigned d) { return d == 0 ? (si
 __device__ inline int mad24(const int a, const int b, const int c) { return a * b + c; }
 __device__ inline unsigned int mad24(const unsigned int a, const unsigned int b, const unsigned int c) { return a * b + c; }
 __device__ inline int mul24(const int a, const int b) { return a * b; }
+__device__ inline int as_int(const float v) { return __float_as_int(v); }
+__device__ inline float as_float(const int v) { return __int_as_float(v); }
 __device__ inline int clamp(const int v, const int lo, const int hi) { return v < lo ? lo : v > hi ? hi : v; }
 __device__ inline unsigned int clamp(const unsigned int v, const unsigned int lo, const unsigned int hi) { return v < lo ? lo : v > hi ? hi : v; }
 __device__ inline long clamp(const long v, const long lo, const long hi) { return v < lo ? lo : v > hi ? hi : v; }
@@ -112,40 +114,40 @@ __device__ inline float4 vload4(const size_t i, const float *p) { return make_fl
 // parameter is chosen once, not per element).  The program builds this file with -D
 // NAME=VALUE, its values after --set; below, the model's values, for a build without them.
 #ifndef _m1_lowerb_0
-#define _m1_lowerb_0 0
+#define _m1_lowerb_0 0.0f
 #endif
 #ifndef _m1_lowerb_1
-#define _m1_lowerb_1 100
+#define _m1_lowerb_1 100.0f
 #endif
 #ifndef _m1_lowerb_2
-#define _m1_lowerb_2 100
+#define _m1_lowerb_2 100.0f
 #endif
 #ifndef _m1_upperb_0
-#define _m1_upperb_0 10
+#define _m1_upperb_0 10.0f
 #endif
 #ifndef _m1_upperb_1
-#define _m1_upperb_1 255
+#define _m1_upperb_1 255.0f
 #endif
 #ifndef _m1_upperb_2
-#define _m1_upperb_2 255
+#define _m1_upperb_2 255.0f
 #endif
 #ifndef _m2_lowerb_0
-#define _m2_lowerb_0 170
+#define _m2_lowerb_0 170.0f
 #endif
 #ifndef _m2_lowerb_1
-#define _m2_lowerb_1 100
+#define _m2_lowerb_1 100.0f
 #endif
 #ifndef _m2_lowerb_2
-#define _m2_lowerb_2 100
+#define _m2_lowerb_2 100.0f
 #endif
 #ifndef _m2_upperb_0
-#define _m2_upperb_0 179
+#define _m2_upperb_0 179.0f
 #endif
 #ifndef _m2_upperb_1
-#define _m2_upperb_1 255
+#define _m2_upperb_1 255.0f
 #endif
 #ifndef _m2_upperb_2
-#define _m2_upperb_2 255
+#define _m2_upperb_2 255.0f
 #endif
 
 #define _PARAMS \
@@ -200,16 +202,28 @@ static inline __attribute__((always_inline)) uchar _f0_hsv(_PARAMS, const int y,
 static inline __attribute__((always_inline)) uchar _f1_low_red(_PARAMS, const int y, const int x, const int c)
 {
     const int src_height = 480, src_width = 640;
+    const int src_channels = 3;
+    typedef uchar src_t;
     const int dst_height = 480, dst_width = 640;
-    const int lowerb_0 = _m1_lowerb_0;
-    const int lowerb_1 = _m1_lowerb_1;
-    const int lowerb_2 = _m1_lowerb_2;
-    const int upperb_0 = _m1_upperb_0;
-    const int upperb_1 = _m1_upperb_1;
-    const int upperb_2 = _m1_upperb_2;
-    const int p0 = src(y, x, 0), p1 = src(y, x, 1), p2 = src(y, x, 2);
-    return (p0 >= lowerb_0 && p0 <= upperb_0 && p1 >= lowerb_1 && p1 <= upperb_1
-            && p2 >= lowerb_2 && p2 <= upperb_2) ? 255 : 0;
+    const float lowerb_0 = _m1_lowerb_0;
+    const float lowerb_1 = _m1_lowerb_1;
+    const float lowerb_2 = _m1_lowerb_2;
+    const float upperb_0 = _m1_upperb_0;
+    const float upperb_1 = _m1_upperb_1;
+    const float upperb_2 = _m1_upperb_2;
+    const bool whole = (src_t)0.5f == (src_t)0;
+    const float m = 65536.0f, k = 12582912.0f;
+    const float a0 = whole ? ((lowerb_0 < -m ? -m : lowerb_0 > m ? m : lowerb_0) + k) - k : lowerb_0;
+    const float b0 = whole ? ((upperb_0 < -m ? -m : upperb_0 > m ? m : upperb_0) + k) - k : upperb_0;
+    const float a1 = whole ? ((lowerb_1 < -m ? -m : lowerb_1 > m ? m : lowerb_1) + k) - k : lowerb_1;
+    const float b1 = whole ? ((upperb_1 < -m ? -m : upperb_1 > m ? m : upperb_1) + k) - k : upperb_1;
+    const float a2 = whole ? ((lowerb_2 < -m ? -m : lowerb_2 > m ? m : lowerb_2) + k) - k : lowerb_2;
+    const float b2 = whole ? ((upperb_2 < -m ? -m : upperb_2 > m ? m : upperb_2) + k) - k : upperb_2;
+    const float p0 = src(y, x, 0);
+    if (src_channels == 1)
+        return (p0 >= a0 & p0 <= b0) ? 255 : 0;
+    const float p1 = src(y, x, 1), p2 = src(y, x, 2);
+    return (p0 >= a0 & p0 <= b0 & p1 >= a1 & p1 <= b1 & p2 >= a2 & p2 <= b2) ? 255 : 0;
 }
 #undef src
 
@@ -218,16 +232,28 @@ static inline __attribute__((always_inline)) uchar _f1_low_red(_PARAMS, const in
 static inline __attribute__((always_inline)) uchar _f2_high_red(_PARAMS, const int y, const int x, const int c)
 {
     const int src_height = 480, src_width = 640;
+    const int src_channels = 3;
+    typedef uchar src_t;
     const int dst_height = 480, dst_width = 640;
-    const int lowerb_0 = _m2_lowerb_0;
-    const int lowerb_1 = _m2_lowerb_1;
-    const int lowerb_2 = _m2_lowerb_2;
-    const int upperb_0 = _m2_upperb_0;
-    const int upperb_1 = _m2_upperb_1;
-    const int upperb_2 = _m2_upperb_2;
-    const int p0 = src(y, x, 0), p1 = src(y, x, 1), p2 = src(y, x, 2);
-    return (p0 >= lowerb_0 && p0 <= upperb_0 && p1 >= lowerb_1 && p1 <= upperb_1
-            && p2 >= lowerb_2 && p2 <= upperb_2) ? 255 : 0;
+    const float lowerb_0 = _m2_lowerb_0;
+    const float lowerb_1 = _m2_lowerb_1;
+    const float lowerb_2 = _m2_lowerb_2;
+    const float upperb_0 = _m2_upperb_0;
+    const float upperb_1 = _m2_upperb_1;
+    const float upperb_2 = _m2_upperb_2;
+    const bool whole = (src_t)0.5f == (src_t)0;
+    const float m = 65536.0f, k = 12582912.0f;
+    const float a0 = whole ? ((lowerb_0 < -m ? -m : lowerb_0 > m ? m : lowerb_0) + k) - k : lowerb_0;
+    const float b0 = whole ? ((upperb_0 < -m ? -m : upperb_0 > m ? m : upperb_0) + k) - k : upperb_0;
+    const float a1 = whole ? ((lowerb_1 < -m ? -m : lowerb_1 > m ? m : lowerb_1) + k) - k : lowerb_1;
+    const float b1 = whole ? ((upperb_1 < -m ? -m : upperb_1 > m ? m : upperb_1) + k) - k : upperb_1;
+    const float a2 = whole ? ((lowerb_2 < -m ? -m : lowerb_2 > m ? m : lowerb_2) + k) - k : lowerb_2;
+    const float b2 = whole ? ((upperb_2 < -m ? -m : upperb_2 > m ? m : upperb_2) + k) - k : upperb_2;
+    const float p0 = src(y, x, 0);
+    if (src_channels == 1)
+        return (p0 >= a0 & p0 <= b0) ? 255 : 0;
+    const float p1 = src(y, x, 1), p2 = src(y, x, 2);
+    return (p0 >= a0 & p0 <= b0 & p1 >= a1 & p1 <= b1 & p2 >= a2 & p2 <= b2) ? 255 : 0;
 }
 #undef src
 

@@ -54,6 +54,8 @@ static inline __attribute__((overloadable)) float _max(const float a, const floa
 static inline __attribute__((noinline)) uchar _f0_clean_inner(_PARAMS, _LOCALS, const int y, const int x, const int c)
 {
     const int src_height = 480, src_width = 640;
+    typedef uchar src_t;
+    const uchar src_min = 0, src_max = 255;
     const int inner_height = 480, inner_width = 640;
     const int op = 2;
     const int shape = _m0_shape;
@@ -64,14 +66,14 @@ static inline __attribute__((noinline)) uchar _f0_clean_inner(_PARAMS, _LOCALS, 
     const bool erode_first = op == 2 || op == 5;
     const int r = !nested ? 0 : shape == 0 ? side * iterations : side;
     const int eside = nested ? side : 0;
-    uchar v = erode_first ? 255 : 0;
+    src_t v = erode_first ? src_max : src_min;
     #pragma unroll
     for (int dy = -r; dy <= r; dy++) {
         int w = shape == 0 ? r : shape == 1 ? (dy == 0 ? r : 0) : 0;
         #pragma unroll
         for (int k = 1; k <= eside && shape == 2; k++)
             w += (2 * k - 1) * (2 * k - 1) < 4 * (eside * eside - dy * dy);
-        uchar row = src(y + dy, x - w, c);
+        src_t row = src(y + dy, x - w, c);
         #pragma unroll
         for (int dx = 1 - w; dx <= w; dx++)
             row = erode_first ? _min(row, src(y + dy, x + dx, c))
@@ -88,6 +90,8 @@ static inline __attribute__((noinline)) uchar _f0_clean_inner(_PARAMS, _LOCALS, 
 static inline __attribute__((noinline)) uchar _f1_clean(_PARAMS, _LOCALS, const int y, const int x, const int c)
 {
     const int src_height = 480, src_width = 640;
+    typedef uchar src_t;
+    const uchar src_min = 0, src_max = 255;
     const int inner_height = 480, inner_width = 640;
     const int dst_height = 480, dst_width = 640;
     const int op = 2;
@@ -98,8 +102,8 @@ static inline __attribute__((noinline)) uchar _f1_clean(_PARAMS, _LOCALS, const 
     const int r = shape == 0 ? side * iterations : side;
     const bool nested = op == 2 || op == 3 || op == 5 || op == 6;
     const bool erode_first = op == 2 || op == 5;
-    uchar lo = 255, hi = 0;
-    uchar outer = erode_first ? 0 : 255;
+    src_t lo = src_max, hi = src_min;
+    src_t outer = erode_first ? src_min : src_max;
     #pragma unroll
     for (int dy = -r; dy <= r; dy++) {
         int w = shape == 0 ? r : shape == 1 ? (dy == 0 ? r : 0) : 0;
@@ -107,11 +111,11 @@ static inline __attribute__((noinline)) uchar _f1_clean(_PARAMS, _LOCALS, const 
         for (int k = 1; k <= side && shape == 2; k++)
             w += (2 * k - 1) * (2 * k - 1) < 4 * (side * side - dy * dy);
         if (!nested) {
-            uchar row_lo = src(y + dy, x - w, c);
-            uchar row_hi = row_lo;
+            src_t row_lo = src(y + dy, x - w, c);
+            src_t row_hi = row_lo;
             #pragma unroll
             for (int dx = 1 - w; dx <= w; dx++) {
-                const uchar v = src(y + dy, x + dx, c);
+                const src_t v = src(y + dy, x + dx, c);
                 row_lo = _min(row_lo, v);
                 row_hi = _max(row_hi, v);
             }
@@ -122,8 +126,8 @@ static inline __attribute__((noinline)) uchar _f1_clean(_PARAMS, _LOCALS, const 
         #pragma unroll
         for (int dx = -w; dx <= w; dx++) {
             const bool inside = y + dy >= 0 && y + dy < src_height && x + dx >= 0 && x + dx < src_width;
-            const uchar v = inner(y + dy, x + dx, c);
-            const uchar tap = inside ? v : erode_first ? 0 : 255;
+            const src_t v = inner(y + dy, x + dx, c);
+            const src_t tap = inside ? v : erode_first ? src_min : src_max;
             outer = erode_first ? _max(outer, tap) : _min(outer, tap);
         }
     }
@@ -132,11 +136,12 @@ static inline __attribute__((noinline)) uchar _f1_clean(_PARAMS, _LOCALS, const 
     if (op == 1)
         return hi;
     if (op == 4)
-        return hi - lo;
+        return hi - lo > src_max ? src_max : hi - lo;
     if (op == 2 || op == 3)
         return outer;
-    const uchar p = src(y, x, c);
-    return op == 5 ? (p > outer ? p - outer : 0) : (outer > p ? outer - p : 0);
+    const src_t p = src(y, x, c);
+    const src_t more = op == 5 ? p : outer, less = op == 5 ? outer : p;
+    return more > less ? (more - less > src_max ? src_max : more - less) : 0;
 }
 #undef src
 #undef inner
@@ -146,6 +151,8 @@ static inline __attribute__((noinline)) uchar _f1_clean(_PARAMS, _LOCALS, const 
 static inline __attribute__((always_inline)) uchar _f0_clean_inner_in(_PARAMS, _LOCALS, const int y, const int x, const int c)
 {
     const int src_height = 480, src_width = 640;
+    typedef uchar src_t;
+    const uchar src_min = 0, src_max = 255;
     const int inner_height = 480, inner_width = 640;
     const int op = 2;
     const int shape = _m0_shape;
@@ -156,14 +163,14 @@ static inline __attribute__((always_inline)) uchar _f0_clean_inner_in(_PARAMS, _
     const bool erode_first = op == 2 || op == 5;
     const int r = !nested ? 0 : shape == 0 ? side * iterations : side;
     const int eside = nested ? side : 0;
-    uchar v = erode_first ? 255 : 0;
+    src_t v = erode_first ? src_max : src_min;
     #pragma unroll
     for (int dy = -r; dy <= r; dy++) {
         int w = shape == 0 ? r : shape == 1 ? (dy == 0 ? r : 0) : 0;
         #pragma unroll
         for (int k = 1; k <= eside && shape == 2; k++)
             w += (2 * k - 1) * (2 * k - 1) < 4 * (eside * eside - dy * dy);
-        uchar row = src(y + dy, x - w, c);
+        src_t row = src(y + dy, x - w, c);
         #pragma unroll
         for (int dx = 1 - w; dx <= w; dx++)
             row = erode_first ? _min(row, src(y + dy, x + dx, c))
@@ -180,6 +187,8 @@ static inline __attribute__((always_inline)) uchar _f0_clean_inner_in(_PARAMS, _
 static inline __attribute__((always_inline)) uchar _f1_clean_in(_PARAMS, _LOCALS, const int y, const int x, const int c)
 {
     const int src_height = 480, src_width = 640;
+    typedef uchar src_t;
+    const uchar src_min = 0, src_max = 255;
     const int inner_height = 480, inner_width = 640;
     const int dst_height = 480, dst_width = 640;
     const int op = 2;
@@ -190,8 +199,8 @@ static inline __attribute__((always_inline)) uchar _f1_clean_in(_PARAMS, _LOCALS
     const int r = shape == 0 ? side * iterations : side;
     const bool nested = op == 2 || op == 3 || op == 5 || op == 6;
     const bool erode_first = op == 2 || op == 5;
-    uchar lo = 255, hi = 0;
-    uchar outer = erode_first ? 0 : 255;
+    src_t lo = src_max, hi = src_min;
+    src_t outer = erode_first ? src_min : src_max;
     #pragma unroll
     for (int dy = -r; dy <= r; dy++) {
         int w = shape == 0 ? r : shape == 1 ? (dy == 0 ? r : 0) : 0;
@@ -199,11 +208,11 @@ static inline __attribute__((always_inline)) uchar _f1_clean_in(_PARAMS, _LOCALS
         for (int k = 1; k <= side && shape == 2; k++)
             w += (2 * k - 1) * (2 * k - 1) < 4 * (side * side - dy * dy);
         if (!nested) {
-            uchar row_lo = src(y + dy, x - w, c);
-            uchar row_hi = row_lo;
+            src_t row_lo = src(y + dy, x - w, c);
+            src_t row_hi = row_lo;
             #pragma unroll
             for (int dx = 1 - w; dx <= w; dx++) {
-                const uchar v = src(y + dy, x + dx, c);
+                const src_t v = src(y + dy, x + dx, c);
                 row_lo = _min(row_lo, v);
                 row_hi = _max(row_hi, v);
             }
@@ -214,8 +223,8 @@ static inline __attribute__((always_inline)) uchar _f1_clean_in(_PARAMS, _LOCALS
         #pragma unroll
         for (int dx = -w; dx <= w; dx++) {
             const bool inside = y + dy >= 0 && y + dy < src_height && x + dx >= 0 && x + dx < src_width;
-            const uchar v = inner(y + dy, x + dx, c);
-            const uchar tap = inside ? v : erode_first ? 0 : 255;
+            const src_t v = inner(y + dy, x + dx, c);
+            const src_t tap = inside ? v : erode_first ? src_min : src_max;
             outer = erode_first ? _max(outer, tap) : _min(outer, tap);
         }
     }
@@ -224,11 +233,12 @@ static inline __attribute__((always_inline)) uchar _f1_clean_in(_PARAMS, _LOCALS
     if (op == 1)
         return hi;
     if (op == 4)
-        return hi - lo;
+        return hi - lo > src_max ? src_max : hi - lo;
     if (op == 2 || op == 3)
         return outer;
-    const uchar p = src(y, x, c);
-    return op == 5 ? (p > outer ? p - outer : 0) : (outer > p ? outer - p : 0);
+    const src_t p = src(y, x, c);
+    const src_t more = op == 5 ? p : outer, less = op == 5 ? outer : p;
+    return more > less ? (more - less > src_max ? src_max : more - less) : 0;
 }
 #undef src
 #undef inner

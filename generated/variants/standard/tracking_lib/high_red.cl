@@ -10,22 +10,22 @@
 // parameter is chosen once, not per element).  The program builds this file with -D
 // NAME=VALUE, its values after --set; below, the model's values, for a build without them.
 #ifndef _m0_lowerb_0
-#define _m0_lowerb_0 170
+#define _m0_lowerb_0 170.0f
 #endif
 #ifndef _m0_lowerb_1
-#define _m0_lowerb_1 100
+#define _m0_lowerb_1 100.0f
 #endif
 #ifndef _m0_lowerb_2
-#define _m0_lowerb_2 100
+#define _m0_lowerb_2 100.0f
 #endif
 #ifndef _m0_upperb_0
-#define _m0_upperb_0 179
+#define _m0_upperb_0 179.0f
 #endif
 #ifndef _m0_upperb_1
-#define _m0_upperb_1 255
+#define _m0_upperb_1 255.0f
 #endif
 #ifndef _m0_upperb_2
-#define _m0_upperb_2 255
+#define _m0_upperb_2 255.0f
 #endif
 
 #define _PARAMS \
@@ -41,16 +41,28 @@
 static inline __attribute__((always_inline)) uchar _f0_high_red(_PARAMS, const int y, const int x, const int c)
 {
     const int src_height = 480, src_width = 640;
+    const int src_channels = 3;
+    typedef uchar src_t;
     const int dst_height = 480, dst_width = 640;
-    const int lowerb_0 = _m0_lowerb_0;
-    const int lowerb_1 = _m0_lowerb_1;
-    const int lowerb_2 = _m0_lowerb_2;
-    const int upperb_0 = _m0_upperb_0;
-    const int upperb_1 = _m0_upperb_1;
-    const int upperb_2 = _m0_upperb_2;
-    const int p0 = src(y, x, 0), p1 = src(y, x, 1), p2 = src(y, x, 2);
-    return (p0 >= lowerb_0 && p0 <= upperb_0 && p1 >= lowerb_1 && p1 <= upperb_1
-            && p2 >= lowerb_2 && p2 <= upperb_2) ? 255 : 0;
+    const float lowerb_0 = _m0_lowerb_0;
+    const float lowerb_1 = _m0_lowerb_1;
+    const float lowerb_2 = _m0_lowerb_2;
+    const float upperb_0 = _m0_upperb_0;
+    const float upperb_1 = _m0_upperb_1;
+    const float upperb_2 = _m0_upperb_2;
+    const bool whole = (src_t)0.5f == (src_t)0;
+    const float m = 65536.0f, k = 12582912.0f;
+    const float a0 = whole ? ((lowerb_0 < -m ? -m : lowerb_0 > m ? m : lowerb_0) + k) - k : lowerb_0;
+    const float b0 = whole ? ((upperb_0 < -m ? -m : upperb_0 > m ? m : upperb_0) + k) - k : upperb_0;
+    const float a1 = whole ? ((lowerb_1 < -m ? -m : lowerb_1 > m ? m : lowerb_1) + k) - k : lowerb_1;
+    const float b1 = whole ? ((upperb_1 < -m ? -m : upperb_1 > m ? m : upperb_1) + k) - k : upperb_1;
+    const float a2 = whole ? ((lowerb_2 < -m ? -m : lowerb_2 > m ? m : lowerb_2) + k) - k : lowerb_2;
+    const float b2 = whole ? ((upperb_2 < -m ? -m : upperb_2 > m ? m : upperb_2) + k) - k : upperb_2;
+    const float p0 = src(y, x, 0);
+    if (src_channels == 1)
+        return (p0 >= a0 & p0 <= b0) ? 255 : 0;
+    const float p1 = src(y, x, 1), p2 = src(y, x, 2);
+    return (p0 >= a0 & p0 <= b0 & p1 >= a1 & p1 <= b1 & p2 >= a2 & p2 <= b2) ? 255 : 0;
 }
 #undef src
 

@@ -29,6 +29,8 @@ __device__ inline size_t get_global_size(const unsigned d) { return d == 0 ? (si
 __device__ inline int mad24(const int a, const int b, const int c) { return a * b + c; }
 __device__ inline unsigned int mad24(const unsigned int a, const unsigned int b, const unsigned int c) { return a * b + c; }
 __device__ inline int mul24(const int a, const int b) { return a * b; }
+__device__ inline int as_int(const float v) { return __float_as_int(v); }
+__device__ inline float as_float(const int v) { return __int_as_float(v); }
 __device__ inline int clamp(const int v, const int lo, const int hi) { return v < lo ? lo : v > hi ? hi : v; }
 __device__ inline unsigned int clamp(const unsigned int v, const unsigned int lo, const unsigned int hi) { return v < lo ? lo : v > hi ? hi : v; }
 __device__ inline long clamp(const long v, const long lo, const long hi) { return v < lo ? lo : v > hi ? hi : v; }
