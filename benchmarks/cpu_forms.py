@@ -29,7 +29,8 @@ sys.path.insert(0, str(ROOT))
 CASES = {
     "RgbToGray": ({}, lambda cv2, im: cv2.cvtColor(im, cv2.COLOR_RGB2GRAY)),
     "RgbToHsv": ({}, lambda cv2, im: cv2.cvtColor(im, cv2.COLOR_RGB2HSV)),
-    "InRangeGray": ({"lowerb": 60, "upperb": 180}, lambda cv2, im: cv2.inRange(im, 60, 180)),
+    "InRangeGray": ({"lowerb_0": 60, "upperb_0": 180},  # the CPU form takes the new names
+                    lambda cv2, im: cv2.inRange(im, 60, 180)),
     "ThresholdGray": ({"thresh": 100, "maxval": 255, "thresh_type": 0},
                       lambda cv2, im: cv2.threshold(im, 100, 255, 0)[1]),
     "ConvertScaleGray": ({"alpha": 1.7, "beta": -30.2},

@@ -506,8 +506,9 @@ def test_every_library_kernel_follows_the_convention():
             found = signature.check(ctype, ctype.kernel_text, ctype.kernel_function)
             assert found.name == ctype.kernel_function
             checked += 1
-    assert checked >= 4 and checked == sum(t.gpu_aware and t.fusable is None
-                                           for t in library_types().values())
+    # every library type with a kernel and no fusable form (none since Resize and Crop
+    # are generated from forms too); users' kernels are checked above
+    assert checked == sum(t.gpu_aware and t.fusable is None for t in library_types().values())
 
 
 @pytest.mark.parametrize("hostile", [

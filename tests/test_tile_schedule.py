@@ -48,7 +48,7 @@ def test_what_is_staged_and_in_what_tiles():
                       ("MorphologyEx", 15, 0): [], ("MorphologyEx", 3, 2): ["m.inner"],
                       ("MorphologyEx", 5, 6): ["m.inner"]}
     # tiles: whole rows where they fit in STAGED_BYTES, else columns
-    for w, expected in ((64, (32, 64)), (200, (32, 200)), (1280, None)):
+    for w, expected in ((48, (32, 48)), (200, (32, 64)), (1280, None)):
         group = _group("Blur", {"ksize": 31, "border_type": 4}, 360, w)
         pieces, (rows, cols) = fused.staged_pieces(group, "runs")
         assert pieces == {"m.rows"}

@@ -86,7 +86,7 @@ static inline __attribute__((noinline)) uchar _f0_clean_inner(_PARAMS, _LOCALS, 
 
 // clean: MorphologyEx (stencil, radius (ksize // 2) * iterations, border clamp); every element
 #define src(y_, x_, c_) _in0[(size_t)_clamp((y_), 480) * 640 + _clamp((x_), 640)]
-#define inner(y_, x_, c_) _s0[(size_t)(_clamp((y_), 480) - _a0) * 642 + _clamp((x_), 640) - _c0]
+#define inner(y_, x_, c_) _s0[(size_t)(_clamp((y_), 480) - _a0) * 258 + _clamp((x_), 640) - _c0]
 static inline __attribute__((noinline)) uchar _f1_clean(_PARAMS, _LOCALS, const int y, const int x, const int c)
 {
     const int src_height = 480, src_width = 640;
@@ -183,7 +183,7 @@ static inline __attribute__((always_inline)) uchar _f0_clean_inner_in(_PARAMS, _
 
 // clean: MorphologyEx (stencil, radius (ksize // 2) * iterations, border clamp); interior: no border rule
 #define src(y_, x_, c_) _in0[(size_t)(y_) * 640 + (x_)]
-#define inner(y_, x_, c_) _s0[(size_t)((y_) - _a0) * 642 + (x_) - _c0]
+#define inner(y_, x_, c_) _s0[(size_t)((y_) - _a0) * 258 + (x_) - _c0]
 static inline __attribute__((always_inline)) uchar _f1_clean_in(_PARAMS, _LOCALS, const int y, const int x, const int c)
 {
     const int src_height = 480, src_width = 640;
@@ -244,43 +244,43 @@ static inline __attribute__((always_inline)) uchar _f1_clean_in(_PARAMS, _LOCALS
 #undef inner
 
 // 480 rows of 640 pixels.  Work-group g computes the rows [g * tile, g * tile + tile), in
-// strips of 32 rows that its threads take in turn, each strip in tiles of 640 columns:
+// strips of 32 rows that its threads take in turn, each strip in tiles of 256 columns:
 // first clean.inner over the tile and 1 rows and 1 columns around it (inside the frame)
 // into the thread's array _s0, then clean from them: each computed once, not at every read
 // of it.
 __kernel void clean(_PARAMS, const int _tile)
 {
-    uchar _s0[21828];  // 32 + 2 x 1 rows of 640 + 2 x 1 pixels of clean.inner
+    uchar _s0[8772];  // 32 + 2 x 1 rows of 256 + 2 x 1 pixels of clean.inner
     const int _y0 = get_group_id(1) * _tile;
     const int _y1 = min(_y0 + _tile, 480);
     const int _k = get_local_id(1) * get_local_size(0) + get_local_id(0);
     const int _n = get_local_size(0) * get_local_size(1);
     for (int _ys = _y0 + 32 * _k; _ys < _y1; _ys += 32 * _n)
-    for (int _xs = 0; _xs < 640; _xs += 640) {
-        const int _ye = min(_ys + 32, _y1), _xe = min(_xs + 640, 640);
+    for (int _xs = 0; _xs < 640; _xs += 256) {
+        const int _ye = min(_ys + 32, _y1), _xe = min(_xs + 256, 640);
         const int _a0 = max(_ys - 1, 0), _b0 = min(_ye + 1, 480), _c0 = max(_xs - 1, 0), _d0 = min(_xe + 1, 640);
         // clean.inner: rows [_a0, _b0) and columns [_c0, _d0) of the frame, into _s0
         for (int _p = _a0; _p < _b0; _p += 4 * 1) {
             if (_p >= 1 && _p + 3 < min(_b0, 479)) {
                 // rows _p to _p + 3, every one in the interior
                 const int _y = _p;
-                uchar *_row = _s0 + (size_t)(_y - _a0) * 642;
+                uchar *_row = _s0 + (size_t)(_y - _a0) * 258;
                 for (int _r = 0; _r < 4; _r++) {
                     for (int _x = _c0; _x < min(_d0, 1); _x++)
-                        _row[_r * 642 + (_x - _c0)] = _f0_clean_inner(_ARGS, _LARGS, _y + _r, _x, 0);
+                        _row[_r * 258 + (_x - _c0)] = _f0_clean_inner(_ARGS, _LARGS, _y + _r, _x, 0);
                     for (int _x = max(_c0, 639); _x < _d0; _x++)
-                        _row[_r * 642 + (_x - _c0)] = _f0_clean_inner(_ARGS, _LARGS, _y + _r, _x, 0);
+                        _row[_r * 258 + (_x - _c0)] = _f0_clean_inner(_ARGS, _LARGS, _y + _r, _x, 0);
                 }
                 for (int _x = max(_c0, 1); _x < min(_d0, 639); _x++) {
                     _row[(_x - _c0)] = _f0_clean_inner_in(_ARGS, _LARGS, _y, _x, 0);
-                    _row[642 + (_x - _c0)] = _f0_clean_inner_in(_ARGS, _LARGS, _y + 1, _x, 0);
-                    _row[1284 + (_x - _c0)] = _f0_clean_inner_in(_ARGS, _LARGS, _y + 2, _x, 0);
-                    _row[1926 + (_x - _c0)] = _f0_clean_inner_in(_ARGS, _LARGS, _y + 3, _x, 0);
+                    _row[258 + (_x - _c0)] = _f0_clean_inner_in(_ARGS, _LARGS, _y + 1, _x, 0);
+                    _row[516 + (_x - _c0)] = _f0_clean_inner_in(_ARGS, _LARGS, _y + 2, _x, 0);
+                    _row[774 + (_x - _c0)] = _f0_clean_inner_in(_ARGS, _LARGS, _y + 3, _x, 0);
                 }
                 continue;
             }
             for (int _y = _p; _y < min(_p + 4, _b0); _y++) {
-                uchar *_row = _s0 + (size_t)(_y - _a0) * 642;
+                uchar *_row = _s0 + (size_t)(_y - _a0) * 258;
                 if (_y >= 1 && _y < 479) {
                     for (int _x = _c0; _x < min(_d0, 1); _x++)
                         _row[(_x - _c0)] = _f0_clean_inner(_ARGS, _LARGS, _y, _x, 0);
