@@ -579,13 +579,14 @@ def expand(group: GroupNode) -> tuple[GroupNode, dict[Endpoint, str]]:
     return replace(group, members=members, internal=internal), feeds
 
 
-def group_kernel_body(group: GroupNode, device=None) -> str:
-    """The group's kernel file below its first line, the generated-file header: what
-    lowering keeps in the plan (LibSource.text), and a printer puts its header above."""
-    return group_kernel(group, "", device).split("\n", 1)[1]
-
-
 def group_kernel(group: GroupNode, header: str, device=None) -> str:
+    """The group's kernel file: the generated-file header, then its body."""
+    return f"// {header}\n" + group_kernel_body(group, device)
+
+
+def group_kernel_body(group: GroupNode, device=None) -> str:
+    """The group's kernel file below the generated-file header: what lowering keeps in
+    the plan (LibSource.text), and a printer puts its header above."""
     from ..c_convention import group_constants, group_parameters
 
     params = group_parameters(group)
@@ -605,8 +606,7 @@ def group_kernel(group: GroupNode, header: str, device=None) -> str:
     stencils = any(m.type.fusable.form == "stencil" for m in group.members)
     # flat stencils need the interior path: border rules apply to pixel positions
     flat = channel_flat(group) and (edge is not None or not stencils)
-    lines = [f"// {header}",
-             *_comment(f"Group {group.name}: one kernel for "
+    lines = [*_comment(f"Group {group.name}: one kernel for "
                        + ", ".join(f"{m.name} ({m.type.name}, {m.type.fusable.form})"
                                    for m in group.members) + "."),
              (f"// It computes {root.name}.{out_name} from the group's inputs directly: no "
