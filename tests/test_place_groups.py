@@ -78,9 +78,10 @@ def _by_hand(system, row, names=CHAIN):
     component's bytes at the CPU forms' rate; on the device its launch and bytes at the
     kernels' rate; and the two zero-copy crossings (camera -> chain, chain -> sink) at
     the transfer's latency.  As one group the device's part is taken at the fusion
-    estimate's fused / apart, fused taken at the model's error more (_ratio)."""
+    estimate's fused / apart, fused taken at the model's error more (_ratio).  A CPU form
+    also costs the loop's call of it (cpu_call_s)."""
     nbytes = {n: sum(p.data.nbytes for p in system.component(n).ports) for n in names}
-    cpu = sum(b / row["cpu_bytes_per_s"] for b in nbytes.values())
+    cpu = sum(row["cpu_call_s"] + b / row["cpu_bytes_per_s"] for b in nbytes.values())
     apart_gpu = sum(row["gpu_launch_s"] + b / row["gpu_bytes_per_s"] for b in nbytes.values())
     return cpu, apart_gpu, 2 * row["transfer_latency_s"]
 

@@ -44,13 +44,18 @@ EXHAUSTIVE_LIMIT = 16
 MAX_PROFILE_NUMBER = 1e12
 # The estimate used without a profile, one row per device class (DeviceFacts.kind; the
 # table and its measurements are in docs/placement.md).  A component reads its inputs and
-# writes its outputs once, at the side's bytes a second; a kernel costs a launch (enqueue to
-# done, as the generated loop waits for it); a copy between memories costs its latency
-# plus its bytes at the transfer's rate (zero-copy adapters: the latency only).
-# - "cpu": a CPU OpenCL device (PoCL) runs on the cores the CPU forms (OpenCV) use: the
-#   generated kernels were 0.5x to 5x OpenCV's time alone (median 1.4x, benchmarks/
-#   kernels.py) and the generated loop paid about 45 µs a kernel more than a CPU form
-#   (benchmarks/pipelines.py, fusion off against all CPU), so the CPU form wins;
+# writes its outputs once, at the side's bytes a second; a CPU form also costs the
+# generated loop's call of it (cpu_call_s: the call, the check of the frame it returns);
+# a kernel costs a launch (enqueue to done, as the generated loop waits for it); a copy
+# between memories costs its latency plus its bytes at the transfer's rate (zero-copy
+# adapters: the latency only).
+# - "cpu": a CPU OpenCL device (PoCL) runs on the cores the CPU forms (OpenCV) use.  The
+#   CPU forms move 8 to 58 GB/s through these 2 cores, median 14 GB/s
+#   (benchmarks/cpu_forms.py, 640x360: bytes read and written over the call's time), and
+#   the loop pays about 6 µs a CPU form (benchmarks/frame_cost.py: N mirrors on the CPU,
+#   8x8 frames, 5.8 µs a component); the generated kernels were 0.5x to 5x OpenCV's time
+#   alone (median 1.4x, benchmarks/kernels.py) and the generated loop paid about 45 µs a
+#   kernel more than a CPU form (benchmarks/pipelines.py, fusion off against all CPU);
 # - "integrated-gpu": a Jetson-class board: slower cores, a GPU sharing their memory;
 # - "discrete-gpu": a GPU behind PCIe: fast kernels, every crossing a copy;
 # - "": no class known (`placement: auto` on the 'portable' profile): the first static
@@ -58,14 +63,16 @@ MAX_PROFILE_NUMBER = 1e12
 # Recalibrate with `gpucompgen tune` on the device (its profile replaces these figures
 # for one model) or benchmarks/pipelines.py (all CPU against the device's variants).
 PLACEMENT_COSTS: dict[str, dict[str, float]] = {
-    "cpu": {"cpu_bytes_per_s": 5e9, "gpu_bytes_per_s": 3.5e9, "gpu_launch_s": 45e-6,
-            "transfer_bytes_per_s": 5e9, "transfer_latency_s": 10e-6},
-    "integrated-gpu": {"cpu_bytes_per_s": 2e9, "gpu_bytes_per_s": 20e9, "gpu_launch_s": 20e-6,
-                       "transfer_bytes_per_s": 10e9, "transfer_latency_s": 10e-6},
-    "discrete-gpu": {"cpu_bytes_per_s": 5e9, "gpu_bytes_per_s": 200e9, "gpu_launch_s": 10e-6,
-                     "transfer_bytes_per_s": 12e9, "transfer_latency_s": 10e-6},
-    "": {"cpu_bytes_per_s": 1e9, "gpu_bytes_per_s": 20e9, "gpu_launch_s": 20e-6,
-         "transfer_bytes_per_s": 6e9, "transfer_latency_s": 10e-6},
+    "cpu": {"cpu_bytes_per_s": 14e9, "cpu_call_s": 6e-6, "gpu_bytes_per_s": 3.5e9,
+            "gpu_launch_s": 45e-6, "transfer_bytes_per_s": 5e9, "transfer_latency_s": 10e-6},
+    "integrated-gpu": {"cpu_bytes_per_s": 2e9, "cpu_call_s": 6e-6, "gpu_bytes_per_s": 20e9,
+                       "gpu_launch_s": 20e-6, "transfer_bytes_per_s": 10e9,
+                       "transfer_latency_s": 10e-6},
+    "discrete-gpu": {"cpu_bytes_per_s": 5e9, "cpu_call_s": 6e-6, "gpu_bytes_per_s": 200e9,
+                     "gpu_launch_s": 10e-6, "transfer_bytes_per_s": 12e9,
+                     "transfer_latency_s": 10e-6},
+    "": {"cpu_bytes_per_s": 1e9, "cpu_call_s": 0.0, "gpu_bytes_per_s": 20e9,
+         "gpu_launch_s": 20e-6, "transfer_bytes_per_s": 6e9, "transfer_latency_s": 10e-6},
 }
 STATIC = PLACEMENT_COSTS[""]
 
@@ -257,7 +264,7 @@ class CostModel:
             return Cost(measured[0], measured[1], "profile")
         nbytes = sum(p.data.nbytes for p in node.ports if p.data is not None)
         k = self.costs
-        return Cost(nbytes / k["cpu_bytes_per_s"],
+        return Cost(k.get("cpu_call_s", 0.0) + nbytes / k["cpu_bytes_per_s"],
                     k["gpu_launch_s"] + nbytes / k["gpu_bytes_per_s"], self.source)
 
     def side(self, name: str, sides: dict[str, str]) -> str:
