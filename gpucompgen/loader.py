@@ -62,6 +62,41 @@ def _fail(file: str, mark: Any, message: str, hint: str = "") -> GpucompgenError
 _C_LOADER = getattr(yaml, "CSafeLoader", None)  # None where PyYAML was built without libyaml
 
 
+def _event_problems(text: str, loader: Any, fast: bool = False):
+    """What the reader refuses in text, from its parser's events, before anything is
+    composed: (mark, message, hint, fatal) for each alias, anchor, explicit tag and a
+    nesting deeper than MAX_DEPTH (fatal: the walk stops there, deeper input is never
+    composed).  fast: the walk _fast makes with libyaml, which also refuses an empty
+    plain value (libyaml places it a column further than the pure-Python parser) and any
+    tag at all.  Raises yaml.YAMLError where the text is not YAML."""
+    depth = 0
+    for event in yaml.parse(text, Loader=loader):
+        mark = event.start_mark
+        anchor = getattr(event, "anchor", None)
+        tag = getattr(event, "tag", None)
+        if isinstance(event, yaml.AliasEvent):
+            yield (mark, f"alias '*{anchor}' is not allowed",
+                   "write the value out in full; anchors and aliases are rejected", False)
+        elif anchor is not None:
+            yield (mark, f"anchor '&{anchor}' is not allowed",
+                   "write the value out in full; anchors and aliases are rejected", False)
+        if isinstance(event, yaml.ScalarEvent):
+            if tag is not None and (fast or event.implicit == (False, False)):
+                yield (mark, f"explicit tag '{tag}' is not allowed",
+                       "remove the tag; quote the value if it should be a string", False)
+            if fast and not event.value and not event.style:
+                yield mark, "an empty value", "", False
+        elif isinstance(event, (yaml.MappingStartEvent, yaml.SequenceStartEvent)):
+            if tag is not None and (fast or not event.implicit):
+                yield mark, f"explicit tag '{tag}' is not allowed", "remove the tag", False
+            depth += 1
+            if depth > MAX_DEPTH:
+                yield mark, f"nesting is deeper than {MAX_DEPTH} levels", "flatten the model", True
+                return
+        elif isinstance(event, (yaml.MappingEndEvent, yaml.SequenceEndEvent)):
+            depth -= 1
+
+
 def _fast(text: str, file: str) -> Document | None:
     """The Document of an ASCII text read with libyaml (PyYAML's C parser, 15x faster),
     or None where load_text must read it.
@@ -69,25 +104,16 @@ def _fast(text: str, file: str) -> Document | None:
     Only the library's own type files are read so (load_file(fast=True)), as every
     command reads all sixteen: libyaml accepts texts the pure-Python parser refuses
     (a tab after a value, '|#'), so a user's file is always read by load_text, which
-    alone writes the messages.  tests/test_fuzz_loader.py checks that both readings
-    give the same Document for every shipped file, and wherever both accept a text.
+    alone writes the messages: any problem of the event walk (_event_problems, the one
+    load_text makes) sends the text there.  tests/test_fuzz_loader.py checks that both
+    readings give the same Document for every shipped file, and wherever both accept a
+    text.
     """
     if _C_LOADER is None or not text.isascii() or len(text) > MAX_FILE_BYTES:
         return None
     try:
-        depth = 0
-        for event in yaml.parse(text, Loader=_C_LOADER):
-            if isinstance(event, yaml.AliasEvent) or getattr(event, "anchor", None) is not None \
-                    or getattr(event, "tag", None) is not None:
-                return None  # an alias, anchor or explicit tag: refused with its position
-            if isinstance(event, yaml.ScalarEvent) and not event.value and not event.style:
-                return None  # an empty value: libyaml places it a column further
-            if isinstance(event, (yaml.MappingStartEvent, yaml.SequenceStartEvent)):
-                depth += 1
-                if depth > MAX_DEPTH:
-                    return None
-            elif isinstance(event, (yaml.MappingEndEvent, yaml.SequenceEndEvent)):
-                depth -= 1
+        if next(_event_problems(text, _C_LOADER, fast=True), None) is not None:
+            return None
         node = yaml.compose(text, Loader=_C_LOADER)
     except yaml.YAMLError:
         return None
@@ -104,44 +130,19 @@ def load_text(text: str, file: str) -> Document:
     """Parse YAML text into a Document, or raise GpucompgenError with every problem found.
 
     A syntax error stops parsing, so it is reported alone.  Anchors, aliases and tags are
-    found first, from the parser's events, and reported together; only a file without
-    them is composed, and then merge and duplicate keys and YAML 1.1 numbers are reported
-    together.
+    found first, from the parser's events (_event_problems), and reported together; only
+    a file without them is composed, and then merge and duplicate keys and YAML 1.1
+    numbers are reported together.
     """
     if len(text.encode("utf-8", "surrogatepass")) > MAX_FILE_BYTES:
         raise _fail(file, None, f"file is larger than {MAX_FILE_BYTES:,} bytes",
                     "a model file should be a few kilobytes; split component types into files")
     problems: list[Diagnostic] = []
-
-    def problem(mark: Any, message: str, hint: str = "") -> None:
-        problems.extend(_fail(file, mark, message, hint).diagnostics)
-
     try:
-        # Reject anchors, aliases and explicit tags at the event level, before composing.
-        depth = 0
-        for event in yaml.parse(text, Loader=yaml.SafeLoader):
-            if isinstance(event, yaml.AliasEvent):
-                problem(event.start_mark, f"alias '*{event.anchor}' is not allowed",
-                        "write the value out in full; anchors and aliases are rejected")
-            anchor = getattr(event, "anchor", None)
-            if anchor is not None and not isinstance(event, yaml.AliasEvent):
-                problem(event.start_mark, f"anchor '&{anchor}' is not allowed",
-                        "write the value out in full; anchors and aliases are rejected")
-            tag = getattr(event, "tag", None)
-            if isinstance(event, yaml.ScalarEvent) and tag is not None and \
-                    event.implicit == (False, False):
-                problem(event.start_mark, f"explicit tag '{tag}' is not allowed",
-                        "remove the tag; quote the value if it should be a string")
-            if isinstance(event, (yaml.MappingStartEvent, yaml.SequenceStartEvent)):
-                if tag is not None and not event.implicit:
-                    problem(event.start_mark, f"explicit tag '{tag}' is not allowed",
-                            "remove the tag")
-                depth += 1
-                if depth > MAX_DEPTH:  # stop at once: deeper input is not even composed
-                    raise _fail(file, event.start_mark,
-                                f"nesting is deeper than {MAX_DEPTH} levels", "flatten the model")
-            elif isinstance(event, (yaml.MappingEndEvent, yaml.SequenceEndEvent)):
-                depth -= 1
+        for mark, message, hint, fatal in _event_problems(text, yaml.SafeLoader):
+            if fatal:  # stop at once: deeper input is not even composed
+                raise _fail(file, mark, message, hint)
+            problems.extend(_fail(file, mark, message, hint).diagnostics)
             if len(problems) >= MAX_PROBLEMS:
                 problems.append(Diagnostic(file, 0, 0, "error", f"more than {MAX_PROBLEMS} "
                                            "problems: stopped reading the file"))
