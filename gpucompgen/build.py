@@ -288,7 +288,11 @@ def diff(result: BuildResult, out_dir: Path) -> str:
     lines."""
     program, lib = owned_paths(result.system.name, out_dir)
     wanted = {out_dir / f.path: f.text.encode("utf-8") for f in result.files}
-    existing = {program} | ({p for p in lib.rglob("*") if p.is_file()} if lib.is_dir() else set())
+    # Python's bytecode cache of the lib folder's modules (written when the program runs)
+    # is not output: a program run before `build --check` leaves the build current
+    existing = {program} | ({p for p in lib.rglob("*") if p.is_file()
+                             and "__pycache__" not in p.relative_to(lib).parts}
+                            if lib.is_dir() else set())
     lines: list[str] = []
     for path in sorted(set(wanted) | existing):
         new = wanted.get(path)

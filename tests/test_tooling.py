@@ -58,6 +58,30 @@ def test_check_fails_after_a_model_edit_and_diff_writes_nothing(tmp_path):
     assert proc.returncode == 0 and proc.stdout == ""
 
 
+def test_check_ignores_the_bytecode_cache_a_run_of_the_program_writes(tmp_path):
+    """Running a generated program imports its lib folder's modules, and Python caches
+    their bytecode there (lib/__pycache__/, as CI's Python does): that is not output, so
+    `build --check` stays current, while a stray file of the build's own is stale."""
+    for part in ("golden/every_branch", "data/user_model"):  # the model reads its types
+        shutil.copytree(ROOT / "tests" / part, tmp_path / part)
+    where = tmp_path / "golden" / "every_branch"
+    lib = where / "default" / "every_branch_lib"
+    modules = sorted(lib.glob("*.py"))
+    assert modules, "the model has Python modules in its lib folder"
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
+    subprocess.run([sys.executable, "-c", "import sys, importlib; sys.path.insert(0, sys.argv[1]);"
+                    " [importlib.import_module(m) for m in sys.argv[2:]]", str(lib),
+                    *(m.stem for m in modules)], check=True, env=env, timeout=120)
+    assert list((lib / "__pycache__").glob("*.pyc")), "Python wrote no bytecode"
+    check = ("build", "every_branch.yaml", "-o", "default", "--check")
+    proc = gpucompgen(*check, cwd=where)
+    assert proc.returncode == 0 and proc.stdout == "", proc.stdout + proc.stderr
+
+    (lib / "stray.cl").write_text("// not the build's\n")
+    proc = gpucompgen(*check, cwd=where)
+    assert proc.returncode == 1 and "stray.cl" in proc.stdout
+
+
 def test_generated_code_passes_ruff(tmp_path):
     """Every model, the tests' user models too (types without descriptions, user Python
     components), in both modes and with copying or zero-copy adapters."""
