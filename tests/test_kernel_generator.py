@@ -291,10 +291,11 @@ def test_stencils_on_frames_narrower_or_lower_than_their_window(cl_context, cl_q
     from gpucompgen.model import library_types
 
     rng = np.random.default_rng(7)
-    checked = 0
-    for name, ctype in sorted(library_types().items()):
-        if ctype.fusable is None or ctype.fusable.form != "stencil" or ctype.alias_of:
-            continue
+    checked, pairs = 0, set()
+    stencils = [(n, t) for n, t in sorted(library_types().items())
+                if t.fusable is not None and t.fusable.form == "stencil" and not t.alias_of]
+    settings = ((16, 1, 4, 1), (1, 1, 1, 1), (4, 8, 2, 1))
+    for index, (name, ctype) in enumerate(stencils):
         radius = ctype.fusable.radius
         params = {p: d.default for p, d in ctype.params.items()}
         if isinstance(radius, str) and radius in ctype.params and \
@@ -303,13 +304,18 @@ def test_stencils_on_frames_narrower_or_lower_than_their_window(cl_context, cl_q
         port = next(iter(ctype.inputs.values()))
         channels = (port.channel_counts or (port.channels,))[-1]
         dtype = (port.dtypes or (port.dtype,))[0]
-        for h, w in ((1, 1), (33, 1), (1, 33), (7, 5)):  # a build each: sizes are constants
+        # a build each: sizes are constants; and a launch setting each, the three turning
+        # with the type so that every size meets every setting over the stencils (each
+        # setting is a compile of its own on PoCL: all three at every size took 50 s)
+        for i, (h, w) in enumerate(((1, 1), (33, 1), (1, 33), (7, 5))):
             shape = (h, w) + ((channels,) if channels > 1 else ())
             frame = rng.integers(0, 256, shape).astype(dtype)
             cpu = cpu_kernels.CPU_IMPLEMENTATIONS[name](frame, **params)
-            for setting in ((16, 1, 4, 1), (1, 1, 1, 1), (4, 8, 2, 1)):
-                gpu = run_generated(cl_context, cl_queue, ctype, params, [frame], cpu.shape,
-                                    setting)
-                np.testing.assert_array_equal(gpu, cpu, f"{name} {params} {h}x{w} {setting}")
+            setting = settings[(i + index) % len(settings)]
+            gpu = run_generated(cl_context, cl_queue, ctype, params, [frame], cpu.shape,
+                                setting)
+            np.testing.assert_array_equal(gpu, cpu, f"{name} {params} {h}x{w} {setting}")
+            pairs.add(((h, w), setting))
             checked += 1
     assert checked >= 6 * 6
+    assert len(pairs) == 4 * len(settings), "every size under every launch setting"
