@@ -29,6 +29,14 @@ from .programs import (
     read_kernel_file,
 )
 
+# PoCL's CPU device runs kernels on one worker thread a core; unpinned, Linux at times
+# put two of them on one core for dozens of frames (the pointwise chain at 1280x720: runs
+# of 1.4 ms frames among 0.75 ms ones, the kernel at one core's speed; 14 to 30 frames of
+# 115 slower than 1.1 ms against 3 pinned).  Pinned unless the user says otherwise
+# (POCL_AFFINITY=0); other drivers ignore it, and PoCL reads it when its platform is
+# first loaded, so it is set when the runtime is imported.
+os.environ.setdefault("POCL_AFFINITY", "1")
+
 
 def load():
     """Import pyopencl: it points the ICD loader at the PoCL shipped in its wheel, which
