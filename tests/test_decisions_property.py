@@ -249,12 +249,15 @@ def decisions_as_planned(system) -> None:
             cost = placement.costs[name]
             assert f"est. CPU {cost.cpu_s * 1e3:.3f} ms, GPU {cost.gpu_s * 1e3:.3f} ms" in line
     if placement.estimate_s is not None:  # the chosen placement is the least estimated
-        assert placement.estimate_s <= min(placement.all_gpu_s, placement.all_cpu_s) + 1e-12
+        margin = max((c.margin for c in placement.chains), default=0.0)  # device wins by it
+        assert placement.estimate_s <= min(placement.all_gpu_s * (1 + margin),
+                                           placement.all_cpu_s) + 1e-12
         assert any(line.startswith("auto (") for line in plan.placement)
     for chain in placement.chains:  # weighed whole: the least of its options, as planned
         RAN["chains"] += 1
         RAN["chains on the device"] += chain.side != "cpu"
-        assert chain.chosen_s <= min(chain.cpu_s, chain.gpu_s) + 1e-12, chain
+        assert chain.chosen_s <= min(chain.cpu_s, chain.gpu_s * (1 + chain.margin)) + 1e-12, \
+            chain
         sides = {system.component(m).placement for m in chain.members}
         assert sides == ({"gpu", "cpu"} if chain.side == "mixed" else {chain.side}), chain
         assert any(line.startswith(f"chain {', '.join(chain.members)}: {chain.where}; "

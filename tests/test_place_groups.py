@@ -66,9 +66,9 @@ def _sides(system, names=CHAIN) -> dict[str, str]:
 @pytest.fixture
 def costs(monkeypatch):
     """Set the cpu class's placement row (the fitted one changes with the kernels)."""
-    def set_row(**row):
+    def set_row(**row):  # no margin unless a test gives one (the by-hand sums have none)
         monkeypatch.setitem(place_mod.PLACEMENT_COSTS, "cpu",
-                            {**place_mod.PLACEMENT_COSTS["cpu"], **row})
+                            {**place_mod.PLACEMENT_COSTS["cpu"], "error": 0.0, **row})
         return place_mod.PLACEMENT_COSTS["cpu"]
     return set_row
 
@@ -119,6 +119,28 @@ def test_a_chain_goes_to_the_device_when_its_group_beats_the_cpu_forms(tmp_path,
             "fusion estimate for a cpu device, fused taken 1.65x)") in lines
     assert "gray: GPU (by default for a cpu device; est. CPU" in lines
     assert "its chain weighed whole: on the device, one kernel with thr, scale" in lines
+
+
+def test_the_device_must_win_by_the_estimates_error(tmp_path, costs):
+    """With the row's error e, a placement with chain members on the device is weighed
+    at (1 + e) its estimate: the chain goes to the device only where its estimate is
+    below the CPU's by more than e, found by hand from the sums of the first test."""
+    row = costs(cpu_bytes_per_s=10e9, gpu_bytes_per_s=10e9, gpu_launch_s=50e-6)
+    system = _passes(_model(tmp_path, 1280, 720))
+    cpu, apart_gpu, crossings = _by_hand(system, row)
+    fused, apart = system.groups[0].estimate_s
+    device = apart_gpu * _ratio(system, fused, apart) + crossings
+    win = cpu / device - 1  # what the device wins by, as a fraction of its estimate
+    assert win > 0.02
+    for error, side in ((win - 0.01, "gpu"), (win + 0.01, "cpu")):
+        costs(error=error)
+        system = _passes(_model(tmp_path, 1280, 720))
+        assert _sides(system) == dict.fromkeys(CHAIN, side), error
+        (chain,) = system.placement.chains
+        assert chain.margin == error
+        assert chain.chosen_s == pytest.approx(device if side == "gpu" else cpu)
+        assert f"the device must win by the estimate's error, {error:.0%})" in \
+            "\n".join(plan_lines(system.plan))
 
 
 def test_a_chain_stays_on_the_cpu_when_its_group_does_not_pay(tmp_path, costs):
@@ -228,7 +250,7 @@ def test_a_group_alone_on_the_device_when_the_rest_of_its_chain_is_cheaper_on_th
     assert chain.members == tuple(steps)
     # whatever wins, the placement is the least estimated of those weighed, and the plan
     # says which of its groups were chosen
-    assert chain.chosen_s <= min(chain.cpu_s, chain.gpu_s) + 1e-12
+    assert chain.chosen_s <= min(chain.cpu_s, chain.gpu_s * (1 + chain.margin)) + 1e-12
     for members, chosen, *_ in chain.groups:
         assert chosen == all(sides[m] == "gpu" for m in members)
     assert {sides[m] for m in ("gray", "thr", "scale")} == {"gpu"}
@@ -262,7 +284,9 @@ def test_drawn_chains_are_placed_at_the_least_estimate_plan_reports(
         system = _passes(_model(tmp_path_factory.mktemp("c"), *size, names), fusion=fusion)
     placement = system.placement
     sides = _sides(system, names)
-    assert placement.estimate_s <= min(placement.all_cpu_s, placement.all_gpu_s) + 1e-12
+    margin = max((c.margin for c in placement.chains), default=0.0)  # device wins by it
+    assert placement.estimate_s <= min(placement.all_cpu_s,
+                                       placement.all_gpu_s * (1 + margin)) + 1e-12
     lines = {line.split(":")[0]: line for line in system.plan.placement}
     if fusion == "off":
         assert not placement.chains

@@ -53,9 +53,13 @@ MAX_PROFILE_NUMBER = 1e12
 #   CPU forms move 8 to 58 GB/s through these 2 cores, median 14 GB/s
 #   (benchmarks/cpu_forms.py, 640x360: bytes read and written over the call's time), and
 #   the loop pays about 6 µs a CPU form (benchmarks/frame_cost.py: N mirrors on the CPU,
-#   8x8 frames, 5.8 µs a component); the generated kernels were 0.5x to 5x OpenCV's time
-#   alone (median 1.4x, benchmarks/kernels.py) and the generated loop paid about 45 µs a
-#   kernel more than a CPU form (benchmarks/pipelines.py, fusion off against all CPU);
+#   8x8 frames, 5.8 µs a component).  The kernels' rate and launch are fitted to
+#   benchmarks/pipelines.py's ten cells (device fusion off less all CPU, against the
+#   kernels' count and bytes: 52 µs a kernel, 23 GB/s), with PoCL's threads pinned
+#   (POCL_AFFINITY, runtime/opencl.py); unpinned, kernels ran at one core's speed for
+#   long stretches and the row said 45 µs and 3.5 GB/s.  The fit misses a cell by 17%
+#   (root mean square, 0% to 31%): "error", the margin a placement putting a chain's
+#   components on the device must win by (weigh_chains);
 # - "integrated-gpu": a Jetson-class board: slower cores, a GPU sharing their memory;
 # - "discrete-gpu": a GPU behind PCIe: fast kernels, every crossing a copy;
 # - "": no class known (`placement: auto` on the 'portable' profile): the first static
@@ -63,8 +67,9 @@ MAX_PROFILE_NUMBER = 1e12
 # Recalibrate with `gpucompgen tune` on the device (its profile replaces these figures
 # for one model) or benchmarks/pipelines.py (all CPU against the device's variants).
 PLACEMENT_COSTS: dict[str, dict[str, float]] = {
-    "cpu": {"cpu_bytes_per_s": 14e9, "cpu_call_s": 6e-6, "gpu_bytes_per_s": 3.5e9,
-            "gpu_launch_s": 45e-6, "transfer_bytes_per_s": 5e9, "transfer_latency_s": 10e-6},
+    "cpu": {"cpu_bytes_per_s": 14e9, "cpu_call_s": 6e-6, "gpu_bytes_per_s": 23e9,
+            "gpu_launch_s": 52e-6, "transfer_bytes_per_s": 5e9, "transfer_latency_s": 10e-6,
+            "error": 0.17},
     "integrated-gpu": {"cpu_bytes_per_s": 2e9, "cpu_call_s": 6e-6, "gpu_bytes_per_s": 20e9,
                        "gpu_launch_s": 20e-6, "transfer_bytes_per_s": 10e9,
                        "transfer_latency_s": 10e-6},
@@ -111,6 +116,9 @@ class Chain:
     # saves a frame over its members' kernels apart, fused_s, apart_s of the group's
     # kernel and its members' as estimated or measured, where those come from)
     groups: tuple[tuple[tuple[str, ...], bool, float, float, float, str], ...] = ()
+    # a placement with members on the device was taken at (1 + margin) its estimate: the
+    # estimate's error (PLACEMENT_COSTS "error"; 0 where tune measured every member)
+    margin: float = 0.0
 
     def why(self, name: str, side: str) -> str:
         """Why one member runs on side, as the plan says it."""
@@ -131,7 +139,9 @@ class Chain:
         kernels = len(self.groups) + len(self.members) - len(inside)
         out = [(f"chain {', '.join(self.members)}: {self.where}; frame est. "
                 f"{_ms(self.chosen_s)} (with the chain on the CPU {_ms(self.cpu_s)}, on the "
-                f"device {_ms(self.gpu_s)} as {kernels} kernel{'s' * (kernels != 1)})")]
+                f"device {_ms(self.gpu_s)} as {kernels} kernel{'s' * (kernels != 1)}"
+                + (f"; the device must win by the estimate's error, {self.margin:.0%}"
+                   if self.margin else "") + ")")]
         for members, chosen, saved, fused, apart, source in self.groups:
             verdict = "chosen" if chosen else "refused"
             out.append(f"  group {'+'.join(members)} {verdict}: one kernel saves {_ms(saved)} "
@@ -341,6 +351,13 @@ class CostModel:
         ratio = min(1.0, fused * (1 + error) / apart) if apart > 0 else 1.0
         return members_s * (1 - ratio), fused, apart, source
 
+    def margin(self, members) -> float:
+        """How much a placement putting members on the device must win by: the device
+        class's estimate error, none where tune measured every member."""
+        if all(self._compute[m].source == "profile" for m in members if m in self._compute):
+            return 0.0
+        return self.costs.get("error", 0.0)
+
     def frame_fused(self, sides: dict[str, str]) -> float:
         """frame(), each group the fuse pass would make on the GPU counted as one kernel:
         its members' GPU times less what the group saves (saving())."""
@@ -396,18 +413,24 @@ def weigh_chains(model: CostModel, sides: dict[str, str]) -> tuple[dict[str, str
         on_cpu = {**sides, **dict.fromkeys(chain, "cpu")}
         on_gpu = {**sides, **dict.fromkeys(chain, "gpu")}
         mine = [g for g in model.groups(on_gpu) if set(g) & set(chain)]
+        margin = model.margin(chain)
+
+        def weighed(option_s, option, chain=chain, margin=margin):
+            """The device must win by the estimate's error."""
+            return option_s * (1 + margin) if any(option[m] == "gpu" for m in chain) \
+                else option_s
         options = [(model.frame_fused(sides), 0, sides), (model.frame_fused(on_gpu), 1, on_gpu),
                    (model.frame_fused(on_cpu), 2, on_cpu)]
         options += [(model.frame_fused(alone), 3 + i, alone) for i, alone in enumerate(
             {**on_cpu, **{m: "gpu" for m in g if m in sides}} for g in mine
             if not set(chain) <= set(g))]
-        best_s, _, best = min(options, key=lambda o: (round(o[0], 12), o[1]))
+        best_s, _, best = min(options, key=lambda o: (round(weighed(o[0], o[2]), 12), o[1]))
         placed = {best[m] for m in chain}
         side = placed.pop() if len(placed) == 1 else "mixed"
         groups = tuple((tuple(g), all(model.side(m, best) == "gpu" for m in g),
                         *model.saving(g)) for g in mine)
         records.append(Chain(tuple(chain), side, options[2][0], options[1][0], best_s,
-                             groups))
+                             groups, margin))
         sides = best
     return sides, records
 
