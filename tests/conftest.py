@@ -16,6 +16,10 @@ IN_CI = os.environ.get("CI", "").lower() in ("1", "true", "yes")
 
 # Every build in the tests (also in subprocesses) verifies the IR after every pass.
 os.environ["GPUCOMPGEN_VERIFY"] = "1"
+# PoCL's worker threads unpinned (the runtime pins them: runtime/opencl.py): the tests time
+# nothing, and two test workers, each with PoCL threads pinned to the same cores, waited
+# on each other (a CI rehearsal took 16:15 pinned, with 80 worker-s of tests less)
+os.environ.setdefault("POCL_AFFINITY", "0")
 
 _worker = os.environ.get("PYTEST_XDIST_WORKER", "main")
 os.environ.setdefault("POCL_CACHE_DIR", str(Path(os.environ.get("TMPDIR", "/tmp"))

@@ -270,3 +270,15 @@ def test_help_reads_well(command):
 def test_version():
     proc = gpucompgen("--version")
     assert proc.returncode == 0 and proc.stdout.startswith("gpucompgen ")
+
+
+def test_the_runtime_pins_pocl_threads_unless_told_otherwise():
+    """Importing the runtime sets POCL_AFFINITY=1 (PoCL's worker threads one a core: see
+    runtime/opencl.py for the measurement), and leaves a value the user gave."""
+    probe = "import os, gpucompgen.runtime; print(os.environ.get('POCL_AFFINITY'))"
+    env = {k: v for k, v in os.environ.items() if k != "POCL_AFFINITY"}
+    for given, expected in ((None, "1"), ("0", "0"), ("1", "1")):
+        run_env = env if given is None else {**env, "POCL_AFFINITY": given}
+        proc = subprocess.run([sys.executable, "-c", probe], cwd=ROOT, env=run_env,
+                              capture_output=True, text=True, check=False, timeout=120)
+        assert proc.returncode == 0 and proc.stdout.strip() == expected, proc.stderr
