@@ -56,6 +56,11 @@ def test_what_is_staged_and_in_what_tiles():
         # either side, in the same column
         assert (rows + 30) * cols * 4 <= fused.STAGED_BYTES
         assert (rows, cols) == expected or expected is None and cols < w
+    # three channels: 12 bytes an element; 64 columns no longer fit with 8 rows, 16 do
+    # (the narrowest tiles were 64 columns: RGB k31 ran inline, 961 reads an element)
+    pieces, (rows, cols) = fused.staged_pieces(
+        _group("Blur", {"ksize": 31, "border_type": 4}, 360, 640, channels=3), "runs")
+    assert pieces == {"m.rows"} and (rows + 30) * cols * 12 <= fused.STAGED_BYTES
     text = fused.group_kernel(_group("Blur", {"ksize": 31, "border_type": 4}, 360, 1280),
                               "test")
     assert "    int _s0[" in text and "barrier" not in text
@@ -80,6 +85,7 @@ CASES = [
     ("Blur", {"ksize": 15, "border_type": 0}, (5, 7), (8, 1, 1, 1), _blur(15, 0)),
     ("Blur", {"ksize": 9, "border_type": 2}, (45, 150, 3), (40, 2, 3, 1), _blur(9, 2)),
     ("Blur", {"ksize": 31, "border_type": 4}, (70, 200), (64, 2, 1, 1), _blur(31, 4)),
+    ("Blur", {"ksize": 31, "border_type": 2}, (70, 90, 3), (64, 2, 1, 1), _blur(31, 2)),
     ("Blur", {"ksize": 7, "border_type": 1}, (3, 1), (4, 1, 2, 1), _blur(7, 1)),
     ("MorphologyEx", _morph(2, 5), (35, 90), (16, 4, 1, 1), _cv(2, 5)),
     ("MorphologyEx", _morph(6, 5, 2), (6, 4, 3), (8, 1, 1, 1), _cv(6, 5, 2)),

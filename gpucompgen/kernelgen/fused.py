@@ -118,7 +118,7 @@ MIN_STAGED_READS = 25
 # fewest elements an output element, among those whose arrays take at most STAGED_BYTES
 # (a work-item's own: a CPU keeps them in its cache).
 STRIP_ROWS = (32, 16, 8)
-TILE_COLUMNS = (512, 256, 128, 64)
+TILE_COLUMNS = (512, 256, 128, 64, 32, 16)
 STAGED_BYTES = 16 << 10  # 64 KiB crashed PoCL workers now and then (3-channel Blur, openings)
 
 BORDER_RULES = {
