@@ -82,12 +82,12 @@ def test_every_generated_kernel_compiles(major, arch, cuda_builds):
     for (model, variant), folder in sorted(cuda_builds.items()):
         assert not list(folder.rglob("*.cl")), "a CUDA build writes no .cl files"
         for path in sorted(folder.rglob("*.cu")):
-            distinct.setdefault(path.read_text(), f"{model} ({variant}) {path.name}")
+            distinct.setdefault(path.read_text(), (f"{model} ({variant})", path.name))
             files += 1
     assert files >= len(MODELS) * len(VARIANTS)
-    for text, where in distinct.items():
-        compiled = lib.compile(text, where.rsplit(" ", 1)[1], arch)
-        assert compiled.ok, f"{where} for sm_{arch}:\n{compiled.log}"
+    for text, (build, name) in distinct.items():
+        compiled = lib.compile(text, name, arch)
+        assert compiled.ok, f"{build} {name} for sm_{arch}:\n{compiled.log}"
 
 
 def library_operation_kernels() -> dict[str, str]:
