@@ -244,12 +244,19 @@ class FusableDecl:
 
 @dataclass(frozen=True)
 class Stage:
-    """A stage of a stencil (FusableDecl.stages): its element type (one of DTYPES) and
-    its own form, a stencil with the type's border."""
+    """A stage of a stencil (FusableDecl.stages): its element type (one of DTYPES, or
+    '<input>.dtype': a generic type's input's) and its own form, a stencil with the type's
+    border."""
 
     name: str
     dtype: str
     decl: FusableDecl
+
+    def dtype_for(self, inputs: dict) -> str:
+        """The stage's element type for a component whose input ports are inputs (name ->
+        a port with .dtype): '<input>.dtype' is that input's."""
+        port, _, of = self.dtype.partition(".")
+        return inputs[port].dtype if of == "dtype" else self.dtype
 
 
 _LOOPS = (For, While, DoWhile)

@@ -558,7 +558,7 @@ def expand(group: GroupNode) -> tuple[GroupNode, dict[Endpoint, str]]:
         made: dict[str, Port] = {}  # stage -> its port, as its readers' input
         for st in decl.stages.values():
             name = f"{m.name}.{st.name}"
-            dtype = st.dtype if st.dtype in DTYPES else m.inputs[st.dtype.split(".")[0]].dtype
+            dtype = st.dtype_for(m.inputs)
             port = Port(st.name, "in", "gpu", dtype, ch, Data(Size(h, w, ch), dtype))
             # fixed: the component's parameters fixed at build time (its accessors'
             # border, its windows), constants of the stage's function too
