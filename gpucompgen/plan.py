@@ -229,6 +229,11 @@ class LibSource:
     text: str
     origin: str = ""  # the file it was read from, for messages
 
+    @property
+    def is_kernel(self) -> bool:
+        """Whether the file is device code (a backend names and translates it so)."""
+        return self.kind in ("kernel", "checked_kernel", "group")
+
 
 @dataclass
 class ProgramPlan:
@@ -313,8 +318,7 @@ class ProgramPlan:
         """The plan with its kernel files named as a backend writes them (``.cu`` for CUDA,
         which compiles the same portable kernels under its prelude): every record that
         names a kernel file in the lib folder, and nothing else."""
-        kernels = {s.file for s in self.lib_sources
-                   if s.kind in ("kernel", "checked_kernel", "group")}
+        kernels = {s.file for s in self.lib_sources if s.is_kernel}
 
         def name(file: str) -> str:
             return str(PurePosixPath(file).with_suffix(suffix)) if file in kernels else file

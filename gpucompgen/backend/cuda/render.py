@@ -54,8 +54,7 @@ def render(system, source: str, model_dir: str = ".") -> list[OutputFile]:
 
     def lib_text(src, header: str) -> str:
         text = printing.lib_file_text(src, header)
-        return cuda_kernel_file(text) if src.kind in ("kernel", "checked_kernel", "group") \
-            else text
+        return cuda_kernel_file(text) if src.is_kernel else text
 
     plan = system.plan.with_kernel_suffix(KERNEL_SUFFIX)
     return printing.render(plan, system.name, source, model_dir, TEMPLATE, lib_text)
