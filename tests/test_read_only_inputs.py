@@ -123,3 +123,5 @@ def test_read_only_views_share_the_producers_memory():
     assert frame.flags.writeable, "the producer keeps writing its own array"
     with pytest.raises(ValueError, match="read-only"):
         view[0, 0, 0] = 1
+    # handed on again (the next reader, the loop's check): the same view, none made
+    assert check_frame("a.b", view, (2, 4, 3), np.uint8) is view

@@ -98,7 +98,11 @@ def read_only(array: Any) -> Any:
     Several readers of one producer get the same frame; one that wrote into it would
     change what the others read.  A write raises ValueError ('assignment destination is
     read-only'), reported as that component's failure with READ_ONLY_HINT.  The producer
-    keeps its own (writable) array; the view costs no copy."""
+    keeps its own (writable) array; the view costs no copy.  An array that is already
+    read-only (the frame a component or the loop's check handed on) is returned as is:
+    one view a frame, not one a reader."""
+    if not array.flags.writeable:
+        return array
     view = array.view()
     view.flags.writeable = False
     return view
