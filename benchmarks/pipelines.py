@@ -255,6 +255,11 @@ def main(argv=None) -> int:
     sizes = [tuple(int(v) for v in s.split("x")) for s in args.sizes.split(",")]
     names = args.pipelines.split(",")
     variants = args.variants.split(",")
+    for given, known, what in ((names, PIPELINES, "pipeline"), (variants, VARIANTS, "variant")):
+        unknown = [v for v in given if v not in known]
+        if unknown:
+            parser.error(f"unknown {what} {', '.join(map(repr, unknown))}; "
+                         f"choose from {', '.join(map(repr, known))}")
     steps = opencv_steps(cv2, np)
     api = device_api.get(args.backend)
     try:
