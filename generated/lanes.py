@@ -63,15 +63,15 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 #       -> magnitude (ConvertScaleAbsGray, pointwise)
 #       -> strong (ThresholdGray, pointwise)
 #       -> cut (BitwiseAndMaskGray, pointwise)
-#       estimate: 0.041 ms a frame as one kernel, 0.102 ms apart (2.5x; constants for a cpu
+#       estimate: 0.035 ms a frame as one kernel, 0.104 ms apart (3.0x; constants for a cpu
 #       device)
 #     not fused: gray.dst -> blur.src:
-#       cost model: with gray the group's kernel takes an estimated 0.274 ms a frame,
-#       against 0.071 ms with gray apart (it would run 28 times per output element of the
+#       cost model: with gray the group's kernel takes an estimated 0.321 ms a frame,
+#       against 0.073 ms with gray apart (it would run 28 times per output element of the
 #       group; constants for a cpu device)
 #     not fused: blur.dst -> sobel.src:
-#       cost model: with blur the group's kernel takes an estimated 0.567 ms a frame,
-#       against 0.087 ms with blur apart (it would run 18 times per output element of the
+#       cost model: with blur the group's kernel takes an estimated 0.298 ms a frame,
+#       against 0.081 ms with blur apart (it would run 9 times per output element of the
 #       group; constants for a cpu device)
 
 from __future__ import annotations

@@ -54,11 +54,11 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 #       -> low_red (InRange, pointwise)
 #       -> high_red (InRange, pointwise)
 #       -> red (BitwiseOr, pointwise)
-#       estimate: 0.128 ms a frame as one kernel, 0.232 ms apart (1.8x; constants for a cpu
+#       estimate: 0.465 ms a frame as one kernel, 0.609 ms apart (1.3x; constants for a cpu
 #       device)
 #     not fused: red.dst -> clean.src:
-#       cost model: with red the group's kernel takes an estimated 0.780 ms a frame, against
-#       0.152 ms with red apart (it would run 18 times per output element of the group;
+#       cost model: with red the group's kernel takes an estimated 0.741 ms a frame, against
+#       0.150 ms with red apart (it would run 18 times per output element of the group;
 #       constants for a cpu device)
 
 from __future__ import annotations

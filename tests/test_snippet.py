@@ -436,3 +436,40 @@ def test_accessor_calls_and_shifted_arguments_are_read_from_the_tree():
     assert not is_shifted(parse("return image(y, x + x, c);").body[0].value.args[1], "x")
     assert not uses_outside_calls(tree, ["image", "other"], {"x", "c"})
     assert uses_outside_calls(parse("return image(y, x, c) + x;"), ["image"], {"x"})
+
+
+@pytest.mark.parametrize("text, ops", [
+    # hand-counted: an operator, cast or built-in on a value of the element is one
+    ("return image(y, x, c);", 0),  # a load only (loads are counted apart)
+    ("return gain * 2.0f + 1.0f;", 0),  # parameters and constants: computed once
+    ("return image(y, x, c) * gain + 1;", 2),
+    ("return (float)image(y, x, c) * (gain * 2.0f);", 2),  # the cast; gain * 2 is hoisted
+    ("return clamp(image(y, x, c), 0, 255);", 1),
+    # a rule picked by a parameter: its dearest branch, one taken everywhere
+    ("return gain > 1 ? image(y, x, c) + 1 : image(y, x, c) * 2 - 3;", 2),
+    # a choice on the element's value: both branches and the select
+    ("return image(y, x, c) > gain ? image(y, x, c) + 1 : image(y, x, c) * 2 - 3;", 5),
+    # a local of parameters is computed once; one of the element costs where computed
+    ("const float k = gain * gain; const float v = image(y, x, c) * k; return v + k;", 2),
+    # a local assigned after its declaration may change per element: never hoisted
+    ("float k = gain; if (image(y, x, c) > 0) k = k + 1; return k * 2;", 4),
+    ("int s = 0; s += image(y, x, c); return s;", 1),
+])
+def test_operations_count_the_arithmetic_of_an_element(text, ops):
+    from gpucompgen.snippet import operations
+
+    analysis = analyse(text, "pointwise", ["image"], ["out"], ["gain"])
+    assert not analysis.problems
+    assert operations(analysis.tree, analysis.names) == ops
+
+
+@pytest.mark.parametrize("name, ops", [
+    ("RgbToGray", 7),  # 3 multiplies, 3 adds, the shift; the loads are apart
+    ("ThresholdGray", 3),  # the cast and compare of 'above', the select of one rule
+    ("ConvertScaleGray", 4),  # cast, fma, fabs, saturating convert
+])
+def test_operations_of_library_snippets(name, ops):
+    from gpucompgen.snippet import operations
+
+    decl = library_types()[name].fusable
+    assert operations(decl.tree, decl.names) == ops

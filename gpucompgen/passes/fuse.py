@@ -56,7 +56,7 @@ from dataclasses import replace
 
 from ..ir import AdapterNode, ComponentNode, Edge, GroupNode, Port, System
 from ..model import ComponentType, Endpoint, GpuDecl
-from ..snippet import accessor_calls
+from ..snippet import accessor_calls, operations
 from .base import Pass
 
 # the generated kernel's settings: tile rows a work-group, 64 threads splitting them
@@ -269,10 +269,13 @@ def _reader(system: System, end: Endpoint) -> str:
 # each group the fuse pass chose, device time, by `python benchmarks/fusion_costs.py`
 # (it prints the row, and for every group its measurement beside the estimate;
 # docs/fusion.md has the figures), refitted after the kernels took their members'
-# parameters as build constants.  The fit cannot tell loads from operations (in the
-# library's snippets a read is both: it put 1.4e-11 on op_s, 0 on load_s); they are split
-# evenly, deciding every measured group alike, so that an index map's reads, which are
-# loads only, still cost (40 reads of 40 reads... is refused).  tap_s is set from the
+# parameters as build constants.  The fit cannot tell loads from operations (it put
+# 1.4e-11 on op_s, 0 on load_s when a snippet's arithmetic was one operation a read; with
+# pointwise arithmetic counted from the snippet's tree (arithmetic()) it puts 0 on both
+# and the launch and store carry every kernel, agreeing with fewer measured groups: 22 of
+# 44 against 33 of 44 for the row below); they are split evenly, deciding every measured
+# group alike, so that an index map's reads, which are loads only, still cost (40 reads
+# of 40 reads... is refused).  tap_s is set from the
 # groups of a stencil behind a producer that computes (0.08 to 0.15 ns a tap measured:
 # InRange under an erosion, a gray conversion under a blur); every value from 0 to 0.5 ns
 # decides the measured groups alike.  "error" is the fit's median error a kernel (65%:
@@ -340,9 +343,14 @@ def staged_reads(decl, params) -> int:
 
 def arithmetic(node) -> int:
     """Operations one evaluation computes besides its reads: none for an index map (its
-    work is the read), one a read for stencils and pointwise snippets."""
-    if node.type.fusable.form == "index_map":
+    work is the read); a pointwise snippet's operations on the element's values (those of
+    parameters alone are computed once: snippet.operations), at least one; one a read for
+    a stencil (its loops walk a window: priced by its reads)."""
+    decl = node.type.fusable
+    if decl.form == "index_map":
         return 0
+    if decl.form == "pointwise":
+        return max(1, operations(decl.tree, decl.names))
     return max(1, sum(reads(node, p) for p in node.inputs))
 
 
@@ -397,17 +405,33 @@ def kernel_s(system: System, members: list[str] | set[str]) -> float:
 
 def evaluations(system: System, members: set[str]) -> dict[str, int]:
     """How many times each member is evaluated per output element of the group: a read
-    of a member inside the group is an evaluation of it (Inductor's recompute count)."""
+    of a member inside the group is an evaluation of it (Inductor's recompute count),
+    except that a member read only through pointwise members is computed once a channel
+    of the root's pixel however many of them read it."""
     order = [n for n in system.order if n in members]
     count = dict.fromkeys(order, 0)
     count[order[-1]] = 1
+    at_pixel = {order[-1]: True}  # evaluated only at the root element's pixel
     for m in reversed(order):
         node = system.nodes[m]
+        if at_pixel.get(m, True):
+            # pointwise all the way to the root: evaluated at one pixel, each of its
+            # channels at most once (the kernel inlines the members, and the compiler
+            # computes a call with the same arguments once: a conversion read by two
+            # consumers is not computed twice)
+            count[m] = min(count[m], _channels(node))
+        pointwise = node.type.fusable.form == "pointwise" and at_pixel.get(m, True)
         for pname in node.inputs:
             src = system.writer(Endpoint(m, pname))
             if src is not None and src.component in members:
                 count[src.component] += count[m] * reads(node, pname)
+                at_pixel[src.component] = at_pixel.get(src.component, True) and pointwise
     return count
+
+
+def _channels(node) -> int:
+    (port,) = node.outputs.values()
+    return port.channels
 
 
 def estimate(system: System, members: set[str]) -> tuple[float, float]:

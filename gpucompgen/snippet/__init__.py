@@ -24,16 +24,17 @@ API:
     print_lines(tree, rename=None) -> list[str]        (print_text: the same, joined)
     expression_text(node, rename=None) -> str
     accessor_calls(tree, ports), uses_outside_calls(tree, funcs, names), is_shifted(node,
-    name): what fusion and the kernel generator ask of a snippet (query.py)
+    name), operations(tree, names): what fusion and the kernel generator ask of a snippet
+    (query.py)
 """
 
 from .check import MAX_SNIPPET, Analysis, analyse, is_builtin, port_names
 from .printer import expression_text, names_in, print_lines, print_text
 from .problems import Problem, SnippetError
-from .query import accessor_calls, is_name, is_shifted, uses_outside_calls
+from .query import accessor_calls, is_name, is_shifted, operations, uses_outside_calls
 from .syntax import MAX_NESTING, Snippet, parse
 
 __all__ = ["MAX_NESTING", "MAX_SNIPPET", "Analysis", "Problem", "Snippet", "SnippetError",
            "accessor_calls", "analyse", "expression_text", "is_builtin", "is_name",
-           "is_shifted", "names_in", "parse", "port_names", "print_lines", "print_text",
+           "is_shifted", "names_in", "operations", "parse", "port_names", "print_lines", "print_text",
            "uses_outside_calls"]

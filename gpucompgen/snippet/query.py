@@ -4,9 +4,36 @@ They read the tree, so comments, strings of tokens and layout cannot mislead the
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 
-from .syntax import Binary, Call, Name, Node, Paren
+from .syntax import (
+    Assign,
+    Binary,
+    Block,
+    Call,
+    Cast,
+    Conditional,
+    Decl,
+    DoWhile,
+    ExprStmt,
+    For,
+    If,
+    Index,
+    InitList,
+    Jump,
+    Member,
+    Name,
+    Node,
+    Number,
+    Paren,
+    Postfix,
+    Return,
+    Snippet,
+    TypeName,
+    Unary,
+    VectorLiteral,
+    While,
+)
 
 
 def _children(node) -> Iterator:
@@ -61,3 +88,113 @@ def is_shifted(node: Node, name: str) -> bool:
         return True
     return (isinstance(node, Binary) and node.op in "+-" and is_name(node.left, name)
             and not uses_outside_calls(node.right, [], {name}))
+
+
+# what operations() counts as one operation where a value the element depends on is
+# computed (a value of constants, parameters and sizes only is folded or hoisted out of
+# the element loop by the compiler: free)
+_STATIC_KINDS = frozenset({"param", "size", "limit", "constant", "type", "builtin"})
+
+
+def operations(tree: Node, names: Mapping[str, str]) -> int:
+    """Operations one evaluation of a loop-free snippet computes: each operator, cast and
+    built-in call on a value that depends on the element (a coordinate, an input read, a
+    local computed from one); none for a value of parameters and constants, which the
+    kernel computes once.  A choice whose condition is such a value (a rule picked by a
+    parameter) costs its dearest branch, one taken everywhere; a choice on an element's
+    value costs both branches and a select, as vector code computes them.  A loop counts
+    its body once (stencils, whose loops walk a window, are priced by their reads).
+    names: the snippet's names and their kinds (FusableDecl.names)."""
+    static = {n for n, kind in names.items() if kind in _STATIC_KINDS}
+    assigned = set()
+    for a in _walk(tree):
+        target = a.target if isinstance(a, Assign) else \
+            a.operand if isinstance(a, (Unary, Postfix)) and a.op in ("++", "--") else None
+        if target is not None and isinstance(unparen(target), Name):
+            assigned.add(unparen(target).name)
+    return _Counter(static, assigned).statement(tree)
+
+
+def _walk(node) -> Iterator:
+    yield node
+    for child in _children(node):
+        yield from _walk(child)
+
+
+class _Counter:
+    def __init__(self, static: set[str], assigned: set[str]):
+        self.static, self.assigned = set(static), assigned
+
+    def statement(self, s) -> int:
+        if isinstance(s, (Snippet, Block)):
+            return sum(self.statement(b) for b in s.body)
+        if isinstance(s, Decl):
+            total = 0
+            for d in s.declarators:
+                if d.init is None:
+                    continue
+                ops, fixed = self.expr(d.init)
+                total += ops
+                if fixed and d.name not in self.assigned and d.size is None:
+                    self.static.add(d.name)
+            return total
+        if isinstance(s, ExprStmt):
+            return self.expr(s.expr)[0] if s.expr is not None else 0
+        if isinstance(s, Return):
+            return self.expr(s.value)[0]
+        if isinstance(s, If):
+            ops, fixed = self.expr(s.cond)
+            then = self.statement(s.then)
+            other = self.statement(s.other) if s.other is not None else 0
+            return max(then, other) if fixed else ops + then + other + 1
+        if isinstance(s, (For, While, DoWhile)):
+            parts = [s.body] + [p for p in (getattr(s, "init", None), s.cond,
+                                            getattr(s, "step", None)) if p is not None]
+            return sum(self.statement(p) if not _is_expr(p) else self.expr(p)[0]
+                       for p in parts)
+        return 0  # Jump
+
+    def expr(self, e) -> tuple[int, bool]:
+        """(operations, whether the value is the same for every element)."""
+        if isinstance(e, Number):
+            return 0, True
+        if isinstance(e, Name):
+            return 0, e.name in self.static
+        if isinstance(e, TypeName):
+            return 0, True
+        if isinstance(e, (Paren, Member)):
+            return self.expr(e.inner if isinstance(e, Paren) else e.base)
+        if isinstance(e, Conditional):
+            ops, fixed = self.expr(e.cond)
+            (a, fa), (b, fb) = self.expr(e.then), self.expr(e.other)
+            if fixed:
+                return max(a, b), fa and fb
+            return ops + a + b + 1, False
+        if isinstance(e, Call):
+            if e.func not in self.static:  # an input's accessor: a load, counted apart
+                return sum(self.expr(a)[0] for a in e.args), False
+            return self._op(e.args)
+        if isinstance(e, (Unary, Postfix, Cast)):
+            return self._op([e.operand])
+        if isinstance(e, Binary):
+            return self._op([e.left, e.right])
+        if isinstance(e, Assign):
+            ops, fixed = self.expr(e.value)
+            return (ops + (e.op != "=" and not fixed), fixed)
+        if isinstance(e, Index):
+            (a, fa), (b, fb) = self.expr(e.base), self.expr(e.index)
+            return a + b, fa and fb
+        if isinstance(e, (VectorLiteral, InitList)):
+            parts = [self.expr(a) for a in (e.args if isinstance(e, VectorLiteral) else e.items)]
+            return sum(p[0] for p in parts), all(p[1] for p in parts)
+        return 0, False
+
+    def _op(self, operands) -> tuple[int, bool]:
+        parts = [self.expr(a) for a in operands]
+        fixed = all(p[1] for p in parts)
+        return sum(p[0] for p in parts) + (not fixed), fixed
+
+
+def _is_expr(node) -> bool:
+    return not isinstance(node, (Decl, ExprStmt, Block, If, For, While, DoWhile, Return, Jump,
+                                 Snippet))

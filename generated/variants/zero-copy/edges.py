@@ -9,30 +9,28 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 """
 
 # System plan:
-#   step  name                          stage  queue  runs      GPU settings          threads
-#   1     camera (Camera)               1      -      CPU       -                     -
-#   2     adapter1_cpu2gpu              1      0      in place  -                     -
-#   3     gray (RgbToGray)              2      0      GPU       tile 32, block 8x8x1  448
-#   4     blur (GaussianBlurGray)       3      0      GPU       tile 32, block 8x8x1  448
-#   5     adapter2_gpu2cpu              3      0      map       -                     -
-#   6     canny (CannyGray)             4      -      CPU       -                     -
-#   7     dx (SobelGray)                4      0      GPU       tile 32, block 8x8x1  448
-#   8     dy (SobelGray)                4      1      GPU       tile 32, block 8x8x1  448
-#   9     laplace (LaplacianGray)       4      2      GPU       tile 32, block 8x8x1  448
-#   10    adapter3_cpu2gpu              4      3      in place  -                     -
-#   11    absx_to_merged (fused group)  9      0      GPU       tile 32, block 8x8x1  448
-#   12    adapter4_gpu2cpu              9      0      map       -                     -
-#   13    sink (FrameSink)              10     -      CPU       -                     -
+#   step  name                            stage  queue  runs      GPU settings          threads
+#   1     camera (Camera)                 1      -      CPU       -                     -
+#   2     adapter1_cpu2gpu                1      0      in place  -                     -
+#   3     gray (RgbToGray)                2      0      GPU       tile 32, block 8x8x1  448
+#   4     blur (GaussianBlurGray)         3      0      GPU       tile 32, block 8x8x1  448
+#   5     adapter2_gpu2cpu                3      0      map       -                     -
+#   6     canny (CannyGray)               4      -      CPU       -                     -
+#   7     dx_to_sobel (fused group)       6      0      GPU       tile 32, block 8x8x1  448
+#   8     laplace (LaplacianGray)         4      1      GPU       tile 32, block 8x8x1  448
+#   9     adapter3_cpu2gpu                4      2      in place  -                     -
+#   10    abslap_to_merged (fused group)  9      1      GPU       tile 32, block 8x8x1  448
+#   11    adapter4_gpu2cpu                9      1      map       -                     -
+#   12    sink (FrameSink)                10     -      CPU       -                     -
 #
 #   buffer                            memory              size               bytes
 #   camera.image                      host                200x301x3 uint8  180,600
 #   gray.dst                          device              200x301x1 uint8   60,200
 #   blur.dst                          device              200x301x1 uint8   60,200
 #   canny.dst                         host                200x301x1 uint8   60,200
-#   dx.dst                            device              200x301x1 int16  120,400
-#   dy.dst                            device              200x301x1 int16  120,400
+#   dx_to_sobel.dst                   device              200x301x1 uint8   60,200
 #   laplace.dst                       device              200x301x1 int16  120,400
-#   absx_to_merged.merged             device              200x903x3 uint8  541,800
+#   abslap_to_merged.merged           device              200x903x3 uint8  541,800
 #   adapter1_cpu2gpu (camera.image)   host view           200x301x3 uint8        0
 #   adapter2_gpu2cpu (blur.dst)       mapped device view  200x301x1 uint8        0
 #   adapter3_cpu2gpu (canny.dst)      host view           200x301x1 uint8        0
@@ -55,52 +53,47 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 #     merged: GPU (by default)
 #
 #   device: portable OpenCL 1.2 device
-#   peak device memory: 1,023,400 bytes; peak host memory: 240,800 bytes
+#   peak device memory: 842,800 bytes; peak host memory: 240,800 bytes
 #   (every buffer is allocated once, at start)
 #   bytes copied between CPU and GPU per frame: 0
 #   zero-copy adapters: on (forced by the model or the command line)
-#   execution: parallel, 4 queues
+#   execution: parallel, 3 queues
 #   thread budget: 16,384 (device total); GPU components that can run at the same time:
 #     gray: 448 threads
 #     blur: 448 threads
-#     dx, dy, laplace: 1,344 threads
-#     absx_to_merged: 448 threads
+#     dx_to_sobel, laplace: 896 threads
+#     abslap_to_merged: 448 threads
 #   kernels generated from fusable forms, one component each: gray (RgbToGray, pointwise:
-#     gray.cl), blur (GaussianBlurGray, stencil: blur.cl), dx (SobelGray, stencil: dx.cl),
-#     dy (SobelGray, stencil: dy.cl), laplace (LaplacianGray, stencil: laplace.cl)
-#   fusion: auto, 1 group:
-#     absx_to_merged: one kernel (group_absx_to_merged.cl) for
-#       absx (ConvertScaleAbsGray, pointwise)
+#     gray.cl), blur (GaussianBlurGray, stencil: blur.cl), laplace (LaplacianGray, stencil:
+#     laplace.cl)
+#   fusion: auto, 2 groups:
+#     dx_to_sobel: one kernel (group_dx_to_sobel.cl) for
+#       dx (SobelGray, stencil)
+#       -> dy (SobelGray, stencil)
+#       -> absx (ConvertScaleAbsGray, pointwise)
 #       -> absy (ConvertScaleAbsGray, pointwise)
 #       -> sobel (AddWeightedGray, pointwise)
-#       -> abslap (ConvertScaleAbsGray, pointwise)
+#       estimate: 0.045 ms a frame as one kernel, 0.137 ms apart (3.0x; constants for a cpu
+#       device)
+#     abslap_to_merged: one kernel (group_abslap_to_merged.cl) for
+#       abslap (ConvertScaleAbsGray, pointwise)
 #       -> canny_rgb (GrayToRgb, pointwise)
 #       -> sobel_rgb (GrayToRgb, pointwise)
 #       -> laplace_rgb (GrayToRgb, pointwise)
 #       -> left (ImageMerger, index_map)
 #       -> merged (ImageMerger, index_map)
-#       estimate: 0.089 ms a frame as one kernel, 0.277 ms apart (3.1x; constants for a cpu
+#       estimate: 0.081 ms a frame as one kernel, 0.207 ms apart (2.5x; constants for a cpu
 #       device)
 #     not fused: gray.dst -> blur.src:
-#       cost model: with gray the group's kernel takes an estimated 0.274 ms a frame,
-#       against 0.071 ms with gray apart (it would run 28 times per output element of the
+#       cost model: with gray the group's kernel takes an estimated 0.321 ms a frame,
+#       against 0.073 ms with gray apart (it would run 28 times per output element of the
 #       group; constants for a cpu device)
 #     not fused: blur.dst -> dx.src:
 #       read by several consumers: blur.dst is also read by the CPU (canny.src, through
-#       adapter2_gpu2cpu), dy.src, laplace.src, outside the group; its output must be
-#       materialized
+#       adapter2_gpu2cpu), laplace.src, outside the group; its output must be materialized
 #     not fused: blur.dst -> dy.src:
 #       read by several consumers: blur.dst is also read by the CPU (canny.src, through
-#       adapter2_gpu2cpu), dx.src, laplace.src, outside the group; its output must be
-#       materialized
-#     not fused: dx.dst -> absx.src:
-#       cost model: with dx the group's kernel takes an estimated 0.153 ms a frame, against
-#       0.119 ms with dx apart (it would run 1 times per output element of the group;
-#       constants for a cpu device)
-#     not fused: dy.dst -> absy.src:
-#       cost model: with dy the group's kernel takes an estimated 0.153 ms a frame, against
-#       0.119 ms with dy apart (it would run 1 times per output element of the group;
-#       constants for a cpu device)
+#       adapter2_gpu2cpu), laplace.src, outside the group; its output must be materialized
 #     not fused: blur.dst -> laplace.src:
 #       read by several consumers: blur.dst is also read by the CPU (canny.src, through
 #       adapter2_gpu2cpu), dx.src, dy.src, outside the group; its output must be
@@ -108,6 +101,10 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 #     not fused: laplace.dst -> abslap.src:
 #       cost model: with laplace the group's kernel takes an estimated 0.146 ms a frame,
 #       against 0.111 ms with laplace apart (it would run 1 times per output element of the
+#       group; constants for a cpu device)
+#     not fused: sobel.dst -> sobel_rgb.src:
+#       cost model: with sobel the group's kernel takes an estimated 0.123 ms a frame,
+#       against 0.109 ms with sobel apart (it would run 1 times per output element of the
 #       group; constants for a cpu device)
 
 from __future__ import annotations
@@ -188,38 +185,20 @@ class GaussianBlurGray(runtime.KernelComponent):
         ]
 
 
-class SobelGrayDx(runtime.KernelComponent):
-    """GPU-aware component SobelGrayDx: kernel dx_kernel() in dx.cl.
+class FusedDxToSobel(runtime.KernelComponent):
+    """GPU-aware component FusedDxToSobel: kernel dx_to_sobel() in group_dx_to_sobel.cl.
 
     One work-group of block_x * block_y * block_z threads covers tile whole rows of
     'dst'.
     """
-    # Kernel of dx (SobelGray), generated from its stencil form.
+    # Fuses dx (SobelGray), dy (SobelGray), absx (ConvertScaleAbsGray), absy (ConvertScaleAbsGray),
+    # sobel (AddWeightedGray) into one kernel.
 
-    function = 'dx_kernel'
-    inputs = (('src', np.uint8),)
-    outputs = (('dst', np.int16),)
+    function = 'dx_to_sobel'
+    inputs = (('dx_src', np.uint8), ('dy_src', np.uint8))
+    outputs = (('dst', np.uint8),)
 
-    def output_sizes(self, src):
-        """Input sizes in, output sizes out (the type's size expressions)."""
-        return [
-            Size(200, 301, 1),
-        ]
-
-
-class SobelGrayDy(runtime.KernelComponent):
-    """GPU-aware component SobelGrayDy: kernel dy_kernel() in dy.cl.
-
-    One work-group of block_x * block_y * block_z threads covers tile whole rows of
-    'dst'.
-    """
-    # Kernel of dy (SobelGray), generated from its stencil form.
-
-    function = 'dy_kernel'
-    inputs = (('src', np.uint8),)
-    outputs = (('dst', np.int16),)
-
-    def output_sizes(self, src):
+    def output_sizes(self, dx_src, dy_src):
         """Input sizes in, output sizes out (the type's size expressions)."""
         return [
             Size(200, 301, 1),
@@ -245,23 +224,21 @@ class LaplacianGray(runtime.KernelComponent):
         ]
 
 
-class FusedAbsxToMerged(runtime.KernelComponent):
-    """GPU-aware component FusedAbsxToMerged: kernel absx_to_merged() in group_absx_to_merged.cl.
+class FusedAbslapToMerged(runtime.KernelComponent):
+    """GPU-aware component FusedAbslapToMerged:
+    kernel abslap_to_merged() in group_abslap_to_merged.cl.
 
     One work-group of block_x * block_y * block_z threads covers tile whole rows of
     'merged'.
     """
-    # Fuses absx (ConvertScaleAbsGray), absy (ConvertScaleAbsGray), sobel (AddWeightedGray), abslap
-    # (ConvertScaleAbsGray), canny_rgb (GrayToRgb), sobel_rgb (GrayToRgb), laplace_rgb (GrayToRgb),
-    # left (ImageMerger), merged (ImageMerger) into one kernel.
+    # Fuses abslap (ConvertScaleAbsGray), canny_rgb (GrayToRgb), sobel_rgb (GrayToRgb), laplace_rgb
+    # (GrayToRgb), left (ImageMerger), merged (ImageMerger) into one kernel.
 
-    function = 'absx_to_merged'
-    inputs = (
-        ('absx_src', np.int16), ('absy_src', np.int16), ('abslap_src', np.int16),
-        ('canny_rgb_src', np.uint8))
+    function = 'abslap_to_merged'
+    inputs = (('abslap_src', np.int16), ('canny_rgb_src', np.uint8), ('sobel_rgb_src', np.uint8))
     outputs = (('merged', np.uint8),)
 
-    def output_sizes(self, absx_src, absy_src, abslap_src, canny_rgb_src):
+    def output_sizes(self, abslap_src, canny_rgb_src, sobel_rgb_src):
         """Input sizes in, output sizes out (the type's size expressions)."""
         return [
             Size(200, 903, 3),
@@ -283,64 +260,57 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
         'blur',
         'adapter2_gpu2cpu',
         'canny',
-        'dx',
-        'dy',
+        'dx_to_sobel',
         'laplace',
         'adapter3_cpu2gpu',
-        'absx_to_merged',
+        'abslap_to_merged',
         'adapter4_gpu2cpu',
         'sink',
     ])
     params = session.params
     context = context or runtime.create_context()
-    # Parallel execution: 4 in-order queues (lanes). Commands are enqueued
+    # Parallel execution: 3 in-order queues (lanes). Commands are enqueued
     # without waiting; a command waits for another queue's event (wait_for=[...]) only
     # where it reads that queue's data, and the host waits only where it reads a result.
     queue0 = runtime.create_queue(context, profile)
     queue1 = runtime.create_queue(context, profile)
     queue2 = runtime.create_queue(context, profile)
-    queue3 = runtime.create_queue(context, profile)
     # every device buffer, with its bytes: checked against the device before allocating
     runtime.check_device_memory(context.devices[0], {
         'gray.dst': 60_200,
         'blur.dst': 60_200,
-        'dx.dst': 120_400,
-        'dy.dst': 120_400,
+        'dx_to_sobel.dst': 60_200,
         'laplace.dst': 120_400,
-        'absx_to_merged.merged': 541_800,
+        'abslap_to_merged.merged': 541_800,
     })
     rgb_to_gray_program = runtime.build_program(context, LIB_DIR / 'gray.cl', 'gray (RgbToGray)')
     gaussian_blur_gray_program = runtime.build_program(
         context, LIB_DIR / 'blur.cl', 'blur (GaussianBlurGray)')
-    sobel_gray_dx_program = runtime.build_program(
-        context, LIB_DIR / 'dx.cl', 'dx (SobelGrayDx)',
+    fused_dx_to_sobel_program = runtime.build_program(
+        context, LIB_DIR / 'group_dx_to_sobel.cl', 'dx_to_sobel (FusedDxToSobel)',
         defines={  # the kernel's constants, its members' parameters: -D NAME=VALUE
             '_m0_dx': np.int32(1),
             '_m0_dy': np.int32(0),
-        })
-    sobel_gray_dy_program = runtime.build_program(
-        context, LIB_DIR / 'dy.cl', 'dy (SobelGrayDy)',
-        defines={  # the kernel's constants, its members' parameters: -D NAME=VALUE
-            '_m0_dx': np.int32(0),
-            '_m0_dy': np.int32(1),
+            '_m1_dx': np.int32(0),
+            '_m1_dy': np.int32(1),
+            '_m2_alpha': np.float32(params['absx.alpha']),
+            '_m2_beta': np.float32(params['absx.beta']),
+            '_m3_alpha': np.float32(params['absy.alpha']),
+            '_m3_beta': np.float32(params['absy.beta']),
+            '_m4_alpha': np.float32(params['sobel.alpha']),
+            '_m4_beta': np.float32(params['sobel.beta']),
+            '_m4_gamma': np.float32(params['sobel.gamma']),
         })
     laplacian_gray_program = runtime.build_program(
         context, LIB_DIR / 'laplace.cl', 'laplace (LaplacianGray)',
         defines={  # the kernel's constants, its members' parameters: -D NAME=VALUE
             '_m0_ksize': np.int32(3),
         })
-    fused_absx_to_merged_program = runtime.build_program(
-        context, LIB_DIR / 'group_absx_to_merged.cl', 'absx_to_merged (FusedAbsxToMerged)',
+    fused_abslap_to_merged_program = runtime.build_program(
+        context, LIB_DIR / 'group_abslap_to_merged.cl', 'abslap_to_merged (FusedAbslapToMerged)',
         defines={  # the kernel's constants, its members' parameters: -D NAME=VALUE
-            '_m0_alpha': np.float32(params['absx.alpha']),
-            '_m0_beta': np.float32(params['absx.beta']),
-            '_m1_alpha': np.float32(params['absy.alpha']),
-            '_m1_beta': np.float32(params['absy.beta']),
-            '_m2_alpha': np.float32(params['sobel.alpha']),
-            '_m2_beta': np.float32(params['sobel.beta']),
-            '_m2_gamma': np.float32(params['sobel.gamma']),
-            '_m3_alpha': np.float32(params['abslap.alpha']),
-            '_m3_beta': np.float32(params['abslap.beta']),
+            '_m0_alpha': np.float32(params['abslap.alpha']),
+            '_m0_beta': np.float32(params['abslap.beta']),
         })
 
     # a failure names its component and frame; every part initialized is freed once, in
@@ -363,18 +333,18 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
         canny = parts['canny'] = CannyGray(
             threshold1=params['canny.threshold1'], threshold2=params['canny.threshold2'],
             aperture_size=3, l2_gradient=params['canny.l2_gradient'])
-        dx = parts['dx'] = SobelGrayDx(context, queue0, sobel_gray_dx_program, host_visible=True)
-        dy = parts['dy'] = SobelGrayDy(context, queue1, sobel_gray_dy_program, host_visible=True)
+        dx_to_sobel = parts['dx_to_sobel'] = FusedDxToSobel(
+            context, queue0, fused_dx_to_sobel_program, host_visible=True)
         laplace = parts['laplace'] = LaplacianGray(
-            context, queue2, laplacian_gray_program, host_visible=True)
-        # canny.dst -> absx_to_merged.canny_rgb_src
+            context, queue1, laplacian_gray_program, host_visible=True)
+        # canny.dst -> abslap_to_merged.canny_rgb_src
         adapter3_cpu2gpu = parts['adapter3_cpu2gpu'] = runtime.ZeroCopyCpuToGpuAdapter(
-            context, queue3, nbytes=60_200)
-        absx_to_merged = parts['absx_to_merged'] = FusedAbsxToMerged(
-            context, queue0, fused_absx_to_merged_program, host_visible=True)
+            context, queue2, nbytes=60_200)
+        abslap_to_merged = parts['abslap_to_merged'] = FusedAbslapToMerged(
+            context, queue1, fused_abslap_to_merged_program, host_visible=True)
         # merged.merged -> sink.image
         adapter4_gpu2cpu = parts['adapter4_gpu2cpu'] = runtime.ZeroCopyGpuToCpuAdapter(
-            context, queue0, nbytes=541_800)
+            context, queue1, nbytes=541_800)
         sink = parts['sink'] = FrameSink(output=params['sink.output'])
         session.start()  # the monitor and the profiler see the parts
 
@@ -387,13 +357,12 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
         blur_dst_cpu_size = adapter2_gpu2cpu.initialize(blur_dst_size, np.uint8)
         canny_dst_size = canny.initialize(blur_dst_cpu_size)
         canny_dst_size = runtime.expect_size('canny.dst', canny_dst_size, Size(200, 301, 1))
-        dx_dst_size = dx.initialize(blur_dst_size)
-        dy_dst_size = dy.initialize(blur_dst_size)
+        dx_to_sobel_dst_size = dx_to_sobel.initialize(blur_dst_size, blur_dst_size)
         laplace_dst_size = laplace.initialize(blur_dst_size)
         canny_dst_gpu_size = adapter3_cpu2gpu.initialize(canny_dst_size, np.uint8)
-        absx_to_merged_merged_size = absx_to_merged.initialize(
-            dx_dst_size, dy_dst_size, laplace_dst_size, canny_dst_gpu_size)
-        merged_merged_cpu_size = adapter4_gpu2cpu.initialize(absx_to_merged_merged_size, np.uint8)
+        abslap_to_merged_merged_size = abslap_to_merged.initialize(
+            laplace_dst_size, canny_dst_gpu_size, dx_to_sobel_dst_size)
+        merged_merged_cpu_size = adapter4_gpu2cpu.initialize(abslap_to_merged_merged_size, np.uint8)
         sink.initialize(merged_merged_cpu_size)
 
         # gray: settings preferred, 448 resident threads; kernel arguments in the calling
@@ -414,21 +383,12 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
                 np.int32(32),  # tile
             ])
 
-        # dx: settings preferred, 448 resident threads; kernel arguments in the calling convention's
-        # order (a port's name stands for its buffer)
-        dx.config_gpu(
+        # dx_to_sobel: settings preferred, 448 resident threads; kernel arguments in the calling
+        # convention's order (a port's name stands for its buffer)
+        dx_to_sobel.config_gpu(
             tile=32, local_size=(8, 8, 1), global_size=(8, 56, 1),
             settings_source='preferred', arguments=[
-                'src', 'dst',  # buffers: inputs, then outputs
-                np.int32(32),  # tile
-            ])
-
-        # dy: settings preferred, 448 resident threads; kernel arguments in the calling convention's
-        # order (a port's name stands for its buffer)
-        dy.config_gpu(
-            tile=32, local_size=(8, 8, 1), global_size=(8, 56, 1),
-            settings_source='preferred', arguments=[
-                'src', 'dst',  # buffers: inputs, then outputs
+                'dx_src', 'dy_src', 'dst',  # buffers: inputs, then outputs
                 np.int32(32),  # tile
             ])
 
@@ -441,13 +401,13 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
                 np.int32(32),  # tile
             ])
 
-        # absx_to_merged: settings preferred, 448 resident threads; kernel arguments in the calling
-        # convention's order (a port's name stands for its buffer)
-        absx_to_merged.config_gpu(
+        # abslap_to_merged: settings preferred, 448 resident threads; kernel arguments in the
+        # calling convention's order (a port's name stands for its buffer)
+        abslap_to_merged.config_gpu(
             tile=32, local_size=(8, 8, 1), global_size=(8, 56, 1),
             settings_source='preferred', arguments=[
                 # buffers: inputs, then outputs
-                'absx_src', 'absy_src', 'abslap_src', 'canny_rgb_src', 'merged',
+                'abslap_src', 'canny_rgb_src', 'sobel_rgb_src', 'merged',
                 np.int32(32),  # tile
             ])
 
@@ -465,20 +425,18 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
             canny_dst = canny.execute(blur_dst_cpu)
             canny_dst = runtime.check_frame('canny.dst', canny_dst, (200, 301), np.uint8)
             adapter2_gpu2cpu.unmap()  # the device may write blur.dst again
-            dx_dst = dx.execute(blur_dst)
-            dy_dst = dy.execute(blur_dst)
+            dx_to_sobel_dst = dx_to_sobel.execute(blur_dst, blur_dst)
             laplace_dst = laplace.execute(blur_dst)
             canny_dst_gpu = adapter3_cpu2gpu.transfer(canny_dst)
-            absx_to_merged_merged = absx_to_merged.execute(
-                dx_dst, dy_dst, laplace_dst, canny_dst_gpu, wait_for=[dy.event, laplace.event])
-            merged_merged_cpu = adapter4_gpu2cpu.transfer(absx_to_merged_merged)
+            abslap_to_merged_merged = abslap_to_merged.execute(
+                laplace_dst, canny_dst_gpu, dx_to_sobel_dst, wait_for=[dx_to_sobel.event])
+            merged_merged_cpu = adapter4_gpu2cpu.transfer(abslap_to_merged_merged)
             sink.execute(merged_merged_cpu)
             adapter4_gpu2cpu.unmap()  # the device may write merged.merged again
             session.frame_done()
         queue0.finish()
         queue1.finish()
         queue2.finish()
-        queue3.finish()
     return session.result()
 
 

@@ -51,15 +51,15 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 #     merger_detector: one kernel (group_merger_detector.cl) for
 #       merger (ImageMerger, index_map)
 #       -> detector (ObjectDetector, pointwise)
-#       estimate: 0.085 ms a frame as one kernel, 0.197 ms apart (2.3x; constants for a cpu
+#       estimate: 0.107 ms a frame as one kernel, 0.219 ms apart (2.1x; constants for a cpu
 #       device)
 #     not fused: blur1.dst -> merger.left:
-#       cost model: with blur1 the group's kernel takes an estimated 0.717 ms a frame,
-#       against 0.467 ms with blur1 apart (it would run 3 times per output element of the
+#       cost model: with blur1 the group's kernel takes an estimated 0.739 ms a frame,
+#       against 0.489 ms with blur1 apart (it would run 3 times per output element of the
 #       group; constants for a cpu device)
 #     not fused: blur2.dst -> merger.right:
-#       cost model: with blur2 the group's kernel takes an estimated 0.717 ms a frame,
-#       against 0.467 ms with blur2 apart (it would run 3 times per output element of the
+#       cost model: with blur2 the group's kernel takes an estimated 0.739 ms a frame,
+#       against 0.489 ms with blur2 apart (it would run 3 times per output element of the
 #       group; constants for a cpu device)
 
 from __future__ import annotations

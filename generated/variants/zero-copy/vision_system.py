@@ -42,7 +42,7 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 #     merger_detector: one kernel (group_merger_detector.cl) for
 #       merger (ImageMerger, index_map)
 #       -> detector (ObjectDetector, pointwise)
-#       estimate: 0.085 ms a frame as one kernel, 0.197 ms apart (2.3x; constants for a cpu
+#       estimate: 0.107 ms a frame as one kernel, 0.219 ms apart (2.1x; constants for a cpu
 #       device)
 
 from __future__ import annotations

@@ -56,7 +56,7 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 #     to_hsv_threshold: one kernel (group_to_hsv_threshold.cu) for
 #       to_hsv (RgbToHsv, pointwise)
 #       -> threshold (Threshold, pointwise)
-#       estimate: 0.020 ms a frame as one kernel, 0.041 ms apart (2.0x; constants for a cpu
+#       estimate: 0.022 ms a frame as one kernel, 0.042 ms apart (1.9x; constants for a cpu
 #       device)
 #     not fused: flip_cpu.dst -> to_hsv.src:
 #       placed on the CPU: flip_cpu runs its CPU function (model)
