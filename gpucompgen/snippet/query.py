@@ -1,55 +1,28 @@
 """Questions the fusion pass and the kernel generator ask of a parsed snippet: which
-accessor calls it makes and with what arguments, and whether it uses a name elsewhere.
-They read the tree, so comments, strings of tokens and layout cannot mislead them."""
+accessor calls it makes and with what arguments, whether it uses a name elsewhere, and
+what an element's evaluation computes (operations).  They read the tree, so comments, strings of tokens and layout cannot mislead them."""
 
 from __future__ import annotations
 
 from collections.abc import Iterator, Mapping
 
-from .syntax import (
-    Assign,
-    Binary,
-    Block,
-    Call,
-    Cast,
-    Conditional,
-    Decl,
-    DoWhile,
-    ExprStmt,
-    For,
-    If,
-    Index,
-    InitList,
-    Jump,
-    Member,
-    Name,
-    Node,
-    Number,
-    Paren,
-    Postfix,
-    Return,
-    Snippet,
-    TypeName,
-    Unary,
-    VectorLiteral,
-    While,
-)
+from . import syntax as S
 
 
 def _children(node) -> Iterator:
-    if isinstance(node, Node):
+    if isinstance(node, S.Node):
         yield from vars(node).values()
     elif isinstance(node, tuple):
         yield from node
 
 
-def accessor_calls(tree: Node, ports: list[str]) -> dict[str, list[tuple[Node, ...]]]:
+def accessor_calls(tree: S.Node, ports: list[str]) -> dict[str, list[tuple[S.Node, ...]]]:
     """Every call port(a, b, c) of the given accessors, its argument trees, per port, in
     the order they appear."""
-    found: dict[str, list[tuple[Node, ...]]] = {p: [] for p in ports}
+    found: dict[str, list[tuple[S.Node, ...]]] = {p: [] for p in ports}
 
     def walk(node) -> None:
-        if isinstance(node, Call) and node.func in found:
+        if isinstance(node, S.Call) and node.func in found:
             found[node.func].append(node.args)
         for child in _children(node):
             walk(child)
@@ -58,35 +31,35 @@ def accessor_calls(tree: Node, ports: list[str]) -> dict[str, list[tuple[Node, .
     return found
 
 
-def uses_outside_calls(tree: Node, funcs: list[str], names: set[str]) -> bool:
+def uses_outside_calls(tree: S.Node, funcs: list[str], names: set[str]) -> bool:
     """Whether the snippet uses any of names other than inside a call of funcs."""
     def walk(node) -> bool:
-        if isinstance(node, Call) and node.func in funcs:
+        if isinstance(node, S.Call) and node.func in funcs:
             return False
-        if isinstance(node, Name) and node.name in names:
+        if isinstance(node, S.Name) and node.name in names:
             return True
         return any(walk(child) for child in _children(node))
 
     return walk(tree)
 
 
-def unparen(node: Node) -> Node:
-    while isinstance(node, Paren):
+def unparen(node: S.Node) -> S.Node:
+    while isinstance(node, S.Paren):
         node = node.inner
     return node
 
 
-def is_name(node: Node, name: str) -> bool:
+def is_name(node: S.Node, name: str) -> bool:
     node = unparen(node)
-    return isinstance(node, Name) and node.name == name
+    return isinstance(node, S.Name) and node.name == name
 
 
-def is_shifted(node: Node, name: str) -> bool:
+def is_shifted(node: S.Node, name: str) -> bool:
     """name, or name plus or minus an expression that does not use name."""
     node = unparen(node)
     if is_name(node, name):
         return True
-    return (isinstance(node, Binary) and node.op in "+-" and is_name(node.left, name)
+    return (isinstance(node, S.Binary) and node.op in "+-" and is_name(node.left, name)
             and not uses_outside_calls(node.right, [], {name}))
 
 
@@ -96,7 +69,7 @@ def is_shifted(node: Node, name: str) -> bool:
 _STATIC_KINDS = frozenset({"param", "size", "limit", "constant", "type", "builtin"})
 
 
-def operations(tree: Node, names: Mapping[str, str]) -> int:
+def operations(tree: S.Node, names: Mapping[str, str]) -> int:
     """Operations one evaluation of a loop-free snippet computes: each operator, cast and
     built-in call on a value that depends on the element (a coordinate, an input read, a
     local computed from one); none for a value of parameters and constants, which the
@@ -108,9 +81,9 @@ def operations(tree: Node, names: Mapping[str, str]) -> int:
     static = {n for n, kind in names.items() if kind in _STATIC_KINDS}
     assigned = set()
     for a in _walk(tree):
-        target = a.target if isinstance(a, Assign) else \
-            a.operand if isinstance(a, (Unary, Postfix)) and a.op in ("++", "--") else None
-        if target is not None and isinstance(unparen(target), Name):
+        target = a.target if isinstance(a, S.Assign) else \
+            a.operand if isinstance(a, (S.Unary, S.Postfix)) and a.op in ("++", "--") else None
+        if target is not None and isinstance(unparen(target), S.Name):
             assigned.add(unparen(target).name)
     return _Counter(static, assigned).statement(tree)
 
@@ -126,9 +99,9 @@ class _Counter:
         self.static, self.assigned = set(static), assigned
 
     def statement(self, s) -> int:
-        if isinstance(s, (Snippet, Block)):
+        if isinstance(s, (S.Snippet, S.Block)):
             return sum(self.statement(b) for b in s.body)
-        if isinstance(s, Decl):
+        if isinstance(s, S.Decl):
             total = 0
             for d in s.declarators:
                 if d.init is None:
@@ -138,54 +111,55 @@ class _Counter:
                 if fixed and d.name not in self.assigned and d.size is None:
                     self.static.add(d.name)
             return total
-        if isinstance(s, ExprStmt):
+        if isinstance(s, S.ExprStmt):
             return self.expr(s.expr)[0] if s.expr is not None else 0
-        if isinstance(s, Return):
+        if isinstance(s, S.Return):
             return self.expr(s.value)[0]
-        if isinstance(s, If):
+        if isinstance(s, S.If):
             ops, fixed = self.expr(s.cond)
             then = self.statement(s.then)
             other = self.statement(s.other) if s.other is not None else 0
             return max(then, other) if fixed else ops + then + other + 1
-        if isinstance(s, (For, While, DoWhile)):
+        if isinstance(s, (S.For, S.While, S.DoWhile)):
             parts = [s.body] + [p for p in (getattr(s, "init", None), s.cond,
                                             getattr(s, "step", None)) if p is not None]
             return sum(self.statement(p) if not _is_expr(p) else self.expr(p)[0]
                        for p in parts)
-        return 0  # Jump
+        return 0  # break, continue
 
     def expr(self, e) -> tuple[int, bool]:
         """(operations, whether the value is the same for every element)."""
-        if isinstance(e, Number):
+        if isinstance(e, S.Number):
             return 0, True
-        if isinstance(e, Name):
+        if isinstance(e, S.Name):
             return 0, e.name in self.static
-        if isinstance(e, TypeName):
+        if isinstance(e, S.TypeName):
             return 0, True
-        if isinstance(e, (Paren, Member)):
-            return self.expr(e.inner if isinstance(e, Paren) else e.base)
-        if isinstance(e, Conditional):
+        if isinstance(e, (S.Paren, S.Member)):
+            return self.expr(e.inner if isinstance(e, S.Paren) else e.base)
+        if isinstance(e, S.Conditional):
             ops, fixed = self.expr(e.cond)
             (a, fa), (b, fb) = self.expr(e.then), self.expr(e.other)
             if fixed:
                 return max(a, b), fa and fb
             return ops + a + b + 1, False
-        if isinstance(e, Call):
+        if isinstance(e, S.Call):
             if e.func not in self.static:  # an input's accessor: a load, counted apart
                 return sum(self.expr(a)[0] for a in e.args), False
             return self._op(e.args)
-        if isinstance(e, (Unary, Postfix, Cast)):
+        if isinstance(e, (S.Unary, S.Postfix, S.Cast)):
             return self._op([e.operand])
-        if isinstance(e, Binary):
+        if isinstance(e, S.Binary):
             return self._op([e.left, e.right])
-        if isinstance(e, Assign):
+        if isinstance(e, S.Assign):
             ops, fixed = self.expr(e.value)
             return (ops + (e.op != "=" and not fixed), fixed)
-        if isinstance(e, Index):
+        if isinstance(e, S.Index):
             (a, fa), (b, fb) = self.expr(e.base), self.expr(e.index)
             return a + b, fa and fb
-        if isinstance(e, (VectorLiteral, InitList)):
-            parts = [self.expr(a) for a in (e.args if isinstance(e, VectorLiteral) else e.items)]
+        if isinstance(e, (S.VectorLiteral, S.InitList)):
+            items = e.args if isinstance(e, S.VectorLiteral) else e.items
+            parts = [self.expr(a) for a in items]
             return sum(p[0] for p in parts), all(p[1] for p in parts)
         return 0, False
 
@@ -196,5 +170,5 @@ class _Counter:
 
 
 def _is_expr(node) -> bool:
-    return not isinstance(node, (Decl, ExprStmt, Block, If, For, While, DoWhile, Return, Jump,
-                                 Snippet))
+    return not isinstance(node, (S.Decl, S.ExprStmt, S.Block, S.If, S.For, S.While,
+                                 S.DoWhile, S.Return, S.Jump, S.Snippet))
