@@ -1,6 +1,7 @@
 """Questions the fusion pass and the kernel generator ask of a parsed snippet: which
 accessor calls it makes and with what arguments, whether it uses a name elsewhere, and
-what an element's evaluation computes (operations).  They read the tree, so comments, strings of tokens and layout cannot mislead them."""
+what an element's evaluation computes (operations).  They read the tree, so comments,
+strings of tokens and layout cannot mislead them."""
 
 from __future__ import annotations
 
