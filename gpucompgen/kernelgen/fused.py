@@ -828,8 +828,9 @@ def _load(array: str, row: str, w: int, xx: str, ch: int, flat: bool,
 
 
 def _port_constants(m) -> list[str]:
-    """What the snippet is given of each port: its sizes (its channels where named), and its element type and that
-    type's least and greatest values where the snippet names them (src_t, src_min)."""
+    """What the snippet is given of each port: its sizes (its channels where named), and
+    its element type and that type's least and greatest values where the snippet names
+    them (src_t, src_min)."""
     names, lines = m.type.fusable.names, []
     for pname, port in {**m.inputs, **m.outputs}.items():
         lines.append(f"    const int {pname}_height = {port.data.height}, "

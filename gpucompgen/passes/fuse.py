@@ -355,8 +355,14 @@ def arithmetic(node) -> int:
 
 
 def elements(node) -> int:
-    (port,) = node.outputs.values()
+    port = _output(node)
     return port.data.height * port.data.width * port.channels if port.data else 1
+
+
+def _output(node) -> Port:
+    """A fusable member's one output port."""
+    (port,) = node.outputs.values()
+    return port
 
 
 def kernel_features(system: System, members: list[str] | set[str]) -> dict[str, int]:
@@ -419,7 +425,7 @@ def evaluations(system: System, members: set[str]) -> dict[str, int]:
             # channels at most once (the kernel inlines the members, and the compiler
             # computes a call with the same arguments once: a conversion read by two
             # consumers is not computed twice)
-            count[m] = min(count[m], _channels(node))
+            count[m] = min(count[m], _output(node).channels)
         pointwise = node.type.fusable.form == "pointwise" and at_pixel.get(m, True)
         for pname in node.inputs:
             src = system.writer(Endpoint(m, pname))
@@ -427,11 +433,6 @@ def evaluations(system: System, members: set[str]) -> dict[str, int]:
                 count[src.component] += count[m] * reads(node, pname)
                 at_pixel[src.component] = at_pixel.get(src.component, True) and pointwise
     return count
-
-
-def _channels(node) -> int:
-    (port,) = node.outputs.values()
-    return port.channels
 
 
 def estimate(system: System, members: set[str]) -> tuple[float, float]:
