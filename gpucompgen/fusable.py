@@ -209,12 +209,14 @@ class FusableDecl:
                     default=1)
         return self.reads_of(params) * inner
 
-    def lines(self, rename: Mapping[str, str] | None = None) -> list[str]:
+    def lines(self, rename: Mapping[str, str] | None = None,
+              fills: Mapping[str, str] | None = None) -> list[str]:
         """The snippet as C statements ending by returning the element, one a line
         (nested ones indented by 4 spaces), printed from the tree with the names in
-        rename (any name of ``names`` but a built-in's; unnamed ones print as written).
+        rename (any name of ``names`` but a built-in's; unnamed ones print as written)
+        and an accessor's reads with a fill value under the name fills gives it.
         Raises ValueError if renaming would merge two names or give a reserved word."""
-        return print_lines(self.tree, rename)
+        return print_lines(self.tree, rename, fills)
 
     @property
     def body(self) -> str:

@@ -205,7 +205,9 @@ def test_platform_fusion_off_and_bad_values(tmp_path):
 # -- snippets are checked without a device -------------------------------------------------
 
 @pytest.mark.parametrize("form,value,message", [
-    ("index_map", "image(y, x)", "takes 3 arguments (y, x, c), not 2"),
+    ("index_map", "image(y, x)", "takes 3 arguments (y, x, c), or 4 with"),
+    ("index_map", "image(y, x, c, 0, 1)", "(y, x, c, fill), not 5"),
+    ("pointwise", "image(y, x, c, 0)", "always inside the frame: no fill value"),
     ("index_map", "imag(y, x, c)", "unknown function 'imag'"),
     ("pointwise", "image(y + 1, x, c)", "reads inputs at (y, x) only"),
     ("index_map", "image(y, x, c) + ((1)", "'(' is never closed"),

@@ -242,6 +242,18 @@ def test_comments_may_hold_any_text_but_what_changes_lines():
     assert print_lines(parse(text)) == ["return image(y, x, c);"]
 
 
+def test_a_read_with_a_fill_value_prints_under_the_generators_name():
+    """A stencil's image(y, x, c, fill) is checked like a read, and prints as the macro
+    the generator names (a plain read, and a call of another name, as written)."""
+    result = analyse("return image(y - 1, x, c, 7) + image(y, x, c) + min(1, 2);",
+                     "stencil", ["image"], ["out"], [])
+    assert result.problems == []
+    assert print_lines(result.tree, fills={"image": "_fill_image"}) == [
+        "return _fill_image(y - 1, x, c, 7) + image(y, x, c) + min(1, 2);"]
+    assert print_lines(result.tree) == [
+        "return image(y - 1, x, c, 7) + image(y, x, c) + min(1, 2);"]
+
+
 def test_a_trailing_comment_stays_out_of_the_kernel():
     tree = analyse("image(y, x, c) // the mirror", "pointwise", ["image"], ["out"], []).tree
     assert print_lines(tree) == ["return image(y, x, c);"]
@@ -378,6 +390,11 @@ def test_every_library_snippet_compiles_printed_with_every_name_renamed(cl_conte
         # an input's accessor, and a stage's (read like an input: fusable.Stage)
         lines = [f"#define {name}_{p}(y_, x_, c_) src[3 * ((y_) * 5 + (x_)) + (c_)]"
                  for p in [*t.inputs, *f.stages]]
+        # a read with a fill value (the generator's macro tests the position)
+        fills = {p: f"{name}_fill_{p}" for p in [*t.inputs, *f.stages]}
+        lines += [f"#define {fill}(y_, x_, c_, v_) ((uchar)((unsigned)(y_) < 5u && "
+                  f"(unsigned)(x_) < 5u ? {name}_{p}(y_, x_, c_) : (v_)))"
+                  for p, fill in fills.items()]
         lines.append(f"static inline int {name}(__global const uchar *src, const int {name}_y, "
                      f"const int {name}_x, const int {name}_c)")
         lines.append("{")
@@ -401,10 +418,11 @@ def test_every_library_snippet_compiles_printed_with_every_name_renamed(cl_conte
                   for n, v in tables.items()]  # GaussianBlur's weights
         lines += [f"    const int {name}_{n} = {v};"  # an array's lengths the snippet names
                   for n, v in f.lengths_of(defaults).items() if n in f.names]
-        lines += [f"    {line}" for line in f.lines(rename)]
+        lines += [f"    {line}" for line in f.lines(rename, fills)]
         lines += ["}"] + [f"#undef {name}_{p}" for p in [*t.inputs, *f.stages]]
+        lines += [f"#undef {fill}" for fill in fills.values()]
         functions.append("\n".join(lines))
-        printed = "\n".join(f.lines(rename))
+        printed = "\n".join(f.lines(rename, fills))
         for old in rename:  # nothing of the old names is left
             assert not any(tok == old for tok in _identifiers(printed)), (name, old)
     calls = " + ".join(f"{n}(src, 1, 1, 0)" for n in _library_snippets())

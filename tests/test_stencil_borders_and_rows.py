@@ -223,9 +223,13 @@ def test_the_reads_a_stencil_states_bound_what_its_snippet_reads(cl_context, cl_
         lines = [*fused._port_constants(member), *local]
         lines += [f"    const {'float' if isinstance(v, float) else 'int'} {p} = {v};"
                   for p, v in params.items() if not isinstance(v, tuple)]
-        body = "\n".join("    " + line for line in decl.lines())
+        # a read with a fill value counted as a read
+        fills = {p: f"_fill_{p}" for p in member.inputs}
+        body = "\n".join("    " + line for line in decl.lines(fills=fills))
         stages = "".join(f"#define {p}(y_, x_, c_) (++*_reads, (int)(((y_) * 5 + (x_)) & 255))\n"
                          for p in member.inputs if p != "src")
+        stages += "".join(f"#define {f}(y_, x_, c_, v_) {p}(y_, x_, c_)\n"
+                          for p, f in fills.items())
         program = cl.Program(cl_context, stages + _COUNTING.format(
             program="\n".join(program), params="\n".join(lines), body=body)).build()
         out, reads = (cl.Buffer(cl_context, cl.mem_flags.READ_WRITE, 4) for _ in range(2))
@@ -295,3 +299,73 @@ def test_a_window_of_windows_too_large_for_one_kernel_is_refused(tmp_path, op, k
         compile_model(model, tmp_path / "out")
     text = str(info.value)
     assert "m.yaml:4:3" in text and "window of windows" in text and "op 0 then op 1" in text
+
+
+FILL_TYPES = """
+component_types:
+  FillMin:
+    kind: flexible
+    params:
+      fill: {type: int, default: 7, min: 0, max: 255}
+    inputs:
+      src: {dtype: uint8, channels: [1, 3]}
+    outputs:
+      dst: {dtype: uint8, channels: src.channels, height: src.height, width: src.width}
+    cpu: {file: cpu.py, function: fill_min}
+    fusable:
+      form: stencil
+      radius: 2
+      border: clamp
+      value: |
+        uchar v = 255;
+        for (int dy = -2; dy <= 2; dy++)
+            for (int dx = -2; dx <= 2; dx++)
+                v = min(v, src(y + dy, x + dx, c, (uchar)fill));
+        return v;
+"""
+
+
+def _fill_type(tmp_path):
+    from gpucompgen.errors import Reporter
+    from gpucompgen.model import load_types_file
+
+    (tmp_path / "cpu.py").write_text("def fill_min(src, *, fill):\n    return src\n")
+    (tmp_path / "types.yaml").write_text(FILL_TYPES)
+    rep = Reporter()
+    types = load_types_file(tmp_path / "types.yaml", "types.yaml", "user", rep)
+    rep.raise_if_errors()
+    return types["FillMin"]
+
+
+def test_a_read_with_a_fill_value_is_tested_in_the_border_version_only(tmp_path):
+    """src(y, x, c, fill): the border version tests the position, the interior version
+    (every read inside) reads."""
+    ctype = _fill_type(tmp_path).specialized("uint8", 1)
+    text = fused.group_kernel(fused.group_of_one(ctype, {"fill": 7},
+                                                 {"src": (20, 30), "dst": (20, 30)}), "test")
+    border, interior = [line for line in text.splitlines()
+                        if line.startswith("#define _fill_src")]
+    assert "(unsigned)(y_) < 20u && (unsigned)(x_) < 30u" in border and "(v_)" in border
+    assert interior == "#define _fill_src(y_, x_, c_, v_) src(y_, x_, c_)"
+    assert text.count("_fill_src(y + dy, x + dx, c, (uchar)fill)") == 2
+
+
+@pytest.mark.parametrize("channels", (1, 3))
+def test_a_read_with_a_fill_value_equals_numpy_pad(cl_context, cl_queue, tmp_path, channels):
+    """The minimum over a 5x5 window whose reads outside the frame are the fill value:
+    numpy's constant pad, on frames with and without an interior, one and three channels
+    (the interior channel-flat)."""
+    require_opencl()
+    ctype = _fill_type(tmp_path)
+    rng = np.random.default_rng(channels)
+    for h, w in ((1, 1), (3, 8), (9, 4), (12, 23)):
+        shape = (h, w) if channels == 1 else (h, w, channels)
+        image = rng.integers(0, 256, shape, dtype=np.uint8)
+        fill = int(rng.integers(0, 256))
+        pad = ((2, 2), (2, 2)) + ((0, 0),) * (channels > 1)
+        padded = np.pad(image, pad, constant_values=fill)
+        expected = np.min([padded[dy:dy + h, dx:dx + w]
+                           for dy in range(5) for dx in range(5)], axis=0)
+        got = run_generated(cl_context, cl_queue, ctype, {"fill": fill}, [image], shape,
+                            (4, 1, 2, 1))
+        np.testing.assert_array_equal(got, expected, err_msg=f"{shape} fill {fill}")

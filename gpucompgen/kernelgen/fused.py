@@ -292,7 +292,10 @@ def channel_flat(group: GroupNode) -> bool:
     for m in group.members:
         decl = m.type.fusable
         calls = accessor_calls(decl.tree, list(m.inputs))
-        if any(len(args) != 3 or not is_name(args[2], "c") or not is_shifted(args[1], "x")
+        # a read with a fill value tests pixel positions: a stencil's interior version
+        # has none to test (flat), an index map's only version would
+        if any(not is_name(args[2], "c") or not is_shifted(args[1], "x")
+               or len(args) == 4 and decl.form != "stencil"
                for found in calls.values() for args in found):
             return False
         if uses_outside_calls(decl.tree, list(m.inputs), {"x", "c"}):
@@ -741,6 +744,8 @@ def _member(m, feeds: dict[Endpoint, str], producer: dict[Endpoint, Endpoint], i
     lines = [f"// {m.name}: {m.type.name} ({decl.form}"
              + (f", radius {decl.radius}, border {border}" if border else "") + f"); {what}"]
     macros = []
+    fills = {p: f"_fill_{p}" for p, found in accessor_calls(decl.tree, list(m.inputs)).items()
+             if any(len(args) == 4 for args in found)}
     for pname, port in m.inputs.items():
         src = producer.get(Endpoint(m.name, pname))
         h, w = port.data.height, port.data.width
@@ -767,6 +772,15 @@ def _member(m, feeds: dict[Endpoint, str], producer: dict[Endpoint, Endpoint], i
             body = f"((unsigned)(y_) < {h}u && (unsigned)(x_) < {w}u ? {body} : 0)"
         macros.append(pname)
         lines.append(f"#define {pname}(y_, x_, c_) {body}")
+        if pname in fills:
+            # port(y, x, c, fill): the fill value (as the port's type) outside the input;
+            # the interior version's reads are all inside, so no test there
+            fill, etype = fills[pname], DTYPES[port.dtype][1]
+            macros.append(fill)
+            lines.append(f"#define {fill}(y_, x_, c_, v_) " + (
+                f"{pname}(y_, x_, c_)" if interior else
+                f"(({etype})((unsigned)(y_) < {h}u && (unsigned)(x_) < {w}u ? "
+                f"{pname}(y_, x_, c_) : (v_)))"))
     tables, locals_ = _tables(m, index[m.name])
     if not interior:  # once, before the member's first version
         lines[1:1] = tables
@@ -784,7 +798,7 @@ def _member(m, feeds: dict[Endpoint, str], producer: dict[Endpoint, Endpoint], i
     lines += _param_lines(m, names, owner, fixed)
     # printed from the parsed snippet; built-in calls swapped for their inline versions
     unroll = decl.reads_of(m.params) <= MAX_UNROLLED_LOOPS
-    for line in inline_builtins("\n".join(decl.lines()), used).splitlines():
+    for line in inline_builtins("\n".join(decl.lines(fills=fills)), used).splitlines():
         if unroll and line.lstrip().startswith("for ("):
             # sizes and a stencil's radius are constants: a loop over a window unrolls
             # (PoCL left BoxBlur's 3x3 loop rolled: 9 ms a 1280x720 frame, unrolled 0.6)

@@ -360,9 +360,13 @@ class _Resolver:
             self.expr(a)
         if f in self.inputs:
             self.names[f] = "accessor"
-            if len(e.args) != 3:
-                self.problem(e, f"accessor {f}(...) takes 3 arguments (y, x, c), "
-                             f"not {len(e.args)}")
+            if len(e.args) == 4 and self.form == "pointwise":
+                self.problem(e, f"a pointwise snippet reads {f}(y, x, c), which is always "
+                             f"inside the frame: no fill value (a fourth argument)")
+            elif len(e.args) not in (3, 4):
+                self.problem(e, f"accessor {f}(...) takes 3 arguments (y, x, c), or 4 with "
+                             f"the value outside the frame (y, x, c, fill), not "
+                             f"{len(e.args)}")
             elif self.form == "pointwise" and not (_is(e.args[0], "y") and _is(e.args[1], "x")):
                 from .printer import expression_text
                 shown = ", ".join(expression_text(a) for a in e.args)

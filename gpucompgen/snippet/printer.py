@@ -52,14 +52,17 @@ _IDENT = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
 _ASSIGN, _COND, _UNARY, _POSTFIX, _PRIMARY = 1, 2, 13, 14, 15
 
 
-def print_lines(tree: Snippet, rename: Mapping[str, str] | None = None) -> list[str]:
+def print_lines(tree: Snippet, rename: Mapping[str, str] | None = None,
+                fills: Mapping[str, str] | None = None) -> list[str]:
     """The snippet as C statements, one a line (nested ones indented by 4 spaces).
 
     rename maps identifiers the snippet uses (locals, parameters, sizes, coordinates,
     accessors) to the names to print.  Renaming must keep names apart and give
     identifiers that are not reserved words; a built-in function cannot be renamed.
+    fills maps an accessor to the name its reads with a fill value (four arguments:
+    port(y, x, c, fill)) print as, a macro of the kernel generator's.
     """
-    return _Printer(_checked(tree, rename or {})).block(tree.body, 0)
+    return _Printer(_checked(tree, rename or {}), fills or {}).block(tree.body, 0)
 
 
 def print_text(tree: Snippet, rename: Mapping[str, str] | None = None) -> str:
@@ -114,11 +117,17 @@ def _checked(tree: Snippet, rename: Mapping[str, str]) -> Mapping[str, str]:
 
 
 class _Printer:
-    def __init__(self, rename: Mapping[str, str]) -> None:
+    def __init__(self, rename: Mapping[str, str], fills: Mapping[str, str] | None = None) -> None:
         self.rename = rename
+        self.fills = fills or {}
 
     def n(self, name: str) -> str:
         return self.rename.get(name, name)
+
+    def func(self, e: Call) -> str:
+        if len(e.args) == 4 and e.func in self.fills:  # a read with a fill value
+            return self.fills[e.func]
+        return self.n(e.func)
 
     # statements
     def block(self, body, level: int) -> list[str]:
@@ -210,7 +219,7 @@ class _Printer:
             head = f"({self.n(e.type.name)})"
             return _join([head], self.layout(e.operand, _UNARY, col + len(head)))
         if isinstance(e, Call):  # arguments broken after a comma, aligned after '('
-            head = f"{self.n(e.func)}("
+            head = f"{self.func(e)}("
             start = col + len(head)
             lines = [""]
             for i, a in enumerate(e.args):
@@ -277,7 +286,7 @@ class _Printer:
         if isinstance(e, Paren):
             return f"({self.expr(e.inner, 0)})", _PRIMARY
         if isinstance(e, Call):
-            return f"{self.n(e.func)}({self.args(e.args)})", _POSTFIX
+            return f"{self.func(e)}({self.args(e.args)})", _POSTFIX
         if isinstance(e, Index):
             return f"{self.expr(e.base, _POSTFIX)}[{self.expr(e.index, 0)}]", _POSTFIX
         if isinstance(e, Member):

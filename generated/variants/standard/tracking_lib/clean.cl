@@ -87,6 +87,7 @@ static inline __attribute__((noinline)) uchar _f0_clean_inner(_PARAMS, _LOCALS, 
 // clean: MorphologyEx (stencil, radius (ksize // 2) * iterations, border clamp); every element
 #define src(y_, x_, c_) _in0[(size_t)_clamp((y_), 480) * 640 + _clamp((x_), 640)]
 #define inner(y_, x_, c_) _s0[(size_t)(_clamp((y_), 480) - _a0) * 258 + _clamp((x_), 640) - _c0]
+#define _fill_inner(y_, x_, c_, v_) ((uchar)((unsigned)(y_) < 480u && (unsigned)(x_) < 640u ? inner(y_, x_, c_) : (v_)))
 static inline __attribute__((noinline)) uchar _f1_clean(_PARAMS, _LOCALS, const int y, const int x, const int c)
 {
     const int src_height = 480, src_width = 640;
@@ -125,9 +126,7 @@ static inline __attribute__((noinline)) uchar _f1_clean(_PARAMS, _LOCALS, const 
         }
         #pragma unroll
         for (int dx = -w; dx <= w; dx++) {
-            const bool inside = y + dy >= 0 && y + dy < src_height && x + dx >= 0 && x + dx < src_width;
-            const src_t v = inner(y + dy, x + dx, c);
-            const src_t tap = inside ? v : erode_first ? src_min : src_max;
+            const src_t tap = _fill_inner(y + dy, x + dx, c, erode_first ? src_min : src_max);
             outer = erode_first ? _max(outer, tap) : _min(outer, tap);
         }
     }
@@ -145,6 +144,7 @@ static inline __attribute__((noinline)) uchar _f1_clean(_PARAMS, _LOCALS, const 
 }
 #undef src
 #undef inner
+#undef _fill_inner
 
 // clean.inner: MorphologyEx stage inner (stencil, radius (ksize // 2) * iterations * (min(1, max(0, op - 1)) - max(0, 1 - (op - 4) * (op - 4))), border clamp); interior: no border rule
 #define src(y_, x_, c_) _in0[(size_t)(y_) * 640 + (x_)]
@@ -184,6 +184,7 @@ static inline __attribute__((always_inline)) uchar _f0_clean_inner_in(_PARAMS, _
 // clean: MorphologyEx (stencil, radius (ksize // 2) * iterations, border clamp); interior: no border rule
 #define src(y_, x_, c_) _in0[(size_t)(y_) * 640 + (x_)]
 #define inner(y_, x_, c_) _s0[(size_t)((y_) - _a0) * 258 + (x_) - _c0]
+#define _fill_inner(y_, x_, c_, v_) inner(y_, x_, c_)
 static inline __attribute__((always_inline)) uchar _f1_clean_in(_PARAMS, _LOCALS, const int y, const int x, const int c)
 {
     const int src_height = 480, src_width = 640;
@@ -222,9 +223,7 @@ static inline __attribute__((always_inline)) uchar _f1_clean_in(_PARAMS, _LOCALS
         }
         #pragma unroll
         for (int dx = -w; dx <= w; dx++) {
-            const bool inside = y + dy >= 0 && y + dy < src_height && x + dx >= 0 && x + dx < src_width;
-            const src_t v = inner(y + dy, x + dx, c);
-            const src_t tap = inside ? v : erode_first ? src_min : src_max;
+            const src_t tap = _fill_inner(y + dy, x + dx, c, erode_first ? src_min : src_max);
             outer = erode_first ? _max(outer, tap) : _min(outer, tap);
         }
     }
@@ -242,6 +241,7 @@ static inline __attribute__((always_inline)) uchar _f1_clean_in(_PARAMS, _LOCALS
 }
 #undef src
 #undef inner
+#undef _fill_inner
 
 // 480 rows of 640 pixels.  Work-group g computes the rows [g * tile, g * tile + tile), in
 // strips of 32 rows that its threads take in turn, each strip in tiles of 256 columns:
