@@ -322,10 +322,22 @@ component_types:
             for (int dx = -2; dx <= 2; dx++)
                 v = min(v, src(y + dy, x + dx, c, (uchar)fill));
         return v;
+  FillShift:
+    kind: flexible
+    params:
+      fill: {type: int, default: 7, min: 0, max: 255}
+    inputs:
+      src: {dtype: uint8, channels: [1, 3]}
+    outputs:
+      dst: {dtype: uint8, channels: src.channels, height: src.height, width: src.width}
+    cpu: {file: cpu.py, function: fill_min}
+    fusable:
+      form: index_map
+      value: src(y - 2, x + 3, c, fill)
 """
 
 
-def _fill_type(tmp_path):
+def _fill_type(tmp_path, name="FillMin"):
     from gpucompgen.errors import Reporter
     from gpucompgen.model import load_types_file
 
@@ -334,7 +346,7 @@ def _fill_type(tmp_path):
     rep = Reporter()
     types = load_types_file(tmp_path / "types.yaml", "types.yaml", "user", rep)
     rep.raise_if_errors()
-    return types["FillMin"]
+    return types[name]
 
 
 def test_a_read_with_a_fill_value_is_tested_in_the_border_version_only(tmp_path):
@@ -369,3 +381,21 @@ def test_a_read_with_a_fill_value_equals_numpy_pad(cl_context, cl_queue, tmp_pat
         got = run_generated(cl_context, cl_queue, ctype, {"fill": fill}, [image], shape,
                             (4, 1, 2, 1))
         np.testing.assert_array_equal(got, expected, err_msg=f"{shape} fill {fill}")
+
+
+@pytest.mark.parametrize("channels", (1, 3))
+def test_an_index_maps_read_with_a_fill_value_tests_every_position(cl_context, cl_queue,
+                                                                    tmp_path, channels):
+    """An index map has one version: its reads with a fill value test pixel positions
+    there, so its group is not channel-flat (x would count elements)."""
+    require_opencl()
+    ctype = _fill_type(tmp_path, "FillShift")
+    group = fused.group_of_one(ctype.specialized("uint8", channels), {"fill": 9},
+                               {"src": (6, 7), "dst": (6, 7)})
+    assert not fused.channel_flat(group)
+    shape = (6, 7) if channels == 1 else (6, 7, channels)
+    image = np.random.default_rng(channels).integers(0, 256, shape, dtype=np.uint8)
+    expected = np.full_like(image, 9)
+    expected[2:, :-3] = image[:-2, 3:]
+    got = run_generated(cl_context, cl_queue, ctype, {"fill": 9}, [image], shape)
+    np.testing.assert_array_equal(got, expected)
