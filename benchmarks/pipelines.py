@@ -8,9 +8,10 @@ Each pipeline is a model of library types (benchmarks/pipeline_types/ adds the f
 source, the sink and the one step the library lacks) and the same steps written as plain
 cv2 calls:
 
-- lanes: gray -> Gaussian 5 -> morphological gradient -> threshold -> closing
-  (gradient = AbsDiffGray(DilateGray, ErodeGray), as cv2.morphologyEx(MORPH_GRADIENT)
-  computes dilate - erode; closing = DilateGray -> ErodeGray, as MORPH_CLOSE)
+- lanes: gray -> Gaussian 5 -> morphological gradient -> threshold -> closing (the
+  gradient and the closing are MorphologyExGray, op 4 and op 3, as cv2 calls
+  morphologyEx; until the library had MorphologyEx they were DilateGray and ErodeGray
+  into AbsDiffGray, and DilateGray -> ErodeGray: eight components for cv2's five calls)
 - colour: HSV -> inRange -> erode -> dilate
 - edges: gray -> Gaussian 3 -> Sobel (x) -> abs -> threshold (abs: AbsGray16, a
   benchmark type: the library has no int16 -> uint8 |x|; cv2.convertScaleAbs)
@@ -63,14 +64,12 @@ SCALE1, SCALE2 = (1.2, 10.0), (0.8, -5.0)
 # name -> (source type, components, connections); the sink is 'sink', fed by 'last'
 PIPELINES = {
     "lanes": ("PanFrames", {
-        "gray": "RgbToGray", "blur": "GaussianBlurGray ksize=5", "dil": "DilateGray",
-        "ero": "ErodeGray", "grad": "AbsDiffGray",
+        "gray": "RgbToGray", "blur": "GaussianBlurGray ksize=5",
+        "grad": "MorphologyExGray op=4 ksize=3",
         "thr": f"ThresholdGray thresh={T} maxval=255 thresh_type=0",
-        "cdil": "DilateGray", "cero": "ErodeGray"}, [
-        "source.image -> gray.image", "gray.gray -> blur.image", "blur.blurred -> dil.image",
-        "blur.blurred -> ero.image", "dil.dilated -> grad.src1", "ero.eroded -> grad.src2",
-        "grad.diff -> thr.image", "thr.thresholded -> cdil.image", "cdil.dilated -> cero.image",
-        "cero.eroded -> sink.mask"]),
+        "close": "MorphologyExGray op=3 ksize=3"}, [
+        "source.image -> gray.image", "gray.gray -> blur.image", "blur.blurred -> grad.src",
+        "grad.dst -> thr.image", "thr.thresholded -> close.src", "close.dst -> sink.mask"]),
     "colour": ("PanFrames", {
         "hsv": "RgbToHsv", "inrange": "InRange " + " ".join(f"{k}={v}" for k, v in HUE.items()),
         "ero": "ErodeGray", "dil": "DilateGray"}, [
