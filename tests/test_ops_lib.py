@@ -111,11 +111,15 @@ def test_resize_nearest_every_element_type(dtype, photos, gpu):
     ((29, 44), 0),  # shrinks by 1.41 and 1.43
     ((80, 100), 1),  # enlarges (the edges: weights moved along x, rows clamped along y)
     ((20, 31), 0),  # halves 41 x 63 to 20 x 31, no whole factor
-    ((18, 29), 1),  # a whole factor 2 along y and x of a 36 x 58 frame (OpenCV: INTER_AREA)
+    # a whole factor 2 along y and x of a 36 x 58 frame (OpenCV: INTER_AREA; the kernel's
+    # 2x2 means), one channel and three; along x only (the general rule)
+    ((18, 29), 1),
+    ((18, 29), 0),
+    ((25, 29), 1),
 ])
 def test_resize_bilinear_uint8_bit_exact(size, which, photos, gpu):
     src = photos["uint8"][which]
-    if size == (18, 29):
+    if size[1] == 29:
         src = np.ascontiguousarray(src[:36, :58])
     h, w = size
     params = {"width": w, "height": h, "interpolation": 1}
