@@ -721,31 +721,17 @@ def _function(name: str, index, interior: bool) -> str:
     return f"_f{index[name]}_{name.replace('.', '_')}" + ("_in" if interior else "")
 
 
-def _member(m, feeds: dict[Endpoint, str], producer: dict[Endpoint, Endpoint], index,
-            names, flat: bool, interior: bool, used: set[str], inline: bool,
-            slots: dict[str, tuple[int, int]] | None = None) -> list[str]:
-    """A member's snippet as a function, between the macros of its input accessors.
-
-    inline: forced inline (always_inline), which the row loop needs to vectorize: PoCL's
-    inliner left WarpAffine's bilinear snippet (cost 410 > 337) a call per element, 29 ms
-    a 320x240 frame, 0.8 ms inlined, and left stencil members called once per row of the
-    rows-together loop (about 20x slower).  Not a group beyond MAX_UNROLLED_READS
-    (forced_inline): compile time exploded.  A member's loops are unrolled where it reads
-    at most MAX_UNROLLED_LOOPS elements so.  slots: the staged pieces (a read of one
-    loads its tile in local memory, _s<slot>), where the kernel stages any."""
+def _accessors(m, feeds: dict[Endpoint, str], producer: dict[Endpoint, Endpoint], index,
+               names, flat: bool, interior: bool, slots: dict[str, tuple[int, int]],
+               fills: dict[str, str]) -> tuple[list[str], list[str]]:
+    """The macros of a member's input accessors (their names, and their #define lines):
+    port(y, x, c) loads from a group input, reads a staged piece or calls the producing
+    member, with the border rule in the border version; fills names the macro of each
+    port read with a fill value, port(y, x, c, fill)."""
     decl = m.type.fusable
-    slots = slots or {}
-    owner = getattr(m, "owner", m.name)  # a stage reads its component's parameters
-    fixed = getattr(m.type, "fixed", None) or decl.radius_names()
-    fparams, fargs = ("_PARAMS, _LOCALS", "_ARGS, _LARGS") if slots else ("_PARAMS", "_ARGS")
-    ctype = DTYPES[next(iter(m.outputs.values())).dtype][1]
-    what = "interior: no border rule" if interior else "every element"
     border = decl.border_of(m.params) if decl.form == "stencil" else None
-    lines = [f"// {m.name}: {m.type.name} ({decl.form}"
-             + (f", radius {decl.radius}, border {border}" if border else "") + f"); {what}"]
-    macros = []
-    fills = {p: f"_fill_{p}" for p, found in accessor_calls(decl.tree, list(m.inputs)).items()
-             if any(len(args) == 4 for args in found)}
+    fargs = "_ARGS, _LARGS" if slots else "_ARGS"
+    macros, lines = [], []
     for pname, port in m.inputs.items():
         src = producer.get(Endpoint(m.name, pname))
         h, w = port.data.height, port.data.width
@@ -781,6 +767,36 @@ def _member(m, feeds: dict[Endpoint, str], producer: dict[Endpoint, Endpoint], i
                 f"{pname}(y_, x_, c_)" if interior else
                 f"(({etype})((unsigned)(y_) < {h}u && (unsigned)(x_) < {w}u ? "
                 f"{pname}(y_, x_, c_) : (v_)))"))
+    return macros, lines
+
+
+def _member(m, feeds: dict[Endpoint, str], producer: dict[Endpoint, Endpoint], index,
+            names, flat: bool, interior: bool, used: set[str], inline: bool,
+            slots: dict[str, tuple[int, int]] | None = None) -> list[str]:
+    """A member's snippet as a function, between the macros of its input accessors.
+
+    inline: forced inline (always_inline), which the row loop needs to vectorize: PoCL's
+    inliner left WarpAffine's bilinear snippet (cost 410 > 337) a call per element, 29 ms
+    a 320x240 frame, 0.8 ms inlined, and left stencil members called once per row of the
+    rows-together loop (about 20x slower).  Not a group beyond MAX_UNROLLED_READS
+    (forced_inline): compile time exploded.  A member's loops are unrolled where it reads
+    at most MAX_UNROLLED_LOOPS elements so.  slots: the staged pieces (a read of one
+    loads its tile in local memory, _s<slot>), where the kernel stages any."""
+    decl = m.type.fusable
+    slots = slots or {}
+    owner = getattr(m, "owner", m.name)  # a stage reads its component's parameters
+    fixed = getattr(m.type, "fixed", None) or decl.radius_names()
+    fparams = "_PARAMS, _LOCALS" if slots else "_PARAMS"
+    ctype = DTYPES[next(iter(m.outputs.values())).dtype][1]
+    what = "interior: no border rule" if interior else "every element"
+    border = decl.border_of(m.params) if decl.form == "stencil" else None
+    lines = [f"// {m.name}: {m.type.name} ({decl.form}"
+             + (f", radius {decl.radius}, border {border}" if border else "") + f"); {what}"]
+    fills = {p: f"_fill_{p}" for p, found in accessor_calls(decl.tree, list(m.inputs)).items()
+             if any(len(args) == 4 for args in found)}
+    macros, defines = _accessors(m, feeds, producer, index, names, flat, interior, slots,
+                                 fills)
+    lines += defines
     tables, locals_ = _tables(m, index[m.name])
     if not interior:  # once, before the member's first version
         lines[1:1] = tables
