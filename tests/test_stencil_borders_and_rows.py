@@ -399,3 +399,80 @@ def test_an_index_maps_read_with_a_fill_value_tests_every_position(cl_context, c
     expected[2:, :-3] = image[:-2, 3:]
     got = run_generated(cl_context, cl_queue, ctype, {"fill": 9}, [image], shape)
     np.testing.assert_array_equal(got, expected)
+
+
+def test_every_library_stencil_reads_within_its_radius_at_every_parameter_value():
+    """check-reads (snippet/reach.py) follows each library stencil and stage through its
+    loops at every parameter value a user may give: every read is y and x plus numbers
+    within the stated radius, so none is refused and the interior needs no border rule."""
+    count = 0
+    for name, t in sorted(library_types().items()):
+        if t.alias_of or t.fusable is None or t.fusable.form != "stencil":
+            continue
+        port = next(iter(t.inputs.values()))
+        ctype = t.specialized((port.dtypes or (port.dtype,))[0], 1) if t.generic else t
+        for params in _valid_params(ctype):
+            shapes = {p: (40, 50) for p in [*ctype.inputs, *ctype.outputs]}
+            for m in fused.expand(fused.group_of_one(ctype, params, shapes))[0].members:
+                found = fused.member_reach(m)
+                assert found.unbounded is None, (name, m.name, params)
+                ry, rx = m.type.fusable.radii_of(m.params)
+                assert all(found.rows[p] <= ry and found.cols[p] <= rx for p in m.inputs), \
+                    (name, m.name, params, found)
+                count += 1
+    assert count > 1000  # every stencil, its stages, over their parameter ranges
+
+
+READ_CASES = {
+    # value, radius, what check says (None: accepted)
+    "constant offsets beyond": ("return src(y + 5, x - 40, c);", "1",
+                                "reads src(y + 5, x - 40, c), 5 row(s) and 40 column(s) "
+                                "away, beyond its radius (1 rows, 1 columns)"),
+    "a loop one too far": ("int s = 0;\nfor (int d = -r; d <= r + 1; d++)\n"
+                           "    s += src(y, x + d, c);\nreturn s / (2 * r + 2);", "r",
+                           "reads src(y, x + d, c), 0 row(s) and 3 column(s) away, beyond "
+                           "its radius (2 rows, 2 columns)"),
+    "a position from an element": ("return src(y + src(y, x, c) % 3, x, c);", "1",
+                                   "reads at a position that is not y and x plus numbers"),
+    "a loop within": ("int s = 0;\nfor (int d = -r; d <= r; d++)\n"
+                      "    s += src(y + d, x - d, c);\nreturn s / (2 * r + 1);", "r", None),
+    "a branch on the element": ("const int v = src(y, x, c);\n"
+                                "return v > 9 ? src(y - 2, x, c) : src(y + 2, x + 1, c);",
+                                "2", None),
+}
+
+
+@pytest.mark.parametrize("case", sorted(READ_CASES))
+def test_check_refuses_a_stencil_that_reads_beyond_its_radius(tmp_path, case):
+    """A user's stencil read farther than its radius (or where no radius bounds it) would
+    load memory outside the input in the interior the kernel reads without border rules:
+    check says so at the component, naming the read."""
+    from gpucompgen.build import compile_model
+    from gpucompgen.errors import GpucompgenError
+
+    value, radius, message = READ_CASES[case]
+    body = "".join(f"        {line}\n" for line in value.splitlines())
+    (tmp_path / "cpu.py").write_text("def reads(src, *, r):\n    return src\n")
+    (tmp_path / "types.yaml").write_text(
+        "component_types:\n  Reads:\n    kind: flexible\n"
+        "    params:\n      r: {type: int, default: 2, min: 0, max: 4}\n"
+        "    inputs:\n      src: {dtype: uint8, channels: [1, 3]}\n"
+        "    outputs:\n      dst: {dtype: uint8, channels: src.channels, "
+        "height: src.height, width: src.width}\n"
+        "    cpu: {file: cpu.py, function: reads}\n"
+        f"    fusable:\n      form: stencil\n      radius: {radius}\n      border: clamp\n"
+        f"      value: |\n{body}")
+    model = tmp_path / "m.yaml"
+    model.write_text("system: reads\ntypes: [types.yaml]\ncomponents:\n"
+                     "  src: {type: StillImage, params: {width: 32, height: 24}}\n"
+                     "  k: {type: Reads}\n  sink: {type: FrameSink}\n"
+                     "connections:\n  - src.image -> k.src\n  - k.dst -> sink.image\n")
+    if message is None:
+        compile_model(model, tmp_path / "out")
+        return
+    with pytest.raises(GpucompgenError) as info:
+        compile_model(model, tmp_path / "out")
+    text = str(info.value)
+    assert "m.yaml:5:3: error: 'k' (Reads): its stencil " in text, text
+    assert message in text, text
+    assert not (tmp_path / "out").exists()  # nothing half-written

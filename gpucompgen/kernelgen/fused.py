@@ -857,6 +857,20 @@ def _load(array: str, row: str, w: int, xx: str, ch: int, flat: bool,
         f"{array}[{row} * {w} + {at}]"
 
 
+def member_reach(m):
+    """How far member m's snippet reads from (y, x), for its parameters and port sizes
+    (snippet.reach): per port, its farthest rows and columns, or an unbounded read."""
+    from ..snippet.reach import reach
+
+    decl = m.type.fusable
+    values = {k: v for k, v in m.params.items() if isinstance(v, (int, float))}
+    for pname, port in {**m.inputs, **m.outputs}.items():
+        values.update({f"{pname}_height": port.data.height, f"{pname}_width": port.data.width,
+                       f"{pname}_channels": port.channels})
+    values.update(decl.lengths_of(m.params))
+    return reach(decl.tree, decl.names, values, list(m.inputs))
+
+
 def _port_constants(m) -> list[str]:
     """What the snippet is given of each port: its sizes (its channels where named), and
     its element type and that type's least and greatest values where the snippet names

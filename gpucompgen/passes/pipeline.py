@@ -1,7 +1,8 @@
 """The pipeline: every pass in order, verified after each when asked, dumped when asked.
 
-    check-connections → resolve-types → check-port-types → schedule → propagate-sizes → place → insert-adapters
-    → fuse → allocate-gpu → name-variables → assign-queues → stage-frames → lower
+    check-connections → resolve-types → check-port-types → schedule → propagate-sizes → check-reads
+    → place → insert-adapters → fuse → allocate-gpu → name-variables → assign-queues → stage-frames
+    → lower
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ from .assign_queues import AssignQueues
 from .base import Pass
 from .check_connections import CheckConnections
 from .check_port_types import CheckPortTypes
+from .check_reads import CheckReads
 from .fuse import Fuse
 from .insert_adapters import InsertAdapters
 from .lower import Lower
@@ -32,7 +34,7 @@ from .schedule import Schedule
 from .stage_frames import StageFrames
 
 PIPELINE: tuple[Pass, ...] = (CheckConnections(), ResolveTypes(), CheckPortTypes(), Schedule(),
-                             PropagateSizes(), Place(), InsertAdapters(), Fuse(), AllocateGpu(),
+                             PropagateSizes(), CheckReads(), Place(), InsertAdapters(), Fuse(), AllocateGpu(),
                              NameVariables(), AssignQueues(), StageFrames(), Lower())
 
 
