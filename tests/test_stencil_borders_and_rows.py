@@ -301,18 +301,19 @@ def test_a_window_of_windows_too_large_for_one_kernel_is_refused(tmp_path, op, k
     assert "m.yaml:4:3" in text and "window of windows" in text and "op 0 then op 1" in text
 
 
-FILL_TYPES = """
-component_types:
-  FillMin:
+FILL_TYPE = """
+  {name}:
     kind: flexible
     params:
-      fill: {type: int, default: 7, min: 0, max: 255}
+      fill: {{type: int, default: 7, min: 0, max: 255}}
     inputs:
-      src: {dtype: uint8, channels: [1, 3]}
+      src: {{dtype: uint8, channels: [1, 3]}}
     outputs:
-      dst: {dtype: uint8, channels: src.channels, height: src.height, width: src.width}
-    cpu: {file: cpu.py, function: fill_min}
+      dst: {{dtype: uint8, channels: src.channels, height: src.height, width: src.width}}
+    cpu: {{file: cpu.py, function: fill_min}}
     fusable:
+{fusable}"""
+FILL_TYPES = "component_types:" + FILL_TYPE.format(name="FillMin", fusable="""\
       form: stencil
       radius: 2
       border: clamp
@@ -322,19 +323,10 @@ component_types:
             for (int dx = -2; dx <= 2; dx++)
                 v = min(v, src(y + dy, x + dx, c, (uchar)fill));
         return v;
-  FillShift:
-    kind: flexible
-    params:
-      fill: {type: int, default: 7, min: 0, max: 255}
-    inputs:
-      src: {dtype: uint8, channels: [1, 3]}
-    outputs:
-      dst: {dtype: uint8, channels: src.channels, height: src.height, width: src.width}
-    cpu: {file: cpu.py, function: fill_min}
-    fusable:
+""") + FILL_TYPE.format(name="FillShift", fusable="""\
       form: index_map
       value: src(y - 2, x + 3, c, fill)
-"""
+""")
 
 
 def _fill_type(tmp_path, name="FillMin"):

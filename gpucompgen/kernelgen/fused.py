@@ -868,7 +868,7 @@ def member_reach(m):
         values.update({f"{pname}_height": port.data.height, f"{pname}_width": port.data.width,
                        f"{pname}_channels": port.channels})
     values.update(decl.lengths_of(m.params))
-    return reach(decl.tree, decl.names, values, list(m.inputs))
+    return reach(decl.tree, values, list(m.inputs))
 
 
 def _port_constants(m) -> list[str]:

@@ -2,7 +2,7 @@
 
 A stencil states its radius; the kernel generator reads the interior of the frame without
 border rules on that promise, so a read beyond it would load memory outside the input.
-``reach(tree, names, values, ports)`` walks the snippet with the parameters and sizes as
+``reach(tree, values, ports)`` walks the snippet with the parameters and sizes as
 numbers, the element's values unknown and y and x as themselves: loops run (their bounds
 are numbers), a choice on a number takes its branch, a choice on an element's value takes
 both.  A read whose row is y plus a number and whose column is x plus a number is
@@ -60,11 +60,10 @@ class _Jump(Exception):
         self.word = word
 
 
-def reach(tree: S.Node, names: Mapping[str, str], values: Mapping[str, object],
-          ports: list[str]) -> Reach:
+def reach(tree: S.Node, values: Mapping[str, object], ports: list[str]) -> Reach:
     """The reads of the snippet at these parameter and size values (values: name ->
     int or float; a name missing there is unknown)."""
-    walk = _Walk(names, values, ports)
+    walk = _Walk(values, ports)
     try:
         walk.block(tree.body if isinstance(tree, S.Snippet) else [tree], {})
     except _Return:
@@ -75,8 +74,8 @@ def reach(tree: S.Node, names: Mapping[str, str], values: Mapping[str, object],
 
 
 class _Walk:
-    def __init__(self, names, values, ports) -> None:
-        self.kinds, self.values, self.ports = names, values, set(ports)
+    def __init__(self, values, ports) -> None:
+        self.values, self.ports = values, set(ports)
         self.steps = 0
         self.result = Reach(dict.fromkeys(ports, 0), dict.fromkeys(ports, 0), None, {})
         self.far: dict[str, int] = {}  # per port, the farthest read's distance
@@ -126,9 +125,9 @@ class _Walk:
             raise _Jump(s.word)
 
     def both(self, s, branches, env: dict) -> None:
-        """Branches chosen by an element's value: each walked; after them, a local they
-        leave different is unknown.  A return or jump inside one ends the walk's
-        knowledge of what follows only for a jump (given up); a return ends the branch."""
+        """Branches chosen by an element's value: each walked from the same locals; after
+        them a local they leave different is unknown.  A branch that returns ends there;
+        a break or continue in one leaves the loop's course unknown (given up)."""
         ends = []
         for b in branches:
             copy = dict(env)
@@ -140,14 +139,11 @@ class _Walk:
                 pass
             except _Jump:
                 raise _GiveUp(s) from None
-        for name in env:
-            seen = {id(e[name]) if e[name] is UNKNOWN else e[name] for e in ends}
-            if len(seen) > 1 or not ends:
-                env[name] = UNKNOWN
-            else:
-                env[name] = ends[0][name]
-        if not ends:
+        if not ends:  # every branch returned
             raise _Return
+        for name in env:
+            first = ends[0][name]
+            env[name] = first if all(e[name] == first for e in ends) else UNKNOWN
 
     def loop(self, s, init, cond, step, body, env: dict, after=None) -> None:
         if init is not None:
