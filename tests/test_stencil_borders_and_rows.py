@@ -468,3 +468,73 @@ def test_check_refuses_a_stencil_that_reads_beyond_its_radius(tmp_path, case):
     assert "m.yaml:5:3: error: 'k' (Reads): its stencil " in text, text
     assert message in text, text
     assert not (tmp_path / "out").exists()  # nothing half-written
+
+
+SHIFT_TYPES = """
+component_types:
+  Shift:
+    kind: flexible
+    params:
+      dy: {type: int, default: 0, min: -100, max: 100}
+      dx: {type: int, default: 0, min: -100, max: 100}
+    inputs:
+      src: {dtype: uint8, channels: [1, 3]}
+    outputs:
+      dst: {dtype: uint8, channels: src.channels, height: src.height, width: src.width}
+    cpu: {file: cpu.py, function: shift}
+    fusable:
+      form: index_map
+      value: src(y + dy, x + dx, c)
+  Mirror:
+    kind: flexible
+    inputs:
+      src: {dtype: uint8, channels: [1, 3]}
+    outputs:
+      dst: {dtype: uint8, channels: src.channels, height: src.height, width: src.width}
+    cpu: {file: cpu.py, function: shift}
+    fusable:
+      form: index_map
+      value: "x < src_width / 2 ? src(y, x, c) : src(src_height - 1 - y, src_width - 1 - x, c)"
+"""
+
+
+@pytest.mark.parametrize("channels", (1, 3))
+def test_a_users_index_map_reads_the_nearest_pixel_where_it_is_not_shown_inside(
+        cl_context, cl_queue, tmp_path, channels):
+    """A user's index map computes its positions: where the walk of its snippet cannot
+    show a read inside its input (here a shift past the edges), the read gets the nearest
+    pixel (BORDER_REPLICATE) instead of memory outside the input; where it can (a mirror
+    whose halves are chosen by x), no border rule is added."""
+    from gpucompgen.errors import Reporter
+    from gpucompgen.model import load_types_file
+
+    require_opencl()
+    (tmp_path / "cpu.py").write_text("def shift(src, **params):\n    return src\n")
+    (tmp_path / "types.yaml").write_text(SHIFT_TYPES)
+    rep = Reporter()
+    types = load_types_file(tmp_path / "types.yaml", "types.yaml", "user", rep)
+    rep.raise_if_errors()
+    shape = (9, 13) if channels == 1 else (9, 13, channels)
+    image = np.random.default_rng(channels).integers(0, 256, shape, dtype=np.uint8)
+    rows, cols = np.arange(9)[:, None], np.arange(13)[None, :]
+    for dy, dx in ((5, 40), (-3, 2), (0, 0), (-100, -100)):
+        expected = image[np.clip(rows + dy, 0, 8), np.clip(cols + dx, 0, 12)]
+        got = run_generated(cl_context, cl_queue, types["Shift"], {"dy": dy, "dx": dx},
+                            [image], shape)
+        np.testing.assert_array_equal(got, expected, err_msg=f"{dy}, {dx}")
+    mirror = types["Mirror"].specialized("uint8", channels)
+    text = fused.group_kernel(fused.group_of_one(mirror, {}, {"src": (9, 13),
+                                                                "dst": (9, 13)}), "test")
+    assert "_clamp" not in text
+    half = cols < 13 // 2
+    expected = np.where(half[..., None] if channels == 3 else half, image,
+                        image[::-1, ::-1])
+    got = run_generated(cl_context, cl_queue, types["Mirror"], {}, [image], shape)
+    np.testing.assert_array_equal(got, expected)
+    shift = types["Shift"].specialized("uint8", channels)
+    text = fused.group_kernel(fused.group_of_one(shift, {"dy": 0, "dx": 0},
+                                                 {"src": (9, 13), "dst": (9, 13)}), "test")
+    assert "_clamp" not in text  # shifted by nothing: every read inside
+    text = fused.group_kernel(fused.group_of_one(shift, {"dy": 5, "dx": 40},
+                                                 {"src": (9, 13), "dst": (9, 13)}), "test")
+    assert "_clamp((y_), 9)" in text and "_clamp((x_), 13)" in text

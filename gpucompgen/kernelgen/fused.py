@@ -300,6 +300,8 @@ def channel_flat(group: GroupNode) -> bool:
             return False
         if uses_outside_calls(decl.tree, list(m.inputs), {"x", "c"}):
             return False
+        if guarded_ports(m):  # its reads clamp pixel positions
+            return False
     return True
 
 
@@ -625,6 +627,7 @@ def group_kernel_body(group: GroupNode, device=None) -> str:
              *[line for rule, text in BORDER_RULES.items()
                if any(m.type.fusable.form == "stencil"
                       and m.type.fusable.border_of(m.params) == rule
+                      or rule == "clamp" and guarded_ports(m)
                       for m in group.members) for line in text],
              "#define _PARAMS \\",
              *(f"    {d}, \\" if i < len(decls) - 1 else f"    {d}" for i, d in enumerate(decls)),
@@ -731,6 +734,7 @@ def _accessors(m, feeds: dict[Endpoint, str], producer: dict[Endpoint, Endpoint]
     decl = m.type.fusable
     border = decl.border_of(m.params) if decl.form == "stencil" else None
     fargs = "_ARGS, _LARGS" if slots else "_ARGS"
+    guarded = guarded_ports(m)
     macros, lines = [], []
     for pname, port in m.inputs.items():
         src = producer.get(Endpoint(m.name, pname))
@@ -739,6 +743,8 @@ def _accessors(m, feeds: dict[Endpoint, str], producer: dict[Endpoint, Endpoint]
         outside_zero = border == "constant" and not interior
         if border and border != "constant" and not interior:
             yy, xx = f"_{border}((y_), {h})", f"_{border}((x_), {w})"
+        if pname in guarded:  # an index map's read not shown inside: the nearest pixel
+            yy, xx = f"_clamp((y_), {h})", f"_clamp((x_), {w})"
         if flat and port.channels > 1:
             # x is the element's place in the row of W x C: a read dx pixels away is
             # dx x C elements away, the same channel
@@ -858,8 +864,9 @@ def _load(array: str, row: str, w: int, xx: str, ch: int, flat: bool,
 
 
 def member_reach(m):
-    """How far member m's snippet reads from (y, x), for its parameters and port sizes
-    (snippet.reach): per port, its farthest rows and columns, or an unbounded read."""
+    """Where member m's snippet reads, for its parameters and port sizes (snippet.reach):
+    per port, its farthest rows and columns, an unbounded read, the reads not shown
+    inside their input."""
     from ..snippet.reach import reach
 
     decl = m.type.fusable
@@ -868,7 +875,21 @@ def member_reach(m):
         values.update({f"{pname}_height": port.data.height, f"{pname}_width": port.data.width,
                        f"{pname}_channels": port.channels})
     values.update(decl.lengths_of(m.params))
-    return reach(decl.tree, values, list(m.inputs))
+    out = next(iter(m.outputs.values())).data
+    return reach(decl.tree, values, list(m.inputs), (out.height, out.width),
+                 {p: (q.data.height, q.data.width) for p, q in m.inputs.items()})
+
+
+def guarded_ports(m) -> set[str]:
+    """The inputs of member m whose reads get the border rule (the nearest pixel inside,
+    BORDER_REPLICATE) though m is no stencil: a user's index map reading where the walk
+    cannot show its positions inside the input (computed, or beyond it), which would
+    otherwise load memory outside it.  The library's index maps keep their positions
+    inside themselves (tested against OpenCV at every size): none."""
+    decl = m.type.fusable
+    if decl.form != "index_map" or getattr(m.type, "origin", "library") == "library":
+        return set()
+    return set(member_reach(m).outside)
 
 
 def _port_constants(m) -> list[str]:

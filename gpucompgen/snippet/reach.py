@@ -1,31 +1,37 @@
-"""How far from (y, x) a snippet reads its inputs, for given parameter values.
+"""Where a snippet reads its inputs, for given parameter values and sizes.
 
 A stencil states its radius; the kernel generator reads the interior of the frame without
-border rules on that promise, so a read beyond it would load memory outside the input.
-``reach(tree, values, ports)`` walks the snippet with the parameters and sizes as
-numbers, the element's values unknown and y and x as themselves: loops run (their bounds
-are numbers), a choice on a number takes its branch, a choice on an element's value takes
-both.  A read whose row is y plus a number and whose column is x plus a number is
-bounded; one whose position depends on anything else (an element's value, a table, a
-loop the walk cannot finish) is not, and the generator keeps the border rule for it.
-Nothing is compiled or run: this reads the tree.
+border rules on that promise, so a read beyond it would load memory outside the input
+(passes/check_reads.py refuses it).  An index map computes its positions: a user's read
+that cannot be shown inside its input gets the border rule (kernelgen/fused.py).
+``reach(tree, values, ports, frame, sizes)`` walks the snippet with the parameters and
+sizes as numbers, the element's values unknown and y and x as themselves: loops run (their
+bounds are numbers), a choice on a number takes its branch, a choice on an element's value
+takes both, and a choice on y or x against a number narrows its range in each branch
+(``x < left_width ? left(y, x, c) : right(y, x - left_width, c)``).  A read whose row is
+plus or minus y plus a number, and whose column the same of x, is bounded; one whose
+position depends on anything else (an element's value, a table, a loop the walk cannot
+finish) is not.  Nothing is compiled or run: this reads the tree.
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from . import syntax as S
 
 MAX_STEPS = 200_000  # statements and expressions walked before giving up (unbounded)
+_FLIP = {"<": ">", "<=": ">=", ">": "<", ">=": "<=", "==": "==", "!=": "!="}  # a op b: b op' a
+_NOT = {"<": ">=", "<=": ">", ">": "<=", ">=": "<", "==": "!=", "!=": "=="}
 
 
 @dataclass(frozen=True)
 class Coord:
-    """y or x plus a number: a position the snippet reads at."""
+    """sign * y (or x) plus a number: a position the snippet reads at."""
     axis: str
     offset: int
+    sign: int = 1
 
 
 class _Unknown:
@@ -38,12 +44,14 @@ UNKNOWN = _Unknown()  # an element's value, or anything the walk does not follow
 
 @dataclass
 class Reach:
-    """Per input port, the farthest read along y and x, and a read beyond any bound
-    (None when every read is y + k, x + k)."""
+    """Per input port, the farthest read along y and x (reads at y + k and x + k: a
+    window), a read beyond any bound (None when every read is one of a window), and,
+    given the frame's and the inputs' sizes, per port a read not shown inside it."""
     rows: dict[str, int]
     cols: dict[str, int]
     unbounded: S.Node | None = None
-    farthest: dict[str, S.Node] | None = None  # per port, its farthest read
+    farthest: dict[str, S.Node] = field(default_factory=dict)  # per port, its farthest
+    outside: dict[str, S.Node] = field(default_factory=dict)
 
 
 class _GiveUp(Exception):
@@ -60,25 +68,33 @@ class _Jump(Exception):
         self.word = word
 
 
-def reach(tree: S.Node, values: Mapping[str, object], ports: list[str]) -> Reach:
+def reach(tree: S.Node, values: Mapping[str, object], ports: list[str],
+          frame: tuple[int, int] | None = None,
+          sizes: Mapping[str, tuple[int, int]] | None = None) -> Reach:
     """The reads of the snippet at these parameter and size values (values: name ->
-    int or float; a name missing there is unknown)."""
-    walk = _Walk(values, ports)
+    int or float; a name missing there is unknown); with the output's (height, width)
+    and each input's, which reads are not shown inside their input."""
+    walk = _Walk(values, ports, frame, sizes or {})
     try:
         walk.block(tree.body if isinstance(tree, S.Snippet) else [tree], {})
     except _Return:
         pass
-    except (_GiveUp, _Jump) as e:
-        walk.result.unbounded = getattr(e, "node", tree)
+    except (_GiveUp, _Jump) as e:  # what it did not walk may read anywhere
+        node = getattr(e, "node", tree)
+        walk.result.unbounded = node
+        for port in ports:
+            walk.result.outside.setdefault(port, node)
     return walk.result
 
 
 class _Walk:
-    def __init__(self, values, ports) -> None:
-        self.values, self.ports = values, set(ports)
+    def __init__(self, values, ports, frame, sizes) -> None:
+        self.values, self.ports, self.sizes = values, set(ports), sizes
         self.steps = 0
-        self.result = Reach(dict.fromkeys(ports, 0), dict.fromkeys(ports, 0), None, {})
+        self.result = Reach(dict.fromkeys(ports, 0), dict.fromkeys(ports, 0))
         self.far: dict[str, int] = {}  # per port, the farthest read's distance
+        # the values y and x take where the walk is (narrowed by the choices it is in)
+        self.ranges = {"y": (0, frame[0] - 1), "x": (0, frame[1] - 1)} if frame else None
 
     def tick(self, node) -> None:
         self.steps += 1
@@ -114,7 +130,7 @@ class _Walk:
                 if chosen is not None:
                     self.statement(chosen, env)
             else:
-                self.both(s, [s.then, s.other], env)
+                self.both(s, [(s.then, True), (s.other, False)], s.cond, env)
         elif isinstance(s, S.For):
             self.loop(s, s.init, s.cond, s.step, s.body, env)
         elif isinstance(s, S.While):
@@ -124,14 +140,17 @@ class _Walk:
         elif isinstance(s, S.Jump):
             raise _Jump(s.word)
 
-    def both(self, s, branches, env: dict) -> None:
-        """Branches chosen by an element's value: each walked from the same locals; after
-        them a local they leave different is unknown.  A branch that returns ends there;
-        a break or continue in one leaves the loop's course unknown (given up)."""
+    def both(self, s, branches, cond, env: dict) -> None:
+        """Branches chosen by a value the walk does not know: each walked from the same
+        locals, where the condition holds and where it does not; after them a local they
+        leave different is unknown.  A branch that returns ends there; a break or
+        continue in one leaves the loop's course unknown (given up)."""
         ends = []
-        for b in branches:
+        for b, truth in branches:
             copy = dict(env)
+            saved = self.ranges
             try:
+                self.ranges = self.narrowed(cond, env, truth)
                 if b is not None:
                     self.statement(b, copy)
                 ends.append(copy)
@@ -139,6 +158,8 @@ class _Walk:
                 pass
             except _Jump:
                 raise _GiveUp(s) from None
+            finally:
+                self.ranges = saved
         if not ends:  # every branch returned
             raise _Return
         for name in env:
@@ -185,7 +206,8 @@ class _Walk:
             c = self.expr(e.cond, env)
             if isinstance(c, (int, float)):
                 return self.expr(e.then if c else e.other, env)
-            a, b = self.expr(e.then, env), self.expr(e.other, env)
+            a, b = (self.where(e.cond, env, truth, side)
+                    for truth, side in ((True, e.then), (False, e.other)))
             return a if a == b and a is not UNKNOWN else UNKNOWN
         if isinstance(e, S.Call):
             return self.call(e, env)
@@ -219,6 +241,51 @@ class _Walk:
             return UNKNOWN
         return UNKNOWN
 
+    def where(self, cond, env: dict, truth: bool, e):
+        """e's value, walked where cond is truth."""
+        saved = self.ranges
+        try:
+            self.ranges = self.narrowed(cond, env, truth)
+            return self.expr(e, env)
+        finally:
+            self.ranges = saved
+
+    def narrowed(self, cond, env: dict, truth: bool):
+        """The ranges of y and x where cond is truth: comparisons of y or x (plus or
+        minus numbers) with numbers, and their '&&' (true) or '||' (false)."""
+        ranges = self.ranges
+        if ranges is None:
+            return None
+        c = cond
+        while isinstance(c, S.Paren):
+            c = c.inner
+        if isinstance(c, S.Unary) and c.op == "!":
+            return self.narrowed(c.operand, env, not truth)
+        if isinstance(c, S.Binary) and c.op in ("&&", "||") and truth == (c.op == "&&"):
+            self.ranges = self.narrowed(c.left, env, truth)
+            try:
+                return self.narrowed(c.right, env, truth)
+            finally:
+                self.ranges = ranges
+        if not (isinstance(c, S.Binary) and c.op in _FLIP):
+            return ranges
+        scratch = dict(env)  # walked again: an assignment in it must not count twice
+        left, right, op = self.expr(c.left, scratch), self.expr(c.right, scratch), c.op
+        if isinstance(right, Coord) and isinstance(left, int):
+            left, right, op = right, left, _FLIP[op]
+        if not (isinstance(left, Coord) and isinstance(right, int)):
+            return ranges
+        if not truth:
+            op = _NOT[op]
+        bound = right - left.offset  # sign * axis op bound
+        if left.sign < 0:
+            bound, op = -bound, _FLIP[op]
+        lo, hi = ranges[left.axis]
+        lo, hi = {"<": (lo, min(hi, bound - 1)), "<=": (lo, min(hi, bound)),
+                  ">": (max(lo, bound + 1), hi), ">=": (max(lo, bound), hi),
+                  "==": (max(lo, bound), min(hi, bound)), "!=": (lo, hi)}[op]
+        return {**ranges, left.axis: (lo, hi)}
+
     def name(self, n: str, env: dict):
         if n in env:
             return env[n]
@@ -243,6 +310,8 @@ class _Walk:
         v = self.expr(e.operand, env)
         if e.op == "+":
             return v
+        if e.op == "-" and isinstance(v, Coord):
+            return Coord(v.axis, -v.offset, -v.sign)
         if not isinstance(v, (int, float)):
             return UNKNOWN
         return {"-": lambda: -v, "!": lambda: int(not v),
@@ -275,15 +344,35 @@ class _Walk:
 
     def read(self, e: S.Call, args) -> None:
         row, col = args[0], args[1]
-        if not (isinstance(row, Coord) and row.axis == "y"
-                and isinstance(col, Coord) and col.axis == "x"):
-            raise _GiveUp(e)
         r = self.result
+        if e.func not in r.outside and not self.inside(e.func, row, col):
+            r.outside[e.func] = e
+        if not (isinstance(row, Coord) and row.axis == "y" and row.sign == 1
+                and isinstance(col, Coord) and col.axis == "x" and col.sign == 1):
+            if r.unbounded is None:
+                r.unbounded = e
+            return
         far = max(abs(row.offset), abs(col.offset))
         if far > self.far.get(e.func, -1):
             r.farthest[e.func], self.far[e.func] = e, far
         r.rows[e.func] = max(r.rows[e.func], abs(row.offset))
         r.cols[e.func] = max(r.cols[e.func], abs(col.offset))
+
+    def inside(self, port: str, row, col) -> bool:
+        """Whether the read (row, col) lies inside the port's frame wherever the walk is
+        (a branch no y or x reaches: vacuously)."""
+        if self.ranges is None or port not in self.sizes:
+            return False
+        for at, axis, n in ((row, "y", self.sizes[port][0]), (col, "x", self.sizes[port][1])):
+            if not (isinstance(at, Coord) and at.axis == axis):
+                return False
+            lo, hi = self.ranges[axis]
+            if lo > hi:
+                return True
+            ends = (at.sign * lo + at.offset, at.sign * hi + at.offset)
+            if min(ends) < 0 or max(ends) > n - 1:
+                return False
+        return True
 
 
 def _arith(op: str, a, b):
@@ -291,11 +380,13 @@ def _arith(op: str, a, b):
     position; anything else of a position, or of an unknown, is unknown."""
     if isinstance(a, Coord) or isinstance(b, Coord):
         if op == "+" and isinstance(a, Coord) and isinstance(b, int):
-            return Coord(a.axis, a.offset + b)
+            return Coord(a.axis, a.offset + b, a.sign)
         if op == "+" and isinstance(b, Coord) and isinstance(a, int):
-            return Coord(b.axis, b.offset + a)
+            return Coord(b.axis, b.offset + a, b.sign)
         if op == "-" and isinstance(a, Coord) and isinstance(b, int):
-            return Coord(a.axis, a.offset - b)
+            return Coord(a.axis, a.offset - b, a.sign)
+        if op == "-" and isinstance(b, Coord) and isinstance(a, int):
+            return Coord(b.axis, a - b.offset, -b.sign)
         return UNKNOWN
     if not (isinstance(a, (int, float)) and isinstance(b, (int, float))):
         return UNKNOWN
