@@ -265,6 +265,9 @@ class ProgramPlan:
     # components of fusable types alone, each running the kernel generated from its form:
     # (part, type, form, file in the lib folder)
     generated: tuple[tuple[str, str, str, str], ...] = ()
+    # a user's index map whose reads of these inputs are not shown inside them: the
+    # kernel reads the nearest pixel there (kernelgen/fused.py guarded_ports)
+    guarded: tuple[tuple[str, tuple[str, ...]], ...] = ()
     unfused: tuple[tuple[str, str], ...] = ()  # (GPU-to-GPU edge, why it was not fused)
     placement: tuple[str, ...] = ()  # where each flexible component runs, who decided, costs
     # frames in flight (stage-frames): N, the stages, why stages were merged, the parts
@@ -456,6 +459,12 @@ def fusion_lines(plan: ProgramPlan) -> list[str]:
         lines += textwrap.wrap(
             "kernels generated from fusable forms, one component each: " + ", ".join(
                 f"{part} ({t}, {form}: {file})" for part, t, form, file in plan.generated),
+            88, subsequent_indent="  ", break_on_hyphens=False)
+    if plan.guarded:
+        lines += textwrap.wrap(
+            "index-map reads not shown inside their input, given the nearest pixel there "
+            "(BORDER_REPLICATE): " + ", ".join(f"{m}.{p}" for m, ports in plan.guarded
+                                               for p in ports),
             88, subsequent_indent="  ", break_on_hyphens=False)
     if plan.fusion == "off" and not plan.unfused:
         return lines

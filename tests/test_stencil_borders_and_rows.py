@@ -538,3 +538,25 @@ def test_a_users_index_map_reads_the_nearest_pixel_where_it_is_not_shown_inside(
     text = fused.group_kernel(fused.group_of_one(shift, {"dy": 5, "dx": 40},
                                                  {"src": (9, 13), "dst": (9, 13)}), "test")
     assert "_clamp((y_), 9)" in text and "_clamp((x_), 13)" in text
+
+
+def test_the_plan_names_the_index_map_reads_given_the_nearest_pixel(tmp_path):
+    """What check and plan print: which inputs of which components read the nearest pixel
+    (a decision the system takes for the user is shown)."""
+    from gpucompgen.build import compile_model
+    from gpucompgen.plan import fusion_lines
+
+    (tmp_path / "cpu.py").write_text("def shift(src, **params):\n    return src\n")
+    (tmp_path / "types.yaml").write_text(SHIFT_TYPES)
+    model = tmp_path / "m.yaml"
+    model.write_text("system: shifts\ntypes: [types.yaml]\ncomponents:\n"
+                     "  src: {type: StillImage, params: {width: 32, height: 24}}\n"
+                     "  far: {type: Shift, params: {dy: 5, dx: 40}}\n"
+                     "  mirror: {type: Mirror}\n  sink: {type: FrameSink}\n"
+                     "connections:\n  - src.image -> far.src\n  - far.dst -> mirror.src\n"
+                     "  - mirror.dst -> sink.image\n")
+    for fusion in ("off", "auto"):
+        plan = compile_model(model, tmp_path / "out", fusion=fusion).system.plan
+        assert plan.guarded == (("far", ("src",)),)
+        text = " ".join(" ".join(fusion_lines(plan)).split())
+        assert "given the nearest pixel there (BORDER_REPLICATE): far.src" in text

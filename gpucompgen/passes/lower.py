@@ -346,6 +346,7 @@ def lower(system: System) -> ProgramPlan:
         generated=tuple((g.name, g.root.type.name, g.root.type.fusable.form,
                          files[lib_key(g.type)])
                         for g in system.kernel_groups if len(g.members) == 1),
+        guarded=_guarded(system),
         unfused=tuple(system.unfused.items()), fusion=system.fusion,
         parts=tuple(lo.parts), buffers=tuple(lo.buffers), launches=tuple(lo.launches),
         transfers=tuple(lo.transfers), steps=tuple(steps),
@@ -689,3 +690,12 @@ def _some(names: list[str], most: int = 3) -> str:
     if len(names) <= most:
         return ", ".join(names)
     return f"{', '.join(names[:most])} and {len(names) - most} more"
+
+
+def _guarded(system) -> tuple[tuple[str, tuple[str, ...]], ...]:
+    """Each kernel member whose reads of some inputs get the nearest pixel (a user's
+    index map reading where it cannot be shown inside): (member, its ports)."""
+    from ..kernelgen.fused import guarded_ports
+
+    return tuple((m.name, tuple(sorted(ports))) for g in system.kernel_groups
+                 for m in g.members if (ports := guarded_ports(m)))
