@@ -425,7 +425,11 @@ READ_CASES = {
                            "reads src(y, x + d, c), 0 row(s) and 3 column(s) away, beyond "
                            "its radius (2 rows, 2 columns)"),
     "a position from an element": ("return src(y + src(y, x, c) % 3, x, c);", "1",
-                                   "reads at a position that is not y and x plus numbers"),
+                                   "reads src(y + src(y, x, c) % 3, x, c), at a position "
+                                   "that is not y and x plus numbers"),
+    "a loop the element bounds": ("int s = 0;\nfor (int i = 0; i < src(y, x, c) % 3; i++)\n"
+                                  "    s += src(y, x + i, c);\nreturn s;", "2",
+                                  "has a loop whose course depends on the element's values"),
     "a loop within": ("int s = 0;\nfor (int d = -r; d <= r; d++)\n"
                       "    s += src(y + d, x - d, c);\nreturn s / (2 * r + 1);", "r", None),
     "a branch on the element": ("const int v = src(y, x, c);\n"

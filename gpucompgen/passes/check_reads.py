@@ -13,6 +13,8 @@ from __future__ import annotations
 
 from ..ir import ComponentNode
 from ..snippet import expression_text
+from ..snippet import syntax as S
+from ..snippet.reach import MAX_STEPS
 from .base import Pass
 
 
@@ -47,9 +49,11 @@ def _problem(m, found) -> str | None:
     what = "its stencil" if "." not in m.name else f"its stage '{m.name.split('.')[-1]}'"
     if found.unbounded is not None:
         at = found.unbounded
-        shown = expression_text(at) if hasattr(at, "func") else type(at).__name__.lower()
-        return (f"{what} reads at a position that is not y and x plus numbers, or in a "
-                f"loop that cannot be followed ({shown}): its reads cannot be bounded")
+        if isinstance(at, S.Call):
+            return (f"{what} reads {expression_text(at)}, at a position that is not y and "
+                    f"x plus numbers: its reads cannot be bounded")
+        return (f"{what} has a loop whose course depends on the element's values (or that "
+                f"runs more than {MAX_STEPS:,} steps): its reads cannot be bounded")
     ry, rx = m.type.fusable.radii_of(m.params)
     for port in m.inputs:
         rows, cols = found.rows[port], found.cols[port]
