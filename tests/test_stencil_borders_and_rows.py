@@ -564,3 +564,27 @@ def test_the_plan_names_the_index_map_reads_given_the_nearest_pixel(tmp_path):
         assert plan.guarded == (("far", ("src",)),)
         text = " ".join(" ".join(fusion_lines(plan)).split())
         assert "given the nearest pixel there (BORDER_REPLICATE): far.src" in text
+
+
+@pytest.mark.parametrize("text,bounded", [
+    ("const long k = 1L << 2000000000; return src(y, x, c);", True),  # C: undefined
+    ("long v = 3; for (int i = 0; i < 100000; i++) v = v * v; "
+     "return src(y + (int)v, x, c);", False),  # grows past 64 bits: unknown
+    ("for (;;) {} return src(y, x, c);", False),  # never ends: given up
+    ("int s = 0; while (1) { s++; if (s > 5) break; } return src(y + s - 6, x, c);", True),
+])
+def test_the_walk_of_a_snippet_stays_small_whatever_it_computes(text, bounded):
+    """snippet.reach computes the snippet's numbers as C would, 64 bits at most and a
+    bounded number of steps: a shift by two billion or a square taken in a loop cannot make
+    the check's memory or time explode."""
+    import time
+
+    from gpucompgen.snippet import analyse
+    from gpucompgen.snippet.reach import reach
+
+    result = analyse(text, "stencil", ["src"], ["dst"], [])
+    assert result.problems == []
+    start = time.perf_counter()
+    found = reach(result.tree, {"src_height": 10, "src_width": 10}, ["src"])
+    assert time.perf_counter() - start < 10
+    assert (found.unbounded is None) == bounded

@@ -390,6 +390,15 @@ def _arith(op: str, a, b):
         return UNKNOWN
     if not (isinstance(a, (int, float)) and isinstance(b, (int, float))):
         return UNKNOWN
+    result = _number(op, a, b)
+    # C's integers are 64 bits at most: a value beyond (a shift by 2^31, a square taken
+    # in a loop) is unknown, not a number Python would grow without bound
+    if isinstance(result, int) and not -(1 << 63) <= result < (1 << 64):
+        return UNKNOWN
+    return result
+
+
+def _number(op: str, a, b):
     both_int = isinstance(a, int) and isinstance(b, int)
     try:
         if op == "+":
@@ -405,6 +414,8 @@ def _arith(op: str, a, b):
             return a / b
         if op == "%" and both_int:
             return a - b * _arith("/", a, b)
+        if op in ("<<", ">>") and both_int and not 0 <= b < 64:
+            return UNKNOWN  # undefined in C
         if op in ("<<", ">>", "&", "|", "^") and both_int:
             return {"<<": lambda: a << b, ">>": lambda: a >> b, "&": lambda: a & b,
                     "|": lambda: a | b, "^": lambda: a ^ b}[op]()
