@@ -301,19 +301,22 @@ def test_a_window_of_windows_too_large_for_one_kernel_is_refused(tmp_path, op, k
     assert "m.yaml:4:3" in text and "window of windows" in text and "op 0 then op 1" in text
 
 
-FILL_TYPE = """
+# a user's flexible type over one or three uint8 channels, for the tests below
+USER_TYPE = """
   {name}:
-    kind: flexible
-    params:
-      fill: {{type: int, default: 7, min: 0, max: 255}}
+    kind: flexible{params}
     inputs:
       src: {{dtype: uint8, channels: [1, 3]}}
     outputs:
       dst: {{dtype: uint8, channels: src.channels, height: src.height, width: src.width}}
-    cpu: {{file: cpu.py, function: fill_min}}
+    cpu: {{file: cpu.py, function: {function}}}
     fusable:
 {fusable}"""
-FILL_TYPES = "component_types:" + FILL_TYPE.format(name="FillMin", fusable="""\
+FILL_PARAM = """
+    params:
+      fill: {type: int, default: 7, min: 0, max: 255}"""
+FILL_TYPES = "component_types:" + USER_TYPE.format(
+    name="FillMin", params=FILL_PARAM, function="fill_min", fusable="""\
       form: stencil
       radius: 2
       border: clamp
@@ -323,7 +326,8 @@ FILL_TYPES = "component_types:" + FILL_TYPE.format(name="FillMin", fusable="""\
             for (int dx = -2; dx <= 2; dx++)
                 v = min(v, src(y + dy, x + dx, c, (uchar)fill));
         return v;
-""") + FILL_TYPE.format(name="FillShift", fusable="""\
+""") + USER_TYPE.format(name="FillShift", params=FILL_PARAM, function="fill_min",
+                         fusable="""\
       form: index_map
       value: src(y - 2, x + 3, c, fill)
 """)
@@ -474,32 +478,18 @@ def test_check_refuses_a_stencil_that_reads_beyond_its_radius(tmp_path, case):
     assert not (tmp_path / "out").exists()  # nothing half-written
 
 
-SHIFT_TYPES = """
-component_types:
-  Shift:
-    kind: flexible
-    params:
-      dy: {type: int, default: 0, min: -100, max: 100}
-      dx: {type: int, default: 0, min: -100, max: 100}
-    inputs:
-      src: {dtype: uint8, channels: [1, 3]}
-    outputs:
-      dst: {dtype: uint8, channels: src.channels, height: src.height, width: src.width}
-    cpu: {file: cpu.py, function: shift}
-    fusable:
+SHIFT_TYPES = "component_types:" + USER_TYPE.format(
+    name="Shift", function="shift", fusable="""\
       form: index_map
       value: src(y + dy, x + dx, c)
-  Mirror:
-    kind: flexible
-    inputs:
-      src: {dtype: uint8, channels: [1, 3]}
-    outputs:
-      dst: {dtype: uint8, channels: src.channels, height: src.height, width: src.width}
-    cpu: {file: cpu.py, function: shift}
-    fusable:
+""", params="""
+    params:
+      dy: {type: int, default: 0, min: -100, max: 100}
+      dx: {type: int, default: 0, min: -100, max: 100}""") + USER_TYPE.format(
+    name="Mirror", function="shift", params="", fusable="""\
       form: index_map
       value: "x < src_width / 2 ? src(y, x, c) : src(src_height - 1 - y, src_width - 1 - x, c)"
-"""
+""")
 
 
 @pytest.mark.parametrize("channels", (1, 3))
