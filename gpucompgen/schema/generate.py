@@ -212,7 +212,8 @@ def _fusable() -> dict:
                       "with a border rule"),
         "value": dict(TEXT, description="an OpenCL C expression (or statements with "
                       "'return') for output element (y, x, c); inputs read as "
-                      "<port>(y, x, c)"),
+                      "<port>(y, x, c), or <port>(y, x, c, fill) for fill outside the "
+                      "frame (stencil, index_map)"),
         "radius": {"type": ["integer", "string"],
                    "description": "stencil: the window's radius, a number or an int parameter"},
         "reads": {"type": ["integer", "string"],
