@@ -578,3 +578,27 @@ def test_the_walk_of_a_snippet_stays_small_whatever_it_computes(text, bounded):
     found = reach(result.tree, {"src_height": 10, "src_width": 10}, ["src"])
     assert time.perf_counter() - start < 10
     assert (found.unbounded is None) == bounded
+
+
+def test_check_refuses_a_pointwise_type_whose_output_is_larger_than_its_input(tmp_path):
+    """A pointwise snippet reads its inputs at its output's (y, x): an output declared
+    larger than an input would read outside that input."""
+    from gpucompgen.build import compile_model
+    from gpucompgen.errors import GpucompgenError
+
+    (tmp_path / "cpu.py").write_text("def big(src):\n    return src\n")
+    (tmp_path / "types.yaml").write_text(
+        "component_types:" + USER_TYPE.format(name="Big", params="", function="big",
+                                              fusable="      form: pointwise\n"
+                                                      "      value: src(y, x, c)\n")
+        .replace("height: src.height, width: src.width", "height: src.height * 2, "
+                 "width: src.width"))
+    model = tmp_path / "m.yaml"
+    model.write_text("system: big\ntypes: [types.yaml]\ncomponents:\n"
+                     "  src: {type: StillImage, params: {width: 16, height: 8}}\n"
+                     "  k: {type: Big}\n  sink: {type: FrameSink}\n"
+                     "connections:\n  - src.image -> k.src\n  - k.dst -> sink.image\n")
+    with pytest.raises(GpucompgenError) as info:
+        compile_model(model, tmp_path / "out")
+    assert "m.yaml:5:3: error: 'k' (Big): its pointwise snippet reads src at every (y, x) " \
+           "of its 16x16 output, but src is 8x16: it would read outside it" in str(info.value)

@@ -1,4 +1,5 @@
-"""check-reads: a stencil reads within the radius it states.
+"""check-reads: a stencil reads within the radius it states; a pointwise component's
+inputs are at least the size of its output (it reads them at the output's (y, x)).
 
 The generated kernel runs a stencil's interior without border rules on the promise of its
 radius (kernelgen/fused.py): a read farther away would load memory outside the input, and
@@ -28,8 +29,12 @@ class CheckReads(Pass):
             node = system.nodes[name]
             decl = getattr(node.type, "fusable", None) if isinstance(node, ComponentNode) \
                 else None
-            if decl is None or decl.form != "stencil" or any(
-                    p.data is None for p in (*node.inputs.values(), *node.outputs.values())):
+            if decl is None or any(p.data is None for p in (*node.inputs.values(),
+                                                             *node.outputs.values())):
+                continue
+            if decl.form == "pointwise":
+                _pointwise(node, rep)
+            if decl.form != "stencil":
                 continue
             shapes = {p: (q.data.height, q.data.width)
                       for p, q in (*node.inputs.items(), *node.outputs.items())}
@@ -62,3 +67,17 @@ def _problem(m, found) -> str | None:
             return (f"{what} reads {read}, {rows} row(s) and {cols} column(s) away, beyond "
                     f"its radius ({ry} rows, {rx} columns)")
     return None
+
+
+def _pointwise(node, rep) -> None:
+    """A pointwise snippet reads each input at its output's (y, x): an input smaller than
+    the output would be read outside (a size given in the type's outputs, say)."""
+    (out,) = node.outputs.values()
+    h, w = out.data.height, out.data.width
+    for pname, port in node.inputs.items():
+        if port.data.height < h or port.data.width < w:
+            rep.error(node.pos, f"'{node.name}' ({node.type.name}): its pointwise snippet "
+                      f"reads {pname} at every (y, x) of its {h}x{w} output, but {pname} is "
+                      f"{port.data.height}x{port.data.width}: it would read outside it",
+                      "give the output its inputs' size (height: src.height, width: "
+                      "src.width), or declare an index_map that computes where it reads")
