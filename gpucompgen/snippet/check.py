@@ -452,12 +452,15 @@ def constant(e: Node) -> int | float | None:
         a, b = constant(e.left), constant(e.right)
         if a is None or b is None:
             return None
-        v = _fold(e.op, a, b)
+        v = fold(e.op, a, b)
         return v if v is None or abs(v) <= 1 << 64 else None
     return None
 
 
-def _fold(op: str, a, b):
+def fold(op: str, a, b):
+    """a op b on two numbers as C computes it (division truncated, shifts by 0 to 63), or
+    None where C gives no number (a division by zero, a shift out of range, % or a bit
+    operation on floats)."""
     ints = isinstance(a, int) and isinstance(b, int)
     if op in ("/", "%"):
         if b == 0:

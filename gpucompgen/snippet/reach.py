@@ -20,6 +20,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 from . import syntax as S
+from .check import fold
+from .query import unparen
 
 MAX_STEPS = 200_000  # statements and expressions walked before giving up (unbounded)
 _FLIP = {"<": ">", "<=": ">=", ">": "<", ">=": "<=", "==": "==", "!=": "!="}  # a op b: b op' a
@@ -256,9 +258,7 @@ class _Walk:
         ranges = self.ranges
         if ranges is None:
             return None
-        c = cond
-        while isinstance(c, S.Paren):
-            c = c.inner
+        c = unparen(cond)
         if isinstance(c, S.Unary) and c.op == "!":
             return self.narrowed(c.operand, env, not truth)
         if isinstance(c, S.Binary) and c.op in ("&&", "||") and truth == (c.op == "&&"):
@@ -296,7 +296,7 @@ class _Walk:
             int(v) if isinstance(v, bool) else UNKNOWN
 
     def assign(self, target, value, env: dict) -> None:
-        target = target.inner if isinstance(target, S.Paren) else target
+        target = unparen(target)
         if isinstance(target, S.Name):
             env[target.name] = value
         elif isinstance(target, S.Index):
@@ -390,40 +390,11 @@ def _arith(op: str, a, b):
         return UNKNOWN
     if not (isinstance(a, (int, float)) and isinstance(b, (int, float))):
         return UNKNOWN
-    result = _number(op, a, b)
-    # C's integers are 64 bits at most: a value beyond (a shift by 2^31, a square taken
-    # in a loop) is unknown, not a number Python would grow without bound
+    result = fold(op, a, b)
+    if result is None:
+        return UNKNOWN
+    # C's integers are 64 bits at most: a value beyond (a square taken in a loop) is
+    # unknown, not a number Python would grow without bound
     if isinstance(result, int) and not -(1 << 63) <= result < (1 << 64):
         return UNKNOWN
     return result
-
-
-def _number(op: str, a, b):
-    both_int = isinstance(a, int) and isinstance(b, int)
-    try:
-        if op == "+":
-            return a + b
-        if op == "-":
-            return a - b
-        if op == "*":
-            return a * b
-        if op == "/":
-            if both_int:
-                q = abs(a) // abs(b)
-                return q if (a >= 0) == (b >= 0) else -q
-            return a / b
-        if op == "%" and both_int:
-            return a - b * _arith("/", a, b)
-        if op in ("<<", ">>") and both_int and not 0 <= b < 64:
-            return UNKNOWN  # undefined in C
-        if op in ("<<", ">>", "&", "|", "^") and both_int:
-            return {"<<": lambda: a << b, ">>": lambda: a >> b, "&": lambda: a & b,
-                    "|": lambda: a | b, "^": lambda: a ^ b}[op]()
-        if op in ("<", ">", "<=", ">=", "==", "!="):
-            return int({"<": a < b, ">": a > b, "<=": a <= b, ">=": a >= b, "==": a == b,
-                        "!=": a != b}[op])
-        if op in ("&&", "||"):
-            return int(bool(a) and bool(b)) if op == "&&" else int(bool(a) or bool(b))
-    except (ZeroDivisionError, ValueError, OverflowError):
-        return UNKNOWN
-    return UNKNOWN
