@@ -608,6 +608,7 @@ def group_kernel_body(group: GroupNode, device=None) -> str:
     root = group.root
     (out_name, out_port), = group.outputs.items()
     edge = margin(group, staged)
+    guarded = {m.name: guarded_ports(m) for m in group.members}  # walked once a member
     stencils = any(m.type.fusable.form == "stencil" for m in group.members)
     # flat stencils need the interior path: border rules apply to pixel positions
     flat = channel_flat(group) and (edge is not None or not stencils)
@@ -624,11 +625,7 @@ def group_kernel_body(group: GroupNode, device=None) -> str:
                                    if p.role != "tile") + "."),
              "",
              *_constants(whole, constants),
-             *[line for rule, text in BORDER_RULES.items()
-               if any(m.type.fusable.form == "stencil"
-                      and m.type.fusable.border_of(m.params) == rule
-                      or rule == "clamp" and guarded_ports(m)
-                      for m in group.members) for line in text],
+             *_border_rules(group, guarded),
              "#define _PARAMS \\",
              *(f"    {d}, \\" if i < len(decls) - 1 else f"    {d}" for i, d in enumerate(decls)),
              "",
@@ -659,7 +656,7 @@ def group_kernel_body(group: GroupNode, device=None) -> str:
     for interior, flat_version in versions:
         for m in group.members:
             members += _member(m, feeds, producer, index, names, flat_version, interior,
-                               used, inline=forced, slots=slots)
+                               used, inline=forced, slots=slots, guarded=guarded[m.name])
     helpers = [line for name in HELPERS if name in used for line in HELPERS[name]]
     if helpers:
         lines += ["// built-ins the snippets call, inline (see fused.py: HELPERS)", *helpers, ""]
@@ -724,17 +721,26 @@ def _function(name: str, index, interior: bool) -> str:
     return f"_f{index[name]}_{name.replace('.', '_')}" + ("_in" if interior else "")
 
 
+def _border_rules(group: GroupNode, guarded: dict[str, set[str]]) -> list[str]:
+    """The border functions the group's accessors call: its stencils' rules, and the
+    clamp where an index map's reads are guarded."""
+    return [line for rule, text in BORDER_RULES.items()
+            if any(m.type.fusable.form == "stencil" and m.type.fusable.border_of(m.params) == rule
+                   or rule == "clamp" and guarded[m.name] for m in group.members)
+            for line in text]
+
+
 def _accessors(m, feeds: dict[Endpoint, str], producer: dict[Endpoint, Endpoint], index,
                names, flat: bool, interior: bool, slots: dict[str, tuple[int, int]],
-               fills: dict[str, str]) -> tuple[list[str], list[str]]:
+               fills: dict[str, str], guarded: set[str]) -> tuple[list[str], list[str]]:
     """The macros of a member's input accessors (their names, and their #define lines):
     port(y, x, c) loads from a group input, reads a staged piece or calls the producing
     member, with the border rule in the border version; fills names the macro of each
-    port read with a fill value, port(y, x, c, fill)."""
+    port read with a fill value, port(y, x, c, fill); guarded the ports whose reads clamp
+    (guarded_ports)."""
     decl = m.type.fusable
     border = decl.border_of(m.params) if decl.form == "stencil" else None
     fargs = "_ARGS, _LARGS" if slots else "_ARGS"
-    guarded = guarded_ports(m)
     macros, lines = [], []
     for pname, port in m.inputs.items():
         src = producer.get(Endpoint(m.name, pname))
@@ -778,7 +784,8 @@ def _accessors(m, feeds: dict[Endpoint, str], producer: dict[Endpoint, Endpoint]
 
 def _member(m, feeds: dict[Endpoint, str], producer: dict[Endpoint, Endpoint], index,
             names, flat: bool, interior: bool, used: set[str], inline: bool,
-            slots: dict[str, tuple[int, int]] | None = None) -> list[str]:
+            slots: dict[str, tuple[int, int]] | None = None,
+            guarded: set[str] = frozenset()) -> list[str]:
     """A member's snippet as a function, between the macros of its input accessors.
 
     inline: forced inline (always_inline), which the row loop needs to vectorize: PoCL's
@@ -787,7 +794,8 @@ def _member(m, feeds: dict[Endpoint, str], producer: dict[Endpoint, Endpoint], i
     rows-together loop (about 20x slower).  Not a group beyond MAX_UNROLLED_READS
     (forced_inline): compile time exploded.  A member's loops are unrolled where it reads
     at most MAX_UNROLLED_LOOPS elements so.  slots: the staged pieces (a read of one
-    loads its tile in local memory, _s<slot>), where the kernel stages any."""
+    loads its tile in local memory, _s<slot>), where the kernel stages any; guarded: the
+    inputs whose reads clamp (guarded_ports)."""
     decl = m.type.fusable
     slots = slots or {}
     owner = getattr(m, "owner", m.name)  # a stage reads its component's parameters
@@ -801,7 +809,7 @@ def _member(m, feeds: dict[Endpoint, str], producer: dict[Endpoint, Endpoint], i
     fills = {p: f"_fill_{p}" for p, found in accessor_calls(decl.tree, list(m.inputs)).items()
              if any(len(args) == 4 for args in found)}
     macros, defines = _accessors(m, feeds, producer, index, names, flat, interior, slots,
-                                 fills)
+                                 fills, guarded)
     lines += defines
     tables, locals_ = _tables(m, index[m.name])
     if not interior:  # once, before the member's first version
