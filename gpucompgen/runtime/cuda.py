@@ -675,8 +675,9 @@ def compile_cubin(source: str, name: str, arch: str,
     prog = _nvrtc_ok(nv.nvrtcCreateProgram(source.encode(), name.encode(), 0, [], []),
                      "program")
     try:
+        # --fmad=false: each statement rounded as OpenCL C rounds it (backend/cuda/nvrtc.py)
         opts = [f"--gpu-architecture={arch}".encode(), b"-std=c++17",
-                b"--diag-suppress=177,161", *(o.encode() for o in options)]
+                b"--diag-suppress=177,161", b"--fmad=false", *(o.encode() for o in options)]
         err, = nv.nvrtcCompileProgram(prog, len(opts), opts)
         # NVRTC writes into the buffer it is given: a bytearray, never bytes.  cuda-python's
         # examples pass b" " * size, which for an empty log (size 1) IS the interpreter's

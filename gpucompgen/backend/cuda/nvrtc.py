@@ -20,6 +20,13 @@ from functools import cache
 # Warnings that say nothing about generated kernels: old architectures deprecated (sm_72),
 # variables a size line declares but a snippet does not use, OpenCL's fp64 pragma.
 QUIET = (b"--diag-suppress=177,161",)
+# OpenCL C contracts a * b + c into one fma only within an expression; the snippets that
+# must round each operation (Filter2D's float32 output, the derivatives' float sums, which
+# the CPU forms compute the same way in numpy) write them as separate statements.  NVRTC's
+# default (--fmad=true) contracts across statements too: false keeps each statement's
+# rounding, so that the CUDA kernel gives the OpenCL kernel's and the CPU form's bytes
+# (an explicit fma() stays one).
+ROUNDING = (b"--fmad=false",)
 
 
 @dataclass(frozen=True)
@@ -62,7 +69,7 @@ class Nvrtc:
         if rc:
             return Compiled(False, lib.nvrtcGetErrorString(rc).decode())
         try:
-            opts = [f"--gpu-architecture=sm_{arch}".encode(), b"-std=c++17", *QUIET,
+            opts = [f"--gpu-architecture=sm_{arch}".encode(), b"-std=c++17", *QUIET, *ROUNDING,
                     *(o.encode() for o in options)]
             array = (ctypes.c_char_p * len(opts))(*opts)
             rc = lib.nvrtcCompileProgram(prog, len(opts), array)
