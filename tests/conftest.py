@@ -117,7 +117,8 @@ def run_generated(context, queue, ctype, params: dict, arrays, out_shape: tuple,
 
     if ctype.generic:  # the ports a component fed these arrays gets (resolve-types)
         first = np.asarray(arrays[0])
-        ctype = ctype.specialized(first.dtype.name, first.shape[2] if first.ndim == 3 else 1)
+        ctype = ctype.specialized(first.dtype.name, first.shape[2] if first.ndim == 3 else 1,
+                                  params)
     (oname, oport), = ctype.outputs.items()
     shapes = {p: a.shape[:2] for p, a in zip(ctype.inputs, arrays, strict=True)}
     shapes[oname] = tuple(out_shape[:2])

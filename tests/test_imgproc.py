@@ -29,7 +29,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from imgproc_reference import REFERENCES
 
-from gpucompgen.library import cpu_kernels
+from gpucompgen.library import cpu_kernels, cpu_ops
 
 cv2 = pytest.importorskip("cv2")
 skdata = pytest.importorskip("skimage.data")
@@ -166,7 +166,7 @@ def variants(type_name: str) -> list[tuple[int, str]]:
 
 # their int16 and float32 frames (and Crop's any element type) are tests/test_ops_lib.py's,
 # on small crops: on these photographs, a kernel build each size, they took a minute more
-OTHER_DTYPES_ELSEWHERE = ("InRange", "Resize", "Crop")
+OTHER_DTYPES_ELSEWHERE = ("InRange", "Resize", "Crop", "Sobel")
 
 
 # every type over every channel count and element type it takes; the deprecated aliases
@@ -435,8 +435,10 @@ def test_cpu_functions_reject_bad_inputs():
         cpu_kernels.absdiff(image, image[:3])
     with pytest.raises(ValueError, match="ksize"):
         cpu_kernels.gaussian_blur(image, ksize=4)
-    with pytest.raises(ValueError, match="dx=1"):
-        cpu_kernels.sobel(image, dx=1, dy=1)
+    with pytest.raises(ValueError, match="orders dx, dy below it"):
+        cpu_ops.sobel(image, dx=3, dy=0)
+    with pytest.raises(ValueError, match="5 or -1 for a float32 frame"):
+        cpu_ops.sobel(image.astype(np.float32), dx=1, dy=0)
     with pytest.raises(TypeError, match="uint8, int16 or float32"):
         cpu_kernels.erode(image.astype(np.float64))
     with pytest.raises(ValueError, match="same size and element type"):
@@ -446,7 +448,7 @@ def test_cpu_functions_reject_bad_inputs():
     out = np.empty((4, 5, 3), np.uint8)
     assert cpu_kernels.median_blur(image, out=out) is out
     gradient = np.empty((4, 5, 3), np.int16)
-    assert cpu_kernels.sobel(image, dx=0, dy=1, out=gradient) is gradient
+    assert cpu_ops.sobel(image, dx=0, dy=1, out=gradient) is gradient
 
 
 # -- values computed by hand -------------------------------------------------------------
@@ -494,7 +496,7 @@ def test_hand_computed_values():
     assert not c.median_blur(spot).any()  # one pixel in nine is not the median
     # Sobel dx at the centre: (-1 0 1) across, (1 2 1) down: row 2's 2 * (0 - 16) = -32 at
     # x = 3, +32 at x = 1
-    gradient = c.sobel(spot, dx=1, dy=0)
+    gradient = cpu_ops.sobel(spot, dx=1, dy=0)
     assert gradient.dtype == np.int16 and (gradient[2, 1], gradient[2, 3]) == (32, -32)
     assert (gradient[1, 1], gradient[3, 3]) == (16, -16)
     assert c.flip_horizontal(gray).tolist() == [[101, 100, 7, 5]]

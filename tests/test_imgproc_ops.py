@@ -88,6 +88,28 @@ def _blur(src, ksize, border_type):
 LAPLACE = {1: np.array([[0, 1, 0], [1, -4, 1], [0, 1, 0]]),
            3: np.array([[2, 0, 2], [0, -8, 0], [2, 0, 2]])}
 SCHARR_X = np.array([[-3, 0, 3], [-10, 0, 10], [-3, 0, 3]])
+CV_DEPTH = {-1: -1, 0: cv2.CV_8U, 3: cv2.CV_16S, 5: cv2.CV_32F}
+
+
+def _laplace(ksize: int) -> np.ndarray:
+    """The Laplacian's kernel: OpenCV's documented 3x3 ones for ksize 1 and 3; from 5, the
+    second derivative along x smoothed along y plus its transpose, from OpenCV's own
+    derivative kernels (cv2.getDerivKernels)."""
+    if ksize in LAPLACE:
+        return LAPLACE[ksize]
+    d2, smooth = (k.ravel().astype(np.int64) for k in cv2.getDerivKernels(2, 0, ksize))
+    return np.outer(smooth, d2) + np.outer(d2, smooth)
+
+
+def _derivative(a, kernel, scale, delta, border_type, ddepth):
+    """The correlation in integers, times a whole scale plus a whole delta (the cases
+    here: exact), to OpenCV's output type (saturated)."""
+    assert float(scale).is_integer() and float(delta).is_integer()
+    total = _correlate(a, kernel, border_type) * int(scale) + int(delta)
+    dtype = a.dtype if ddepth == -1 else {0: np.uint8, 3: np.int16, 5: np.float32}[ddepth]
+    if dtype == np.float32:
+        return total.astype(np.float32)
+    return np.clip(total, np.iinfo(dtype).min, np.iinfo(dtype).max).astype(dtype)
 
 
 def _element(shape: int, ksize: int) -> np.ndarray:
@@ -179,13 +201,25 @@ OPS: dict[str, Op] = {
         # other border rule and the window's limits 1 and 31 (each case is a build)
         [{"ksize": k, "border_type": b} for b in (4, 0, 1, 2) for k in (3, 5)]
         + [{"ksize": 1, "border_type": 4}, {"ksize": 31, "border_type": 2}], every_photo=2),
-    "Laplacian": Op(lambda a, ksize: cv2.Laplacian(a, cv2.CV_16S, ksize=ksize),
-                    lambda a, ksize: _correlate(a, LAPLACE[ksize], 4).astype(np.int16),
-                    [{"ksize": 1}, {"ksize": 3}]),
-    "Scharr": Op(lambda a, dx, dy: cv2.Scharr(a, cv2.CV_16S, dx, dy),
-                 lambda a, dx, dy: _correlate(a, SCHARR_X if dx else SCHARR_X.T, 4)
-                 .astype(np.int16),
-                 [{"dx": 1, "dy": 0}, {"dx": 0, "dy": 1}]),
+    "Laplacian": Op(
+        lambda a, ksize, scale=1.0, delta=0.0, border_type=4, ddepth=3: cv2.Laplacian(
+            a, CV_DEPTH[ddepth], ksize=ksize, scale=scale, delta=delta, borderType=border_type),
+        lambda a, ksize, scale=1.0, delta=0.0, border_type=4, ddepth=3: _derivative(
+            a, _laplace(ksize), scale, delta, border_type, ddepth),
+        # the apertures, then the border rules and the output types, scaled and shifted by
+        # whole numbers (bit-exact; fractions: tests/test_ops_derivatives.py)
+        [{"ksize": 1}, {"ksize": 3}, {"ksize": 5}, {"ksize": 7},
+         {"ksize": 3, "border_type": 0, "ddepth": 5, "scale": 2.0, "delta": -3.0},
+         {"ksize": 5, "border_type": 1, "ddepth": 0, "delta": 128.0},
+         {"ksize": 1, "border_type": 2, "ddepth": -1, "scale": -1.0}], every_photo=2),
+    "Scharr": Op(
+        lambda a, dx, dy, scale=1.0, delta=0.0, border_type=4, ddepth=3: cv2.Scharr(
+            a, CV_DEPTH[ddepth], dx, dy, scale=scale, delta=delta, borderType=border_type),
+        lambda a, dx, dy, scale=1.0, delta=0.0, border_type=4, ddepth=3: _derivative(
+            a, SCHARR_X if dx else SCHARR_X.T, scale, delta, border_type, ddepth),
+        [{"dx": 1, "dy": 0}, {"dx": 0, "dy": 1},
+         {"dx": 1, "dy": 0, "border_type": 0, "ddepth": 5, "scale": 3.0, "delta": 5.0}],
+        every_photo=2),
     "Lut": Op(lambda a, lut: cv2.LUT(a, np.array(lut, np.uint8)),
               lambda a, lut: np.array(lut, np.uint8)[a],
               [{"lut": tuple(range(256))}, {"lut": tuple(255 - i for i in range(256))},
@@ -338,7 +372,12 @@ def cases(draw, type_name: str, channels: int):
         params["ksize"] = draw(st.sampled_from([1, 3, 5, 7, 9]))
         params["border_type"] = draw(st.sampled_from(sorted(cpu_ops.BORDERS)))
     if "ksize" in params and type_name.startswith("Laplacian"):
-        params["ksize"] = draw(st.sampled_from([1, 3]))
+        params["ksize"] = draw(st.sampled_from([1, 3, 5, 7]))
+    if "ddepth" in params:  # whole scales and deltas (exact); fractions: test_ops_derivatives
+        params["ddepth"] = draw(st.sampled_from(sorted(CV_DEPTH)))
+        params["border_type"] = draw(st.sampled_from(sorted(cpu_ops.BORDERS)))
+        params["scale"] = draw(st.sampled_from([1.0, 2.0, -3.0, 0.0]))
+        params["delta"] = draw(st.sampled_from([0.0, 7.0, -300.0]))
     if type_name.startswith("MorphologyEx"):
         params["ksize"] = draw(st.sampled_from([1, 3, 5]))
         if params["shape"]:
@@ -369,7 +408,11 @@ def test_cpu_forms_reject_bad_inputs():
     with pytest.raises(ValueError, match="border_type"):
         cpu_ops.blur(image, ksize=3, border_type=3)
     with pytest.raises(ValueError, match="ksize"):
-        cpu_ops.laplacian(image, ksize=5)
+        cpu_ops.laplacian(image, ksize=9)
+    with pytest.raises(ValueError, match="border_type"):
+        cpu_ops.laplacian(image, ksize=3, border_type=3)
+    with pytest.raises(ValueError, match="ddepth"):
+        cpu_ops.scharr(image, dx=1, dy=0, ddepth=2)
     with pytest.raises(ValueError, match="dx=1"):
         cpu_ops.scharr(image, dx=1, dy=1)
     with pytest.raises(ValueError, match="one channel"):

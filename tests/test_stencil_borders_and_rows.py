@@ -142,7 +142,7 @@ def _valid_params(ctype):
     for values in itertools.product(*ranges):
         params = {**base, **dict(zip(free, values))}
         numbers = {p: v for p, v in params.items() if p in ints}
-        if all(sizeexpr.evaluate(tree, {"src": (64, 64)}, numbers)
+        if all(sizeexpr.evaluate(tree, {"src": (64, 64, 1, 1)}, numbers)
                for tree, _ in ctype.requires):
             yield params
 

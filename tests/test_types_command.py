@@ -37,7 +37,8 @@ def test_listing_names_every_library_type_once_with_its_kind(capsys):
     assert re.search(r"^  Resize +flexible   8U\|16S\|32F C1\|3 -> same +Scales a frame"
                      r".*\.\.\.$", out, re.MULTILINE)
     assert re.search(r"^  Filter2D +flexible   8UC1\|3 -> D\(ddepth\) ", out, re.MULTILINE)
-    assert re.search(r"^  Sobel +flexible   8UC1\|3 -> 16S +First derivative", out, re.MULTILINE)
+    assert re.search(r"^  Sobel +flexible   8U\|32F C1\|3 -> D\(ddepth\) +Derivative of order",
+                     out, re.MULTILINE)
     assert re.search(r"^  ConvertScale +flexible   8U\|16S\|32F C1\|3 -> 8U ", out, re.MULTILINE)
     assert re.search(r"^  AbsDiff +flexible   2 x 8U\|16S\|32F C1\|3 -> same ", out, re.MULTILINE)
     assert re.search(r"^  ErodeGray +flexible   8U\|16S\|32F C1 -> C1 +deprecated: Erode with 1 "
@@ -95,9 +96,12 @@ def test_one_flexible_type_in_full_with_every_form(capsys):
 
 def test_requirements_float_parameters_and_int16_ports(capsys):
     _, out, _ = run(capsys, "SobelGray")  # a deprecated alias: Sobel with 1 channel
-    assert "  dst           memory where placed, int16, 1 channel, height src.height" in out
+    assert ("  dst           memory where placed, the dtype of parameter ddepth, 1 channel, "
+            "height src.height") in out
     assert "Deprecated      a name of Sobel with 1 channel: write 'type: Sobel'" in out
-    assert "dx + dy == 1: give dx=1 dy=0 or dx=0 dy=1" in out
+    assert "dx + dy >= 1: give a derivative: dx or dy at least 1" in out
+    assert "src.itemsize != 4 or ddepth == -1 or ddepth == 5: the derivative of a float32 " \
+           "frame" in out
     _, out, _ = run(capsys, "ConvertScale")  # takes Sobel's int16
     assert ("  src           memory where placed, uint8, int16 or float32, 1 or 3 channels, "
             "any size") in out

@@ -9,8 +9,14 @@
 // Parameters: constants of the build, so that the compiler folds them (a rule chosen by a
 // parameter is chosen once, not per element).  The program builds this file with -D
 // NAME=VALUE, its values after --set; below, the model's values, for a build without them.
-#ifndef _m0_ksize
-#define _m0_ksize 3
+#ifndef _m0_scale
+#define _m0_scale 1.0f
+#endif
+#ifndef _m0_delta
+#define _m0_delta 0.0f
+#endif
+#ifndef _m0_ddepth
+#define _m0_ddepth 3
 #endif
 
 // OpenCV's BORDER_REFLECT_101 (gfedcb|abcdefgh|gfedcba) of position p in 0..n-1
@@ -31,31 +37,208 @@ static inline int _reflect101(int p, const int n)
     _in0, \
     _out
 
-// laplace: LaplacianGray (stencil, radius 1, border reflect101); every element
+// built-ins the snippets call, inline (see fused.py: HELPERS)
+static inline __attribute__((overloadable)) uchar _max(const uchar a, const uchar b) { return a > b ? a : b; }
+static inline __attribute__((overloadable)) char _max(const char a, const char b) { return a > b ? a : b; }
+static inline __attribute__((overloadable)) ushort _max(const ushort a, const ushort b) { return a > b ? a : b; }
+static inline __attribute__((overloadable)) short _max(const short a, const short b) { return a > b ? a : b; }
+static inline __attribute__((overloadable)) uint _max(const uint a, const uint b) { return a > b ? a : b; }
+static inline __attribute__((overloadable)) int _max(const int a, const int b) { return a > b ? a : b; }
+static inline __attribute__((overloadable)) float _max(const float a, const float b) { return a > b ? a : b; }
+static inline __attribute__((overloadable)) uchar _clamp3(const uchar v, const uchar lo, const uchar hi) { return v < lo ? lo : v > hi ? hi : v; }
+static inline __attribute__((overloadable)) char _clamp3(const char v, const char lo, const char hi) { return v < lo ? lo : v > hi ? hi : v; }
+static inline __attribute__((overloadable)) ushort _clamp3(const ushort v, const ushort lo, const ushort hi) { return v < lo ? lo : v > hi ? hi : v; }
+static inline __attribute__((overloadable)) short _clamp3(const short v, const short lo, const short hi) { return v < lo ? lo : v > hi ? hi : v; }
+static inline __attribute__((overloadable)) uint _clamp3(const uint v, const uint lo, const uint hi) { return v < lo ? lo : v > hi ? hi : v; }
+static inline __attribute__((overloadable)) int _clamp3(const int v, const int lo, const int hi) { return v < lo ? lo : v > hi ? hi : v; }
+static inline __attribute__((overloadable)) float _clamp3(const float v, const float lo, const float hi) { return v < lo ? lo : v > hi ? hi : v; }
+static inline float _fabs(const float v) { return v < 0.0f ? -v : v; }
+#ifdef __clang__
+#define _rint(v) __builtin_rintf(v)
+#else
+#define _rint(v) rint(v)
+#endif
+static inline uchar _convert_uchar_sat_rte(float v)
+{
+    v = v >= 0.0f ? v : 0.0f;  /* NaN too */
+    return (uchar)_rint(v <= 255.0f ? v : 255.0f);
+}
+
+// laplace: LaplacianGray (stencil, radius max(1, ksize // 2), border reflect101); every element
+__constant int _m0_kd[3] = {
+    1, -2, 1
+};
+__constant int _m0_ks[3] = {
+    1, 2, 1
+};
 #define src(y_, x_, c_) _in0[(size_t)_reflect101((y_), 200) * 301 + _reflect101((x_), 301)]
 static inline __attribute__((always_inline)) short _f0_laplace(_PARAMS, const int y, const int x, const int c)
 {
     const int src_height = 200, src_width = 301;
+    typedef uchar src_t;
     const int dst_height = 200, dst_width = 301;
-    const int ksize = _m0_ksize;
-    const int centre = src(y, x, c);
-    if (ksize == 1)
-        return src(y - 1, x, c) + src(y + 1, x, c) + src(y, x - 1, c) + src(y, x + 1, c) - 4 * centre;
-    return 2 * (src(y - 1, x - 1, c) + src(y - 1, x + 1, c) + src(y + 1, x - 1, c) + src(y + 1, x + 1, c)) - 8 * centre;
+    typedef short dst_t;
+    const short dst_min = -32768, dst_max = 32767;
+    __constant const int *kd = _m0_kd;
+    __constant const int *ks = _m0_ks;
+    const int ksize = 3;
+    const float scale = _m0_scale;
+    const float delta = _m0_delta;
+    const int border_type = 4;
+    const int ddepth = _m0_ddepth;
+    const int rd = _max(1, ksize / 2), rs = ksize / 2;
+    const bool whole_src = (src_t)0.5f == (src_t)0;
+    const bool whole_dst = (dst_t)0.5f == (dst_t)0;
+    float value = 0.0f;
+    if (whole_src) {
+        int sum = 0;
+        #pragma unroll
+        for (int j = -rs; j <= rs; j++) {
+            int row = 0;
+            #pragma unroll
+            for (int i = -rd; i <= rd; i++)
+                row += kd[rd + i] * src(y + j, x + i, c);
+            sum += ks[rs + j] * row;
+        }
+        #pragma unroll
+        for (int j = -rd; j <= rd; j++) {
+            int row = 0;
+            #pragma unroll
+            for (int i = -rs; i <= rs; i++)
+                row += ks[rs + i] * src(y + j, x + i, c);
+            sum += kd[rd + j] * row;
+        }
+        if ((scale == (int)scale) & (delta == (int)delta) & (_fabs(scale) < 16.0f)) {
+            const int exact = sum * (int)scale + (int)delta;
+            if (!whole_dst)
+                return (float)exact;
+            return (dst_t)_clamp3(exact, (int)dst_min, (int)dst_max);
+        }
+        const float scaled = (float)sum * scale;
+        value = scaled + delta;
+    }
+    else {
+        float along_x = 0.0f, along_y = 0.0f;
+        #pragma unroll
+        for (int j = -rs; j <= rs; j++) {
+            float row = 0.0f;
+            #pragma unroll
+            for (int i = -rd; i <= rd; i++)
+                if (kd[rd + i] != 0) {
+                    const float product = kd[rd + i] * src(y + j, x + i, c);
+                    row = row + product;
+                }
+            const float part = ks[rs + j] * row;
+            along_x = along_x + part;
+        }
+        #pragma unroll
+        for (int j = -rd; j <= rd; j++) {
+            float row = 0.0f;
+            #pragma unroll
+            for (int i = -rs; i <= rs; i++) {
+                const float product = ks[rs + i] * src(y + j, x + i, c);
+                row = row + product;
+            }
+            if (kd[rd + j] != 0) {
+                const float part = kd[rd + j] * row;
+                along_y = along_y + part;
+            }
+        }
+        const float sum = along_x + along_y;
+        const float scaled = sum * scale;
+        value = scaled + delta;
+    }
+    if (!whole_dst)
+        return value;
+    if (dst_max == 255)
+        return _convert_uchar_sat_rte(value);
+    return (dst_t)_clamp3(rint(value), (float)dst_min, (float)dst_max);
 }
 #undef src
 
-// laplace: LaplacianGray (stencil, radius 1, border reflect101); interior: no border rule
+// laplace: LaplacianGray (stencil, radius max(1, ksize // 2), border reflect101); interior: no border rule
 #define src(y_, x_, c_) _in0[(size_t)(y_) * 301 + (x_)]
 static inline __attribute__((always_inline)) short _f0_laplace_in(_PARAMS, const int y, const int x, const int c)
 {
     const int src_height = 200, src_width = 301;
+    typedef uchar src_t;
     const int dst_height = 200, dst_width = 301;
-    const int ksize = _m0_ksize;
-    const int centre = src(y, x, c);
-    if (ksize == 1)
-        return src(y - 1, x, c) + src(y + 1, x, c) + src(y, x - 1, c) + src(y, x + 1, c) - 4 * centre;
-    return 2 * (src(y - 1, x - 1, c) + src(y - 1, x + 1, c) + src(y + 1, x - 1, c) + src(y + 1, x + 1, c)) - 8 * centre;
+    typedef short dst_t;
+    const short dst_min = -32768, dst_max = 32767;
+    __constant const int *kd = _m0_kd;
+    __constant const int *ks = _m0_ks;
+    const int ksize = 3;
+    const float scale = _m0_scale;
+    const float delta = _m0_delta;
+    const int border_type = 4;
+    const int ddepth = _m0_ddepth;
+    const int rd = _max(1, ksize / 2), rs = ksize / 2;
+    const bool whole_src = (src_t)0.5f == (src_t)0;
+    const bool whole_dst = (dst_t)0.5f == (dst_t)0;
+    float value = 0.0f;
+    if (whole_src) {
+        int sum = 0;
+        #pragma unroll
+        for (int j = -rs; j <= rs; j++) {
+            int row = 0;
+            #pragma unroll
+            for (int i = -rd; i <= rd; i++)
+                row += kd[rd + i] * src(y + j, x + i, c);
+            sum += ks[rs + j] * row;
+        }
+        #pragma unroll
+        for (int j = -rd; j <= rd; j++) {
+            int row = 0;
+            #pragma unroll
+            for (int i = -rs; i <= rs; i++)
+                row += ks[rs + i] * src(y + j, x + i, c);
+            sum += kd[rd + j] * row;
+        }
+        if ((scale == (int)scale) & (delta == (int)delta) & (_fabs(scale) < 16.0f)) {
+            const int exact = sum * (int)scale + (int)delta;
+            if (!whole_dst)
+                return (float)exact;
+            return (dst_t)_clamp3(exact, (int)dst_min, (int)dst_max);
+        }
+        const float scaled = (float)sum * scale;
+        value = scaled + delta;
+    }
+    else {
+        float along_x = 0.0f, along_y = 0.0f;
+        #pragma unroll
+        for (int j = -rs; j <= rs; j++) {
+            float row = 0.0f;
+            #pragma unroll
+            for (int i = -rd; i <= rd; i++)
+                if (kd[rd + i] != 0) {
+                    const float product = kd[rd + i] * src(y + j, x + i, c);
+                    row = row + product;
+                }
+            const float part = ks[rs + j] * row;
+            along_x = along_x + part;
+        }
+        #pragma unroll
+        for (int j = -rd; j <= rd; j++) {
+            float row = 0.0f;
+            #pragma unroll
+            for (int i = -rs; i <= rs; i++) {
+                const float product = ks[rs + i] * src(y + j, x + i, c);
+                row = row + product;
+            }
+            if (kd[rd + j] != 0) {
+                const float part = kd[rd + j] * row;
+                along_y = along_y + part;
+            }
+        }
+        const float sum = along_x + along_y;
+        const float scaled = sum * scale;
+        value = scaled + delta;
+    }
+    if (!whole_dst)
+        return value;
+    if (dst_max == 255)
+        return _convert_uchar_sat_rte(value);
+    return (dst_t)_clamp3(rint(value), (float)dst_min, (float)dst_max);
 }
 #undef src
 

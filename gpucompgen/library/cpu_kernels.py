@@ -260,20 +260,6 @@ def gaussian_blur(src: np.ndarray, *, ksize: int, ksize_y: int = 0, sigma: float
                             dst=_output(out, src.shape, "GaussianBlur", "dst"))
 
 
-def sobel(src: np.ndarray, *, dx: int, dy: int, out: np.ndarray | None = None) -> np.ndarray:
-    """Sobel / SobelGray: cv2.Sobel(image, cv2.CV_16S, dx, dy, ksize=3).
-
-    dx=1, dy=0: (-1 0 1) along rows times (1 2 1) down columns; dx=0, dy=1 the transpose;
-    borders BORDER_REFLECT_101.  Returns int16 (values -1020..1020).
-    """
-    _channels("Sobel", "src", src)
-    dx, dy = int(dx), int(dy)
-    if (dx, dy) not in ((1, 0), (0, 1)):
-        raise ValueError(f"Sobel: give dx=1, dy=0 or dx=0, dy=1, not dx={dx}, dy={dy}")
-    gradient = _output(out, src.shape, "Sobel", "dst", np.int16)
-    return cv2.Sobel(src, cv2.CV_16S, dx, dy, dst=gradient, ksize=3)
-
-
 def erode(src: np.ndarray, *, out: np.ndarray | None = None) -> np.ndarray:
     """Erode / ErodeGray: cv2.erode(image, np.ones((3, 3), np.uint8)): the minimum of the
     3x3 window, pixels outside the frame ignored (OpenCV's default border for
@@ -334,7 +320,7 @@ CPU_IMPLEMENTATIONS = {
     **{f"{name}{suffix}": function for suffix in ("", "Gray") for name, function in (
         ("InRange", in_range), ("Threshold", threshold), ("ConvertScale", convert_scale),
         ("Resize", resize), ("Crop", crop), ("FlipHorizontal", flip_horizontal),
-        ("Rotate180", rotate180), ("GaussianBlur", gaussian_blur), ("Sobel", sobel),
+        ("Rotate180", rotate180), ("GaussianBlur", gaussian_blur),
         ("Erode", erode), ("Dilate", dilate), ("MedianBlur", median_blur),
         ("AbsDiff", absdiff), ("AddWeighted", add_weighted), ("ConvertScaleAbs", convert_scale))},
 }

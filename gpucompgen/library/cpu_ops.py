@@ -124,6 +124,7 @@ def blur(src: np.ndarray, *, ksize: int, border_type: int,
 
 
 FILTER_DEPTHS = {-1: np.uint8, 0: np.uint8, 3: np.int16, 5: np.float32}  # OpenCV's codes
+CV_DEPTHS = {"uint8": cv2.CV_8U, "int16": cv2.CV_16S, "float32": cv2.CV_32F}
 
 
 def filter_2d(src: np.ndarray, *, weights, delta: float = 0.0, border_type: int = 4,
@@ -149,24 +150,121 @@ def filter_2d(src: np.ndarray, *, weights, delta: float = 0.0, border_type: int 
                         dst=_output(out, src.shape, "Filter2D", "dst", FILTER_DEPTHS[depth]))
 
 
-def laplacian(src: np.ndarray, *, ksize: int, out: np.ndarray | None = None) -> np.ndarray:
-    """Laplacian / LaplacianGray: cv2.Laplacian(src, cv2.CV_16S, ksize=ksize), borders
-    BORDER_REFLECT_101; ksize 1 ([0 1 0; 1 -4 1; 0 1 0]) or 3 ([2 0 2; 0 -8 0; 2 0 2])."""
-    _image("Laplacian", "src", src)
-    if int(ksize) not in (1, 3):
-        raise ValueError(f"Laplacian: ksize must be 1 or 3, not {ksize}")
-    return cv2.Laplacian(src, cv2.CV_16S, ksize=int(ksize),
-                         dst=_output(out, src.shape, "Laplacian", "dst", np.int16))
+# -- derivatives: Sobel, Scharr, Laplacian ---------------------------------------------------
+def sobel(src: np.ndarray, *, dx: int, dy: int, ksize: int = 3, scale: float = 1.0,
+          delta: float = 0.0, border_type: int = 4, ddepth: int = 3,
+          out: np.ndarray | None = None) -> np.ndarray:
+    """Sobel / SobelGray: cv2.Sobel(src, ddepth, dx, dy, ksize=ksize, scale=scale,
+    delta=delta, borderType=border_type): OpenCV's separable derivative kernels
+    (kernel_tables.sobel_taps; ksize 1, 3, 5, 7, or -1 for Scharr's), of uint8 or float32
+    frames, as int16 (ddepth 3), uint8 (0), float32 (5) or the input's type (-1).  The
+    generated kernel's bytes: OpenCV's own where they are exact (see _derivative)."""
+    ksize, dx, dy = int(ksize), int(dx), int(dy)
+    limit = max(ksize, 3)
+    if not ((ksize == -1 and dx + dy == 1) or (ksize in (1, 3, 5, 7) and dx + dy >= 1
+                                               and 0 <= dx < limit and 0 <= dy < limit)):
+        raise ValueError(f"Sobel: give ksize 1, 3, 5 or 7 with orders dx, dy below it (at "
+                         f"most 2 for ksize 1), at least one of them not 0, or ksize -1 "
+                         f"with dx + dy = 1; not ksize={ksize}, dx={dx}, dy={dy}")
+    terms = [(sobel_taps(ksize, dx), sobel_taps(ksize, dy))]
+    return _derivative("Sobel", src, terms, scale, delta, border_type, ddepth, out,
+                       lambda dst, depth: cv2.Sobel(src, depth, dx, dy, dst=dst, ksize=ksize,
+                                                    scale=float(scale), delta=float(delta),
+                                                    borderType=int(border_type)))
 
 
-def scharr(src: np.ndarray, *, dx: int, dy: int, out: np.ndarray | None = None) -> np.ndarray:
-    """Scharr / ScharrGray: cv2.Scharr(src, cv2.CV_16S, dx, dy): (-3 0 3; -10 0 10;
-    -3 0 3) for dx=1, its transpose for dy=1, borders BORDER_REFLECT_101; int16."""
-    _image("Scharr", "src", src)
+def scharr(src: np.ndarray, *, dx: int, dy: int, scale: float = 1.0, delta: float = 0.0,
+           border_type: int = 4, ddepth: int = 3, out: np.ndarray | None = None) -> np.ndarray:
+    """Scharr / ScharrGray: cv2.Scharr(src, ddepth, dx, dy, scale=scale, delta=delta,
+    borderType=border_type): (-3 0 3; -10 0 10; -3 0 3) for dx=1, its transpose for dy=1;
+    as Sobel for the element types and the exactness."""
     if (int(dx), int(dy)) not in ((1, 0), (0, 1)):
         raise ValueError(f"Scharr: give dx=1, dy=0 or dx=0, dy=1, not dx={dx}, dy={dy}")
-    return cv2.Scharr(src, cv2.CV_16S, int(dx), int(dy),
-                      dst=_output(out, src.shape, "Scharr", "dst", np.int16))
+    terms = [(scharr_taps(dx), scharr_taps(dy))]
+    return _derivative("Scharr", src, terms, scale, delta, border_type, ddepth, out,
+                       lambda dst, depth: cv2.Scharr(src, depth, int(dx), int(dy), dst=dst,
+                                                     scale=float(scale), delta=float(delta),
+                                                     borderType=int(border_type)))
+
+
+def laplacian(src: np.ndarray, *, ksize: int, scale: float = 1.0, delta: float = 0.0,
+              border_type: int = 4, ddepth: int = 3,
+              out: np.ndarray | None = None) -> np.ndarray:
+    """Laplacian / LaplacianGray: cv2.Laplacian(src, ddepth, ksize=ksize, scale=scale,
+    delta=delta, borderType=border_type): d2/dx2 + d2/dy2 with Sobel's second-derivative
+    kernels (ksize 1: [0 1 0; 1 -4 1; 0 1 0], 3: [2 0 2; 0 -8 0; 2 0 2], 5, 7); as Sobel
+    for the element types and the exactness."""
+    ksize = int(ksize)
+    if ksize not in (1, 3, 5, 7):
+        raise ValueError(f"Laplacian: ksize must be 1, 3, 5 or 7, not {ksize}")
+    d2, smooth = sobel_taps(ksize, 2), sobel_taps(ksize, 0)
+    return _derivative("Laplacian", src, [(d2, smooth), (smooth, d2)], scale, delta,
+                       border_type, ddepth, out,
+                       lambda dst, depth: cv2.Laplacian(src, depth, dst=dst, ksize=ksize,
+                                                        scale=float(scale),
+                                                        delta=float(delta),
+                                                        borderType=int(border_type)))
+
+
+def _derivative(name: str, src: np.ndarray, terms, scale, delta, border_type, ddepth,
+                out, opencv) -> np.ndarray:
+    """The sum of separable correlations terms [(along x, along y), ...] times scale plus
+    delta, as the generated kernel computes it (the library's derivative snippets).  A
+    uint8 frame's sums are exact integers; with a whole scale below 16 and a whole delta
+    (as float32, the kernel's parameters) the result is exact, and OpenCV's: its call
+    (opencv(dst, depth)).  Otherwise the sum times scale, then plus delta, each rounded
+    to float32; a float32 frame's sums each row's products in order (zero weights
+    skipped), then the rows; to uint8 and int16 rounded to nearest even, saturated."""
+    _channels(name, "src", src, (np.uint8, np.float32))
+    border, depth = int(border_type), int(ddepth)
+    if border not in BORDERS:
+        raise ValueError(f"{name}: border_type must be one of {sorted(BORDERS)}, not {border}")
+    if depth not in FILTER_DEPTHS or (src.dtype == np.float32 and depth not in (-1, 5)):
+        raise ValueError(f"{name}: ddepth must be 3 (int16), 5 (float32), -1 (the input's) "
+                         f"or 0 (uint8), and 5 or -1 for a float32 frame; not {depth}")
+    dtype = src.dtype if depth == -1 else FILTER_DEPTHS[depth]
+    dst = _output(out, src.shape, name, "dst", dtype)
+    scale32, delta32 = np.float32(scale), np.float32(delta)
+    if src.dtype == np.uint8 and float(scale32).is_integer() and abs(scale32) < 16 \
+            and float(delta32).is_integer():
+        return opencv(dst, CV_DEPTHS[np.dtype(dtype).name])
+    planes = src.reshape(src.shape[0], src.shape[1], -1)
+    total = None
+    for kx, ky in terms:
+        part = _correlation(planes, kx, ky, border)
+        total = part if total is None else total + part
+    value = (total * scale32) + delta32
+    if dtype == np.float32:
+        dst[...] = value.reshape(dst.shape)
+        return dst
+    info = np.iinfo(dtype)
+    dst[...] = np.clip(np.rint(value), info.min, info.max).reshape(dst.shape)
+    return dst
+
+
+def _correlation(planes: np.ndarray, kx, ky, border: int) -> np.ndarray:
+    """planes (height x width x channels) correlated with kx along x and ky along y, in
+    float32: a uint8 frame's exact integer sums (cv2.sepFilter2D: below 2^24, exact), a
+    float32 frame's in the kernel's order (each row's products from the left, zero weights
+    skipped, then the rows from the top, each operation rounded to float32)."""
+    h, w = planes.shape[:2]
+    if planes.dtype == np.uint8:
+        found = cv2.sepFilter2D(planes, cv2.CV_32F, np.float32(kx), np.float32(ky),
+                                borderType=border)
+        return found.reshape(h, w, -1)
+    rx, ry = len(kx) // 2, len(ky) // 2
+    padded = cv2.copyMakeBorder(planes, ry, ry, rx, rx, border).reshape(
+        h + 2 * ry, w + 2 * rx, -1)
+    total = np.zeros(planes.shape, np.float32)
+    for j, wy in enumerate(ky):
+        if wy == 0:
+            continue
+        row = np.zeros((h, w, planes.shape[2]), np.float32)
+        for i, wx in enumerate(kx):
+            if wx:
+                row = row + np.float32(wx) * padded[j:j + h, i:i + w]
+        total = total + np.float32(wy) * row
+    return total
 
 
 # -- morphology ----------------------------------------------------------------------------
@@ -226,7 +324,8 @@ CPU_OPS = {
         ("FlipVertical", flip_vertical),
         ("BitwiseAnd", bitwise_and), ("BitwiseOr", bitwise_or), ("BitwiseXor", bitwise_xor),
         ("BitwiseNot", bitwise_not), ("BitwiseAndMask", bitwise_and_mask),
-        ("Blur", blur), ("Laplacian", laplacian), ("Scharr", scharr), ("Lut", lut),
+        ("Blur", blur), ("Laplacian", laplacian), ("Scharr", scharr), ("Sobel", sobel),
+        ("Lut", lut),
         ("MorphologyEx", morphology_ex))},
     "Filter2D": filter_2d,
 }
@@ -235,3 +334,4 @@ CPU_OPS = {
 # end, and these helpers are defined before that import runs
 from .cpu_kernels import ANY_DTYPE, DTYPES3, _channels, _output
 from .cpu_kernels import _same_shape as _pair
+from .kernel_tables import scharr_taps, sobel_taps

@@ -90,5 +90,49 @@ def gaussian_q8_reduced(n: int, sigma: float, n_else: int = 0,
     return gaussian_q8(n, sigma, n_else, sigma_else, reduced=True)
 
 
+MAX_DERIVATIVE_TAPS = 7  # OpenCV's documented apertures 1, 3, 5, 7: integer sums stay
+# below 255 * 64 * 64 (the smoothing's 64 squared) in magnitude
+
+
+def sobel_taps(ksize: int, order: int) -> tuple:
+    """OpenCV's Sobel kernel along one axis (cv2.getDerivKernels(..., normalize=False)):
+    the binomial smoothing of n - order taps (1 2 1; 1 4 6 4 1; ...) convolved order
+    times with the difference (-1 1), n = ksize, or 3 where ksize is 1 and the order is
+    not 0 (ksize 1 with order 0: the single tap 1): (1 2 1), (-1 0 1) and (1 -2 1) for
+    three taps.  ksize -1 (OpenCV's FILTER_SCHARR): Scharr's (3 10 3) or (-1 0 1)."""
+    ksize, order = int(ksize), int(order)
+    if ksize == -1:
+        if order not in (0, 1):
+            raise ValueError(f"the Scharr kernel (ksize -1) has orders 0 and 1, not {order}")
+        return (3, 10, 3) if order == 0 else (-1, 0, 1)
+    n = 3 if ksize == 1 and order > 0 else ksize
+    if not (n >= 1 and n % 2 == 1 and n <= MAX_DERIVATIVE_TAPS and 0 <= order < n):
+        raise ValueError(f"a derivative kernel has 1, 3, 5 or 7 taps and an order below "
+                         f"them, not ksize {ksize} with order {order}")
+    taps = [1]
+    for step in [(1, 1)] * (n - order - 1) + [(-1, 1)] * order:
+        taps = [a * step[0] + b * step[1]
+                for a, b in zip([*taps, 0], [0, *taps], strict=True)]
+    return tuple(taps)
+
+
+def scharr_taps(order: int) -> tuple:
+    """Scharr's kernel along one axis: (3 10 3) smoothing, (-1 0 1) for order 1."""
+    return sobel_taps(-1, order)
+
+
+def second_derivative_taps(ksize: int) -> tuple:
+    """Sobel's second-derivative kernel of ksize (3 taps for ksize 1): the Laplacian's."""
+    return sobel_taps(ksize, 2)
+
+
+def smoothing_taps(ksize: int) -> tuple:
+    """Sobel's smoothing kernel of ksize (the single tap 1 for ksize 1): the Laplacian's."""
+    return sobel_taps(ksize, 0)
+
+
 # the functions a type's 'tables:' may call, by name: (function, least and most arguments)
-TABLES = {"gaussian_q8": (gaussian_q8, 2, 4), "gaussian_q8_reduced": (gaussian_q8_reduced, 2, 4)}
+TABLES = {"gaussian_q8": (gaussian_q8, 2, 4), "gaussian_q8_reduced": (gaussian_q8_reduced, 2, 4),
+          "sobel_taps": (sobel_taps, 2, 2), "scharr_taps": (scharr_taps, 1, 1),
+          "second_derivative_taps": (second_derivative_taps, 1, 1),
+          "smoothing_taps": (smoothing_taps, 1, 1)}

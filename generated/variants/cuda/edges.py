@@ -143,6 +143,12 @@ PARAMS = {
     'canny.l2_gradient': runtime.Param('bool', False),
     'canny.threshold1': runtime.Param('float', 50.0, minimum=0.0),
     'canny.threshold2': runtime.Param('float', 150.0, minimum=0.0),
+    'dx.delta': runtime.Param('float', 0.0, minimum=-100000, maximum=100000),
+    'dx.scale': runtime.Param('float', 1.0, minimum=-1000, maximum=1000),
+    'dy.delta': runtime.Param('float', 0.0, minimum=-100000, maximum=100000),
+    'dy.scale': runtime.Param('float', 1.0, minimum=-1000, maximum=1000),
+    'laplace.delta': runtime.Param('float', 0.0, minimum=-100000, maximum=100000),
+    'laplace.scale': runtime.Param('float', 1.0, minimum=-1000, maximum=1000),
     'sink.output': runtime.Param('str', ''),
     'sobel.alpha': runtime.Param('float', 0.5),
     'sobel.beta': runtime.Param('float', 0.5),
@@ -294,10 +300,12 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
     fused_dx_to_sobel_program = runtime.build_program(
         context, LIB_DIR / 'group_dx_to_sobel.cu', 'dx_to_sobel (FusedDxToSobel)',
         defines={  # the kernel's constants, its members' parameters: -D NAME=VALUE
-            '_m0_dx': np.int32(1),
-            '_m0_dy': np.int32(0),
-            '_m1_dx': np.int32(0),
-            '_m1_dy': np.int32(1),
+            '_m0_scale': np.float32(params['dx.scale']),
+            '_m0_delta': np.float32(params['dx.delta']),
+            '_m0_ddepth': np.int32(3),
+            '_m1_scale': np.float32(params['dy.scale']),
+            '_m1_delta': np.float32(params['dy.delta']),
+            '_m1_ddepth': np.int32(3),
             '_m2_alpha': np.float32(params['absx.alpha']),
             '_m2_beta': np.float32(params['absx.beta']),
             '_m3_alpha': np.float32(params['absy.alpha']),
@@ -309,7 +317,9 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
     laplacian_gray_program = runtime.build_program(
         context, LIB_DIR / 'laplace.cu', 'laplace (LaplacianGray)',
         defines={  # the kernel's constants, its members' parameters: -D NAME=VALUE
-            '_m0_ksize': np.int32(3),
+            '_m0_scale': np.float32(params['laplace.scale']),
+            '_m0_delta': np.float32(params['laplace.delta']),
+            '_m0_ddepth': np.int32(3),
         })
     fused_abslap_to_merged_program = runtime.build_program(
         context, LIB_DIR / 'group_abslap_to_merged.cu', 'abslap_to_merged (FusedAbslapToMerged)',

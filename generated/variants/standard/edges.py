@@ -198,6 +198,12 @@ PARAMS = {
     'canny.l2_gradient': runtime.Param('bool', False),
     'canny.threshold1': runtime.Param('float', 50.0, minimum=0.0),
     'canny.threshold2': runtime.Param('float', 150.0, minimum=0.0),
+    'dx.delta': runtime.Param('float', 0.0, minimum=-100000, maximum=100000),
+    'dx.scale': runtime.Param('float', 1.0, minimum=-1000, maximum=1000),
+    'dy.delta': runtime.Param('float', 0.0, minimum=-100000, maximum=100000),
+    'dy.scale': runtime.Param('float', 1.0, minimum=-1000, maximum=1000),
+    'laplace.delta': runtime.Param('float', 0.0, minimum=-100000, maximum=100000),
+    'laplace.scale': runtime.Param('float', 1.0, minimum=-1000, maximum=1000),
     'sink.output': runtime.Param('str', ''),
     'sobel.alpha': runtime.Param('float', 0.5),
     'sobel.beta': runtime.Param('float', 0.5),
@@ -542,14 +548,16 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
     sobel_gray_dx_program = runtime.build_program(
         context, LIB_DIR / 'dx.cl', 'dx (SobelGrayDx)',
         defines={  # the kernel's constants, its members' parameters: -D NAME=VALUE
-            '_m0_dx': np.int32(1),
-            '_m0_dy': np.int32(0),
+            '_m0_scale': np.float32(params['dx.scale']),
+            '_m0_delta': np.float32(params['dx.delta']),
+            '_m0_ddepth': np.int32(3),
         })
     sobel_gray_dy_program = runtime.build_program(
         context, LIB_DIR / 'dy.cl', 'dy (SobelGrayDy)',
         defines={  # the kernel's constants, its members' parameters: -D NAME=VALUE
-            '_m0_dx': np.int32(0),
-            '_m0_dy': np.int32(1),
+            '_m0_scale': np.float32(params['dy.scale']),
+            '_m0_delta': np.float32(params['dy.delta']),
+            '_m0_ddepth': np.int32(3),
         })
     convert_scale_abs_gray_absx_program = runtime.build_program(
         context, LIB_DIR / 'absx.cl', 'absx (ConvertScaleAbsGrayAbsx)',
@@ -573,7 +581,9 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
     laplacian_gray_program = runtime.build_program(
         context, LIB_DIR / 'laplace.cl', 'laplace (LaplacianGray)',
         defines={  # the kernel's constants, its members' parameters: -D NAME=VALUE
-            '_m0_ksize': np.int32(3),
+            '_m0_scale': np.float32(params['laplace.scale']),
+            '_m0_delta': np.float32(params['laplace.delta']),
+            '_m0_ddepth': np.int32(3),
         })
     convert_scale_abs_gray_abslap_program = runtime.build_program(
         context, LIB_DIR / 'abslap.cl', 'abslap (ConvertScaleAbsGrayAbslap)',

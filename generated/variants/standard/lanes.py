@@ -126,6 +126,8 @@ PARAMS = {
     'segments.theta_degrees': runtime.Param('float', 1.0, minimum=0.01, maximum=180.0),
     'segments.threshold': runtime.Param('int', 30, minimum=1),
     'sink.output': runtime.Param('str', ''),
+    'sobel.delta': runtime.Param('float', 0.0, minimum=-100000, maximum=100000),
+    'sobel.scale': runtime.Param('float', 1.0, minimum=-1000, maximum=1000),
     'strong.maxval': runtime.Param('float', 255.0),
     'strong.thresh': runtime.Param('float', 60.0),
     'strong.thresh_type': runtime.Param('int', 0, minimum=0, maximum=4),
@@ -294,8 +296,9 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
     sobel_gray_program = runtime.build_program(
         context, LIB_DIR / 'sobel.cl', 'sobel (SobelGray)',
         defines={  # the kernel's constants, its members' parameters: -D NAME=VALUE
-            '_m0_dx': np.int32(1),
-            '_m0_dy': np.int32(0),
+            '_m0_scale': np.float32(params['sobel.scale']),
+            '_m0_delta': np.float32(params['sobel.delta']),
+            '_m0_ddepth': np.int32(3),
         })
     convert_scale_abs_gray_program = runtime.build_program(
         context, LIB_DIR / 'magnitude.cl', 'magnitude (ConvertScaleAbsGray)',

@@ -115,17 +115,23 @@ __device__ inline float4 vload4(const size_t i, const float *p) { return make_fl
 // Parameters: constants of the build, so that the compiler folds them (a rule chosen by a
 // parameter is chosen once, not per element).  The program builds this file with -D
 // NAME=VALUE, its values after --set; below, the model's values, for a build without them.
-#ifndef _m0_dx
-#define _m0_dx 1
+#ifndef _m0_scale
+#define _m0_scale 1.0f
 #endif
-#ifndef _m0_dy
-#define _m0_dy 0
+#ifndef _m0_delta
+#define _m0_delta 0.0f
 #endif
-#ifndef _m1_dx
-#define _m1_dx 0
+#ifndef _m0_ddepth
+#define _m0_ddepth 3
 #endif
-#ifndef _m1_dy
-#define _m1_dy 1
+#ifndef _m1_scale
+#define _m1_scale 1.0f
+#endif
+#ifndef _m1_delta
+#define _m1_delta 0.0f
+#endif
+#ifndef _m1_ddepth
+#define _m1_ddepth 3
 #endif
 #ifndef _m2_alpha
 #define _m2_alpha 1.0f
@@ -170,6 +176,20 @@ static inline int _reflect101(int p, const int n)
     _out
 
 // built-ins the snippets call, inline (see fused.py: HELPERS)
+static inline __attribute__((overloadable)) uchar _min(const uchar a, const uchar b) { return a < b ? a : b; }
+static inline __attribute__((overloadable)) char _min(const char a, const char b) { return a < b ? a : b; }
+static inline __attribute__((overloadable)) ushort _min(const ushort a, const ushort b) { return a < b ? a : b; }
+static inline __attribute__((overloadable)) short _min(const short a, const short b) { return a < b ? a : b; }
+static inline __attribute__((overloadable)) uint _min(const uint a, const uint b) { return a < b ? a : b; }
+static inline __attribute__((overloadable)) int _min(const int a, const int b) { return a < b ? a : b; }
+static inline __attribute__((overloadable)) float _min(const float a, const float b) { return a < b ? a : b; }
+static inline __attribute__((overloadable)) uchar _max(const uchar a, const uchar b) { return a > b ? a : b; }
+static inline __attribute__((overloadable)) char _max(const char a, const char b) { return a > b ? a : b; }
+static inline __attribute__((overloadable)) ushort _max(const ushort a, const ushort b) { return a > b ? a : b; }
+static inline __attribute__((overloadable)) short _max(const short a, const short b) { return a > b ? a : b; }
+static inline __attribute__((overloadable)) uint _max(const uint a, const uint b) { return a > b ? a : b; }
+static inline __attribute__((overloadable)) int _max(const int a, const int b) { return a > b ? a : b; }
+static inline __attribute__((overloadable)) float _max(const float a, const float b) { return a > b ? a : b; }
 static inline __attribute__((overloadable)) uchar _clamp3(const uchar v, const uchar lo, const uchar hi) { return v < lo ? lo : v > hi ? hi : v; }
 static inline __attribute__((overloadable)) char _clamp3(const char v, const char lo, const char hi) { return v < lo ? lo : v > hi ? hi : v; }
 static inline __attribute__((overloadable)) ushort _clamp3(const ushort v, const ushort lo, const ushort hi) { return v < lo ? lo : v > hi ? hi : v; }
@@ -194,37 +214,153 @@ static inline uchar _convert_uchar_sat_rte(float v)
     return (uchar)_rint(v <= 255.0f ? v : 255.0f);
 }
 
-// dx: SobelGray (stencil, radius 1, border reflect101); every element
+// dx: SobelGray (stencil, radius max(1, ksize // 2), border reflect101); every element
+__constant__ int _m0_kx[3] = {
+    -1, 0, 1
+};
+__constant__ int _m0_ky[3] = {
+    1, 2, 1
+};
 #define src(y_, x_, c_) _in0[(size_t)_reflect101((y_), 200) * 301 + _reflect101((x_), 301)]
 static inline __attribute__((always_inline)) short _f0_dx(_PARAMS, const int y, const int x, const int c)
 {
     const int src_height = 200, src_width = 301;
+    typedef uchar src_t;
     const int dst_height = 200, dst_width = 301;
-    const int dx = _m0_dx;
-    const int dy = _m0_dy;
-    const int a00 = src(y - 1, x - 1, c), a01 = src(y - 1, x, c), a02 = src(y - 1, x + 1, c);
-    const int a10 = src(y, x - 1, c), a12 = src(y, x + 1, c);
-    const int a20 = src(y + 1, x - 1, c), a21 = src(y + 1, x, c), a22 = src(y + 1, x + 1, c);
-    const int along_x = (a02 - a00) + 2 * (a12 - a10) + (a22 - a20);
-    const int along_y = (a20 - a00) + 2 * (a21 - a01) + (a22 - a02);
-    return dx ? along_x : along_y;
+    typedef short dst_t;
+    const short dst_min = -32768, dst_max = 32767;
+    __constant const int *kx = _m0_kx;
+    __constant const int *ky = _m0_ky;
+    const int dx = 1;
+    const int dy = 0;
+    const int ksize = 3;
+    const float scale = _m0_scale;
+    const float delta = _m0_delta;
+    const int border_type = 4;
+    const int ddepth = _m0_ddepth;
+    const int rx = ksize == 1 ? _min(dx, 1) : _max(1, ksize / 2);
+    const int ry = ksize == 1 ? _min(dy, 1) : _max(1, ksize / 2);
+    const bool whole_src = (src_t)0.5f == (src_t)0;
+    const bool whole_dst = (dst_t)0.5f == (dst_t)0;
+    float value = 0.0f;
+    if (whole_src) {
+        int sum = 0;
+        #pragma unroll
+        for (int j = -ry; j <= ry; j++) {
+            int row = 0;
+            #pragma unroll
+            for (int i = -rx; i <= rx; i++)
+                row += kx[rx + i] * src(y + j, x + i, c);
+            sum += ky[ry + j] * row;
+        }
+        if ((scale == (int)scale) & (delta == (int)delta) & (_fabs(scale) < 16.0f)) {
+            const int exact = sum * (int)scale + (int)delta;
+            if (!whole_dst)
+                return (float)exact;
+            return (dst_t)_clamp3(exact, (int)dst_min, (int)dst_max);
+        }
+        const float scaled = (float)sum * scale;
+        value = scaled + delta;
+    }
+    else {
+        float sum = 0.0f;
+        #pragma unroll
+        for (int j = -ry; j <= ry; j++) {
+            float row = 0.0f;
+            #pragma unroll
+            for (int i = -rx; i <= rx; i++)
+                if (kx[rx + i] != 0) {
+                    const float product = kx[rx + i] * src(y + j, x + i, c);
+                    row = row + product;
+                }
+            if (ky[ry + j] != 0) {
+                const float part = ky[ry + j] * row;
+                sum = sum + part;
+            }
+        }
+        const float scaled = sum * scale;
+        value = scaled + delta;
+    }
+    if (!whole_dst)
+        return value;
+    if (dst_max == 255)
+        return _convert_uchar_sat_rte(value);
+    return (dst_t)_clamp3(rint(value), (float)dst_min, (float)dst_max);
 }
 #undef src
 
-// dy: SobelGray (stencil, radius 1, border reflect101); every element
+// dy: SobelGray (stencil, radius max(1, ksize // 2), border reflect101); every element
+__constant__ int _m1_kx[3] = {
+    1, 2, 1
+};
+__constant__ int _m1_ky[3] = {
+    -1, 0, 1
+};
 #define src(y_, x_, c_) _in1[(size_t)_reflect101((y_), 200) * 301 + _reflect101((x_), 301)]
 static inline __attribute__((always_inline)) short _f1_dy(_PARAMS, const int y, const int x, const int c)
 {
     const int src_height = 200, src_width = 301;
+    typedef uchar src_t;
     const int dst_height = 200, dst_width = 301;
-    const int dx = _m1_dx;
-    const int dy = _m1_dy;
-    const int a00 = src(y - 1, x - 1, c), a01 = src(y - 1, x, c), a02 = src(y - 1, x + 1, c);
-    const int a10 = src(y, x - 1, c), a12 = src(y, x + 1, c);
-    const int a20 = src(y + 1, x - 1, c), a21 = src(y + 1, x, c), a22 = src(y + 1, x + 1, c);
-    const int along_x = (a02 - a00) + 2 * (a12 - a10) + (a22 - a20);
-    const int along_y = (a20 - a00) + 2 * (a21 - a01) + (a22 - a02);
-    return dx ? along_x : along_y;
+    typedef short dst_t;
+    const short dst_min = -32768, dst_max = 32767;
+    __constant const int *kx = _m1_kx;
+    __constant const int *ky = _m1_ky;
+    const int dx = 0;
+    const int dy = 1;
+    const int ksize = 3;
+    const float scale = _m1_scale;
+    const float delta = _m1_delta;
+    const int border_type = 4;
+    const int ddepth = _m1_ddepth;
+    const int rx = ksize == 1 ? _min(dx, 1) : _max(1, ksize / 2);
+    const int ry = ksize == 1 ? _min(dy, 1) : _max(1, ksize / 2);
+    const bool whole_src = (src_t)0.5f == (src_t)0;
+    const bool whole_dst = (dst_t)0.5f == (dst_t)0;
+    float value = 0.0f;
+    if (whole_src) {
+        int sum = 0;
+        #pragma unroll
+        for (int j = -ry; j <= ry; j++) {
+            int row = 0;
+            #pragma unroll
+            for (int i = -rx; i <= rx; i++)
+                row += kx[rx + i] * src(y + j, x + i, c);
+            sum += ky[ry + j] * row;
+        }
+        if ((scale == (int)scale) & (delta == (int)delta) & (_fabs(scale) < 16.0f)) {
+            const int exact = sum * (int)scale + (int)delta;
+            if (!whole_dst)
+                return (float)exact;
+            return (dst_t)_clamp3(exact, (int)dst_min, (int)dst_max);
+        }
+        const float scaled = (float)sum * scale;
+        value = scaled + delta;
+    }
+    else {
+        float sum = 0.0f;
+        #pragma unroll
+        for (int j = -ry; j <= ry; j++) {
+            float row = 0.0f;
+            #pragma unroll
+            for (int i = -rx; i <= rx; i++)
+                if (kx[rx + i] != 0) {
+                    const float product = kx[rx + i] * src(y + j, x + i, c);
+                    row = row + product;
+                }
+            if (ky[ry + j] != 0) {
+                const float part = ky[ry + j] * row;
+                sum = sum + part;
+            }
+        }
+        const float scaled = sum * scale;
+        value = scaled + delta;
+    }
+    if (!whole_dst)
+        return value;
+    if (dst_max == 255)
+        return _convert_uchar_sat_rte(value);
+    return (dst_t)_clamp3(rint(value), (float)dst_min, (float)dst_max);
 }
 #undef src
 
@@ -280,37 +416,141 @@ static inline __attribute__((always_inline)) uchar _f4_sobel(_PARAMS, const int 
 #undef src1
 #undef src2
 
-// dx: SobelGray (stencil, radius 1, border reflect101); interior: no border rule
+// dx: SobelGray (stencil, radius max(1, ksize // 2), border reflect101); interior: no border rule
 #define src(y_, x_, c_) _in0[(size_t)(y_) * 301 + (x_)]
 static inline __attribute__((always_inline)) short _f0_dx_in(_PARAMS, const int y, const int x, const int c)
 {
     const int src_height = 200, src_width = 301;
+    typedef uchar src_t;
     const int dst_height = 200, dst_width = 301;
-    const int dx = _m0_dx;
-    const int dy = _m0_dy;
-    const int a00 = src(y - 1, x - 1, c), a01 = src(y - 1, x, c), a02 = src(y - 1, x + 1, c);
-    const int a10 = src(y, x - 1, c), a12 = src(y, x + 1, c);
-    const int a20 = src(y + 1, x - 1, c), a21 = src(y + 1, x, c), a22 = src(y + 1, x + 1, c);
-    const int along_x = (a02 - a00) + 2 * (a12 - a10) + (a22 - a20);
-    const int along_y = (a20 - a00) + 2 * (a21 - a01) + (a22 - a02);
-    return dx ? along_x : along_y;
+    typedef short dst_t;
+    const short dst_min = -32768, dst_max = 32767;
+    __constant const int *kx = _m0_kx;
+    __constant const int *ky = _m0_ky;
+    const int dx = 1;
+    const int dy = 0;
+    const int ksize = 3;
+    const float scale = _m0_scale;
+    const float delta = _m0_delta;
+    const int border_type = 4;
+    const int ddepth = _m0_ddepth;
+    const int rx = ksize == 1 ? _min(dx, 1) : _max(1, ksize / 2);
+    const int ry = ksize == 1 ? _min(dy, 1) : _max(1, ksize / 2);
+    const bool whole_src = (src_t)0.5f == (src_t)0;
+    const bool whole_dst = (dst_t)0.5f == (dst_t)0;
+    float value = 0.0f;
+    if (whole_src) {
+        int sum = 0;
+        #pragma unroll
+        for (int j = -ry; j <= ry; j++) {
+            int row = 0;
+            #pragma unroll
+            for (int i = -rx; i <= rx; i++)
+                row += kx[rx + i] * src(y + j, x + i, c);
+            sum += ky[ry + j] * row;
+        }
+        if ((scale == (int)scale) & (delta == (int)delta) & (_fabs(scale) < 16.0f)) {
+            const int exact = sum * (int)scale + (int)delta;
+            if (!whole_dst)
+                return (float)exact;
+            return (dst_t)_clamp3(exact, (int)dst_min, (int)dst_max);
+        }
+        const float scaled = (float)sum * scale;
+        value = scaled + delta;
+    }
+    else {
+        float sum = 0.0f;
+        #pragma unroll
+        for (int j = -ry; j <= ry; j++) {
+            float row = 0.0f;
+            #pragma unroll
+            for (int i = -rx; i <= rx; i++)
+                if (kx[rx + i] != 0) {
+                    const float product = kx[rx + i] * src(y + j, x + i, c);
+                    row = row + product;
+                }
+            if (ky[ry + j] != 0) {
+                const float part = ky[ry + j] * row;
+                sum = sum + part;
+            }
+        }
+        const float scaled = sum * scale;
+        value = scaled + delta;
+    }
+    if (!whole_dst)
+        return value;
+    if (dst_max == 255)
+        return _convert_uchar_sat_rte(value);
+    return (dst_t)_clamp3(rint(value), (float)dst_min, (float)dst_max);
 }
 #undef src
 
-// dy: SobelGray (stencil, radius 1, border reflect101); interior: no border rule
+// dy: SobelGray (stencil, radius max(1, ksize // 2), border reflect101); interior: no border rule
 #define src(y_, x_, c_) _in1[(size_t)(y_) * 301 + (x_)]
 static inline __attribute__((always_inline)) short _f1_dy_in(_PARAMS, const int y, const int x, const int c)
 {
     const int src_height = 200, src_width = 301;
+    typedef uchar src_t;
     const int dst_height = 200, dst_width = 301;
-    const int dx = _m1_dx;
-    const int dy = _m1_dy;
-    const int a00 = src(y - 1, x - 1, c), a01 = src(y - 1, x, c), a02 = src(y - 1, x + 1, c);
-    const int a10 = src(y, x - 1, c), a12 = src(y, x + 1, c);
-    const int a20 = src(y + 1, x - 1, c), a21 = src(y + 1, x, c), a22 = src(y + 1, x + 1, c);
-    const int along_x = (a02 - a00) + 2 * (a12 - a10) + (a22 - a20);
-    const int along_y = (a20 - a00) + 2 * (a21 - a01) + (a22 - a02);
-    return dx ? along_x : along_y;
+    typedef short dst_t;
+    const short dst_min = -32768, dst_max = 32767;
+    __constant const int *kx = _m1_kx;
+    __constant const int *ky = _m1_ky;
+    const int dx = 0;
+    const int dy = 1;
+    const int ksize = 3;
+    const float scale = _m1_scale;
+    const float delta = _m1_delta;
+    const int border_type = 4;
+    const int ddepth = _m1_ddepth;
+    const int rx = ksize == 1 ? _min(dx, 1) : _max(1, ksize / 2);
+    const int ry = ksize == 1 ? _min(dy, 1) : _max(1, ksize / 2);
+    const bool whole_src = (src_t)0.5f == (src_t)0;
+    const bool whole_dst = (dst_t)0.5f == (dst_t)0;
+    float value = 0.0f;
+    if (whole_src) {
+        int sum = 0;
+        #pragma unroll
+        for (int j = -ry; j <= ry; j++) {
+            int row = 0;
+            #pragma unroll
+            for (int i = -rx; i <= rx; i++)
+                row += kx[rx + i] * src(y + j, x + i, c);
+            sum += ky[ry + j] * row;
+        }
+        if ((scale == (int)scale) & (delta == (int)delta) & (_fabs(scale) < 16.0f)) {
+            const int exact = sum * (int)scale + (int)delta;
+            if (!whole_dst)
+                return (float)exact;
+            return (dst_t)_clamp3(exact, (int)dst_min, (int)dst_max);
+        }
+        const float scaled = (float)sum * scale;
+        value = scaled + delta;
+    }
+    else {
+        float sum = 0.0f;
+        #pragma unroll
+        for (int j = -ry; j <= ry; j++) {
+            float row = 0.0f;
+            #pragma unroll
+            for (int i = -rx; i <= rx; i++)
+                if (kx[rx + i] != 0) {
+                    const float product = kx[rx + i] * src(y + j, x + i, c);
+                    row = row + product;
+                }
+            if (ky[ry + j] != 0) {
+                const float part = ky[ry + j] * row;
+                sum = sum + part;
+            }
+        }
+        const float scaled = sum * scale;
+        value = scaled + delta;
+    }
+    if (!whole_dst)
+        return value;
+    if (dst_max == 255)
+        return _convert_uchar_sat_rte(value);
+    return (dst_t)_clamp3(rint(value), (float)dst_min, (float)dst_max);
 }
 #undef src
 
