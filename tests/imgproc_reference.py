@@ -298,17 +298,32 @@ def sobel(image: np.ndarray, *, dx: int, dy: int, out: np.ndarray | None = None)
     return out
 
 
-def erode(image: np.ndarray, *, out: np.ndarray | None = None) -> np.ndarray:
-    """Erode / ErodeGray: cv2.erode(image, np.ones((3, 3), np.uint8)), bit-exact: the
-    minimum of the 3x3 window, pixels outside the frame ignored (OpenCV's default border
-    for morphology), which is the same as repeating the edge."""
-    return _window(image, "Erode", "eroded", np.min, out)
+def erode(image: np.ndarray, *, ksize: int = 3, shape: int = 0, iterations: int = 1,
+          out: np.ndarray | None = None) -> np.ndarray:
+    """Erode / ErodeGray: cv2.erode(image, cv2.getStructuringElement(shape, (ksize,
+    ksize)), iterations=iterations), bit-exact: the minimum over the element, applied
+    iterations times, pixels outside the frame ignored (OpenCV's default border for
+    morphology), which is the same as repeating the edge."""
+    return _window(image, "Erode", "eroded", np.min, out, element(shape, ksize), iterations)
 
 
-def dilate(image: np.ndarray, *, out: np.ndarray | None = None) -> np.ndarray:
-    """Dilate / DilateGray: cv2.dilate(image, np.ones((3, 3), np.uint8)), bit-exact: the
-    maximum of the 3x3 window, pixels outside the frame ignored."""
-    return _window(image, "Dilate", "dilated", np.max, out)
+def dilate(image: np.ndarray, *, ksize: int = 3, shape: int = 0, iterations: int = 1,
+           out: np.ndarray | None = None) -> np.ndarray:
+    """Dilate / DilateGray: cv2.dilate(image, cv2.getStructuringElement(shape, (ksize,
+    ksize)), iterations=iterations), bit-exact: the maximum over the element."""
+    return _window(image, "Dilate", "dilated", np.max, out, element(shape, ksize), iterations)
+
+
+def element(shape: int, ksize: int) -> np.ndarray:
+    """The structuring element from its definition: a rectangle; a cross (the middle row
+    and column); an ellipse whose row dy spans round(sqrt(r^2 - dy^2)) each side."""
+    r = ksize // 2
+    found = np.zeros((ksize, ksize), bool)
+    for dy in range(-r, r + 1):
+        w = r if shape == 0 else (r if dy == 0 else 0) if shape == 1 else \
+            round((r * r - dy * dy) ** 0.5)
+        found[dy + r, r - w:r + w + 1] = True
+    return found
 
 
 def median_blur(image: np.ndarray, *, out: np.ndarray | None = None) -> np.ndarray:
@@ -318,14 +333,21 @@ def median_blur(image: np.ndarray, *, out: np.ndarray | None = None) -> np.ndarr
                    lambda w, axis: np.sort(w, axis=axis).take(4, axis=axis), out)
 
 
-def _window(image, type_name, port, reduce, out=None) -> np.ndarray:
-    """reduce over the 3x3 window of every pixel, edges repeated."""
+def _window(image, type_name, port, reduce, out=None, mask=None,
+            iterations: int = 1) -> np.ndarray:
+    """reduce over the window of every pixel (mask: its elements; 3x3 by default), edges
+    repeated, iterations times."""
     planes = _planes(type_name, "image", image, WIDE)
+    mask = np.ones((3, 3), bool) if mask is None else mask
+    r = mask.shape[0] // 2
     height, width = planes.shape[:2]
-    padded = np.pad(planes, ((1, 1), (1, 1), (0, 0)), mode="edge")
-    stack = np.stack([padded[dy:dy + height, dx:dx + width]
-                      for dy in range(3) for dx in range(3)])
-    return _store(_unplanes(reduce(stack, axis=0), image), out, type_name, port, image.dtype)
+    for _ in range(iterations):
+        padded = np.pad(planes, ((r, r), (r, r), (0, 0)), mode="edge")
+        stack = np.stack([padded[dy:dy + height, dx:dx + width]
+                          for dy in range(2 * r + 1) for dx in range(2 * r + 1)
+                          if mask[dy, dx]])
+        planes = reduce(stack, axis=0)
+    return _store(_unplanes(planes, image), out, type_name, port, image.dtype)
 
 
 def _reflect101(index: np.ndarray, n: int) -> np.ndarray:

@@ -38,7 +38,6 @@ LIBRARY = ROOT / "gpucompgen" / "library"
 PROPERTY = settings(max_examples=12, deadline=None,
                     suppress_health_check=[HealthCheck.function_scoped_fixture,
                                            HealthCheck.too_slow])
-KERNEL = np.ones((3, 3), np.uint8)
 
 
 @dataclass
@@ -92,8 +91,14 @@ SPECS: dict[str, Spec] = {
                          [{"ksize": 3}, {"ksize": 5}]),
     "Sobel": Spec(lambda im, dx, dy: cv2.Sobel(im, cv2.CV_16S, dx, dy, ksize=3),
                   [{"dx": 1, "dy": 0}, {"dx": 0, "dy": 1}]),
-    "Erode": Spec(lambda im: cv2.erode(im, KERNEL)),
-    "Dilate": Spec(lambda im: cv2.dilate(im, KERNEL)),
+    # the 3x3 rectangle of before, and an ellipse (more sizes, shapes and iterations:
+    # tests/test_ops_windows.py)
+    "Erode": Spec(lambda im, ksize=3, shape=0, iterations=1: cv2.erode(
+        im, cv2.getStructuringElement(shape, (ksize, ksize)), iterations=iterations),
+        [{}, {"ksize": 5, "shape": 2}]),
+    "Dilate": Spec(lambda im, ksize=3, shape=0, iterations=1: cv2.dilate(
+        im, cv2.getStructuringElement(shape, (ksize, ksize)), iterations=iterations),
+        [{}, {"ksize": 5, "shape": 2}]),
     "MedianBlur": Spec(lambda im: cv2.medianBlur(im, 3)),
 }
 def add_weighted_opencv(a, b, alpha, beta, gamma):
@@ -341,6 +346,10 @@ def params_for(draw, type_name: str) -> dict:
         return {"dx": dx, "dy": 1 - dx}
     if type_name.startswith("GaussianBlur"):
         return {"ksize": draw(st.sampled_from([3, 5]))}
+    if type_name.startswith(("Erode", "Dilate")):  # small elements: each is a build
+        shape = draw(st.integers(0, 2))
+        return {"ksize": draw(st.sampled_from([1, 3, 5])), "shape": shape,
+                "iterations": draw(st.integers(1, 2)) if shape == 0 else 1}
     params = {}
     for name, decl in ctype.params.items():
         if decl.type == "float":
@@ -440,7 +449,9 @@ def test_cpu_functions_reject_bad_inputs():
     with pytest.raises(ValueError, match="5 or -1 for a float32 frame"):
         cpu_ops.sobel(image.astype(np.float32), dx=1, dy=0)
     with pytest.raises(TypeError, match="uint8, int16 or float32"):
-        cpu_kernels.erode(image.astype(np.float64))
+        cpu_ops.erode(image.astype(np.float64))
+    with pytest.raises(ValueError, match="Erode: iterations must be 1..4, above 1 for shape 0"):
+        cpu_ops.erode(image, shape=1, iterations=2)
     with pytest.raises(ValueError, match="same size and element type"):
         cpu_kernels.absdiff(image, image.astype(np.int16))
     with pytest.raises(TypeError, match="uint8, int16 or float32"):
@@ -491,8 +502,13 @@ def test_hand_computed_values():
     blurred = c.gaussian_blur(spot, ksize=3)  # (1 2 1) x (1 2 1) / 16
     np.testing.assert_array_equal(blurred[1:4, 1:4], [[1, 2, 1], [2, 4, 2], [1, 2, 1]])
     assert blurred.sum() == 16
-    np.testing.assert_array_equal(c.dilate(spot)[1:4, 1:4], np.full((3, 3), 16))
-    assert c.dilate(spot).sum() == 9 * 16 and not c.erode(spot).any()
+    np.testing.assert_array_equal(cpu_ops.dilate(spot)[1:4, 1:4], np.full((3, 3), 16))
+    assert cpu_ops.dilate(spot).sum() == 9 * 16 and not cpu_ops.erode(spot).any()
+    # a 3x3 cross reaches the 4 neighbours only; the 5x5 ellipse's rows are 1, 5, 5, 5, 1
+    # wide (half widths round(sqrt(4 - dy^2)): 0, 2, 2, 2, 0); the 3x3 rectangle twice is 5x5
+    assert cpu_ops.dilate(spot, shape=1).sum() == 5 * 16
+    assert cpu_ops.dilate(spot, ksize=5, shape=2).sum() == 17 * 16
+    assert cpu_ops.dilate(spot, ksize=3, iterations=2).sum() == 25 * 16
     assert not c.median_blur(spot).any()  # one pixel in nine is not the median
     # Sobel dx at the centre: (-1 0 1) across, (1 2 1) down: row 2's 2 * (0 - 16) = -32 at
     # x = 3, +32 at x = 1

@@ -21,6 +21,7 @@ from __future__ import annotations
 from collections.abc import Callable, Collection
 from dataclasses import dataclass, field
 
+import imgproc_reference
 import numpy as np
 import pytest
 from conftest import (
@@ -112,16 +113,7 @@ def _derivative(a, kernel, scale, delta, border_type, ddepth):
     return np.clip(total, np.iinfo(dtype).min, np.iinfo(dtype).max).astype(dtype)
 
 
-def _element(shape: int, ksize: int) -> np.ndarray:
-    """The structuring element from its definition: a rectangle; a cross (the middle row
-    and column); an ellipse whose row dy spans round(sqrt(r^2 - dy^2)) each side."""
-    r = ksize // 2
-    element = np.zeros((ksize, ksize), bool)
-    for dy in range(-r, r + 1):
-        w = r if shape == 0 else (r if dy == 0 else 0) if shape == 1 else \
-            round((r * r - dy * dy) ** 0.5)
-        element[dy + r, r - w:r + w + 1] = True
-    return element
+_element = imgproc_reference.element
 
 
 def _extreme(src, element, smallest: bool, iterations: int):

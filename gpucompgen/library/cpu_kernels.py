@@ -100,7 +100,6 @@ def box_blur(src: np.ndarray, *, radius: int, out: np.ndarray | None = None) -> 
 # OpenCV's codes for Threshold's thresh_type and Resize's interpolation
 THRESH_BINARY, THRESH_BINARY_INV, THRESH_TRUNC, THRESH_TOZERO, THRESH_TOZERO_INV = range(5)
 INTER_NEAREST, INTER_LINEAR = 0, 1
-MORPH_KERNEL = np.ones((3, 3), np.uint8)  # Erode and Dilate: the 3x3 rectangle
 
 
 def rgb_to_gray(src: np.ndarray, *, out: np.ndarray | None = None) -> np.ndarray:
@@ -260,21 +259,6 @@ def gaussian_blur(src: np.ndarray, *, ksize: int, ksize_y: int = 0, sigma: float
                             dst=_output(out, src.shape, "GaussianBlur", "dst"))
 
 
-def erode(src: np.ndarray, *, out: np.ndarray | None = None) -> np.ndarray:
-    """Erode / ErodeGray: cv2.erode(image, np.ones((3, 3), np.uint8)): the minimum of the
-    3x3 window, pixels outside the frame ignored (OpenCV's default border for
-    morphology), which is the same as repeating the edge."""
-    _channels("Erode", "src", src, DTYPES3)
-    return cv2.erode(src, MORPH_KERNEL, dst=_output(out, src.shape, "Erode", "dst", src.dtype))
-
-
-def dilate(src: np.ndarray, *, out: np.ndarray | None = None) -> np.ndarray:
-    """Dilate / DilateGray: cv2.dilate(image, np.ones((3, 3), np.uint8)): the maximum of
-    the 3x3 window, pixels outside the frame ignored."""
-    _channels("Dilate", "src", src, DTYPES3)
-    return cv2.dilate(src, MORPH_KERNEL, dst=_output(out, src.shape, "Dilate", "dst", src.dtype))
-
-
 def median_blur(src: np.ndarray, *, out: np.ndarray | None = None) -> np.ndarray:
     """MedianBlur / MedianBlurGray: cv2.medianBlur(image, 3): the median of the 3x3
     window, edges repeated (BORDER_REPLICATE, as OpenCV's medianBlur)."""
@@ -321,7 +305,7 @@ CPU_IMPLEMENTATIONS = {
         ("InRange", in_range), ("Threshold", threshold), ("ConvertScale", convert_scale),
         ("Resize", resize), ("Crop", crop), ("FlipHorizontal", flip_horizontal),
         ("Rotate180", rotate180), ("GaussianBlur", gaussian_blur),
-        ("Erode", erode), ("Dilate", dilate), ("MedianBlur", median_blur),
+        ("MedianBlur", median_blur),
         ("AbsDiff", absdiff), ("AddWeighted", add_weighted), ("ConvertScaleAbs", convert_scale))},
 }
 

@@ -274,25 +274,43 @@ MAX_MORPH_KSIZE, MAX_ITERATIONS = 15, 4
 
 
 def morphology_ex(src: np.ndarray, *, op: int, shape: int, ksize: int, iterations: int,
-                  out: np.ndarray | None = None) -> np.ndarray:
+                  out: np.ndarray | None = None, name: str = "MorphologyEx") -> np.ndarray:
     """MorphologyEx / MorphologyExGray: cv2.morphologyEx(src, op,
     cv2.getStructuringElement(shape, (ksize, ksize)), iterations=iterations); op and shape
     are OpenCV's codes (MORPH_ERODE 0 .. MORPH_BLACKHAT 6; MORPH_RECT 0, MORPH_CROSS 1,
     MORPH_ELLIPSE 2), pixels outside the frame ignored (OpenCV's default); uint8, int16
-    or float32."""
-    _channels("MorphologyEx", "src", src, DTYPES3)
+    or float32.  name: the type's, in errors (Erode and Dilate are ops 0 and 1)."""
+    _channels(name, "src", src, DTYPES3)
     op, shape, iterations = int(op), int(shape), int(iterations)
     ksize = int(ksize)
     if ksize < 1 or ksize > MAX_MORPH_KSIZE or ksize % 2 == 0:
-        raise ValueError(f"MorphologyEx: ksize must be odd, 1..{MAX_MORPH_KSIZE}, not {ksize}")
+        raise ValueError(f"{name}: ksize must be odd, 1..{MAX_MORPH_KSIZE}, not {ksize}")
     if op not in MORPH_OPS or shape not in MORPH_SHAPES:
-        raise ValueError(f"MorphologyEx: op must be 0..6 and shape 0..2, not {op}, {shape}")
+        raise ValueError(f"{name}: op must be 0..6 and shape 0..2, not {op}, {shape}")
     if not 1 <= iterations <= MAX_ITERATIONS or (iterations > 1 and shape != 0):
-        raise ValueError(f"MorphologyEx: iterations must be 1..{MAX_ITERATIONS}, above 1 "
+        raise ValueError(f"{name}: iterations must be 1..{MAX_ITERATIONS}, above 1 "
                          f"for shape 0 (MORPH_RECT) only, not {iterations} (shape {shape})")
     element = cv2.getStructuringElement(shape, (ksize, ksize))
     return cv2.morphologyEx(src, op, element, iterations=iterations,
-                            dst=_output(out, src.shape, "MorphologyEx", "dst", src.dtype))
+                            dst=_output(out, src.shape, name, "dst", src.dtype))
+
+
+def erode(src: np.ndarray, *, ksize: int = 3, shape: int = 0, iterations: int = 1,
+          out: np.ndarray | None = None) -> np.ndarray:
+    """Erode / ErodeGray: cv2.erode(src, cv2.getStructuringElement(shape, (ksize, ksize)),
+    iterations=iterations): the minimum over the element, pixels outside the frame ignored
+    (OpenCV's default border for morphology, the same as repeating the edge)."""
+    return morphology_ex(src, op=0, shape=shape, ksize=ksize, iterations=iterations,
+                         out=out, name="Erode")
+
+
+def dilate(src: np.ndarray, *, ksize: int = 3, shape: int = 0, iterations: int = 1,
+           out: np.ndarray | None = None) -> np.ndarray:
+    """Dilate / DilateGray: cv2.dilate(src, cv2.getStructuringElement(shape, (ksize,
+    ksize)), iterations=iterations): the maximum over the element, pixels outside the
+    frame ignored."""
+    return morphology_ex(src, op=1, shape=shape, ksize=ksize, iterations=iterations,
+                         out=out, name="Dilate")
 
 
 # -- helpers -------------------------------------------------------------------------------
@@ -326,7 +344,7 @@ CPU_OPS = {
         ("BitwiseNot", bitwise_not), ("BitwiseAndMask", bitwise_and_mask),
         ("Blur", blur), ("Laplacian", laplacian), ("Scharr", scharr), ("Sobel", sobel),
         ("Lut", lut),
-        ("MorphologyEx", morphology_ex))},
+        ("MorphologyEx", morphology_ex), ("Erode", erode), ("Dilate", dilate))},
     "Filter2D": filter_2d,
 }
 

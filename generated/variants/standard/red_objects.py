@@ -217,9 +217,16 @@ def run(frames=None, context=None, monitor=None, profile=False, params=None):
             '_m0_upperb_1': np.float32(params['red.upperb_1']),
             '_m0_upperb_2': np.float32(params['red.upperb_2']),
         })
-    erode_gray_program = runtime.build_program(context, LIB_DIR / 'erode.cl', 'erode (ErodeGray)')
+    erode_gray_program = runtime.build_program(
+        context, LIB_DIR / 'erode.cl', 'erode (ErodeGray)',
+        defines={  # the kernel's constants, its members' parameters: -D NAME=VALUE
+            '_m0_shape': np.int32(0),
+        })
     dilate_gray_program = runtime.build_program(
-        context, LIB_DIR / 'dilate.cl', 'dilate (DilateGray)')
+        context, LIB_DIR / 'dilate.cl', 'dilate (DilateGray)',
+        defines={  # the kernel's constants, its members' parameters: -D NAME=VALUE
+            '_m0_shape': np.int32(0),
+        })
 
     # a failure names its component and frame; every part initialized is freed once, in
     # reverse order

@@ -71,7 +71,7 @@ static inline __attribute__((noinline)) uchar _f0_clean_inner(_PARAMS, _LOCALS, 
     for (int dy = -r; dy <= r; dy++) {
         int w = shape == 0 ? r : shape == 1 ? (dy == 0 ? r : 0) : 0;
         #pragma unroll
-        for (int k = 1; k <= eside && shape == 2; k++)
+        for (int k = 1; k <= (shape == 2 ? eside : 0); k++)
             w += (2 * k - 1) * (2 * k - 1) < 4 * (eside * eside - dy * dy);
         src_t row = src(y + dy, x - w, c);
         #pragma unroll
@@ -109,7 +109,7 @@ static inline __attribute__((noinline)) uchar _f1_clean(_PARAMS, _LOCALS, const 
     for (int dy = -r; dy <= r; dy++) {
         int w = shape == 0 ? r : shape == 1 ? (dy == 0 ? r : 0) : 0;
         #pragma unroll
-        for (int k = 1; k <= side && shape == 2; k++)
+        for (int k = 1; k <= (shape == 2 ? side : 0); k++)
             w += (2 * k - 1) * (2 * k - 1) < 4 * (side * side - dy * dy);
         if (!nested) {
             src_t row_lo = src(y + dy, x - w, c);
@@ -168,7 +168,7 @@ static inline __attribute__((always_inline)) uchar _f0_clean_inner_in(_PARAMS, _
     for (int dy = -r; dy <= r; dy++) {
         int w = shape == 0 ? r : shape == 1 ? (dy == 0 ? r : 0) : 0;
         #pragma unroll
-        for (int k = 1; k <= eside && shape == 2; k++)
+        for (int k = 1; k <= (shape == 2 ? eside : 0); k++)
             w += (2 * k - 1) * (2 * k - 1) < 4 * (eside * eside - dy * dy);
         src_t row = src(y + dy, x - w, c);
         #pragma unroll
@@ -206,7 +206,7 @@ static inline __attribute__((always_inline)) uchar _f1_clean_in(_PARAMS, _LOCALS
     for (int dy = -r; dy <= r; dy++) {
         int w = shape == 0 ? r : shape == 1 ? (dy == 0 ? r : 0) : 0;
         #pragma unroll
-        for (int k = 1; k <= side && shape == 2; k++)
+        for (int k = 1; k <= (shape == 2 ? side : 0); k++)
             w += (2 * k - 1) * (2 * k - 1) < 4 * (side * side - dy * dy);
         if (!nested) {
             src_t row_lo = src(y + dy, x - w, c);

@@ -6,6 +6,13 @@
 // group input.  Sizes are constants: the system fixed them at build time.
 // Kernel arguments, in the calling convention's order: _in0 = src, _out = dilate_dst.
 
+// Parameters: constants of the build, so that the compiler folds them (a rule chosen by a
+// parameter is chosen once, not per element).  The program builds this file with -D
+// NAME=VALUE, its values after --set; below, the model's values, for a build without them.
+#ifndef _m0_shape
+#define _m0_shape 0
+#endif
+
 // the nearest position in 0..n-1 (BORDER_REPLICATE)
 static inline int _clamp(const int p, const int n)
 {
@@ -29,31 +36,63 @@ static inline __attribute__((overloadable)) uint _max(const uint a, const uint b
 static inline __attribute__((overloadable)) int _max(const int a, const int b) { return a > b ? a : b; }
 static inline __attribute__((overloadable)) float _max(const float a, const float b) { return a > b ? a : b; }
 
-// dilate: DilateGray (stencil, radius 1, border clamp); every element
+// dilate: DilateGray (stencil, radius (ksize // 2) * iterations, border clamp); every element
 #define src(y_, x_, c_) _in0[(size_t)_clamp((y_), 200) * 301 + _clamp((x_), 301)]
 static inline __attribute__((always_inline)) uchar _f0_dilate(_PARAMS, const int y, const int x, const int c)
 {
     const int src_height = 200, src_width = 301;
     typedef uchar src_t;
+    const uchar src_min = 0;
     const int dst_height = 200, dst_width = 301;
-    const src_t r0 = _max(_max(src(y - 1, x - 1, c), src(y - 1, x, c)), src(y - 1, x + 1, c));
-    const src_t r1 = _max(_max(src(y, x - 1, c), src(y, x, c)), src(y, x + 1, c));
-    const src_t r2 = _max(_max(src(y + 1, x - 1, c), src(y + 1, x, c)), src(y + 1, x + 1, c));
-    return _max(_max(r0, r1), r2);
+    const int ksize = 3;
+    const int shape = _m0_shape;
+    const int iterations = 1;
+    const int side = ksize / 2;
+    const int r = shape == 0 ? side * iterations : side;
+    src_t v = src_min;
+    #pragma unroll
+    for (int dy = -r; dy <= r; dy++) {
+        int w = shape == 0 ? r : shape == 1 ? (dy == 0 ? r : 0) : 0;
+        #pragma unroll
+        for (int k = 1; k <= (shape == 2 ? side : 0); k++)
+            w += (2 * k - 1) * (2 * k - 1) < 4 * (side * side - dy * dy);
+        src_t row = src(y + dy, x - w, c);
+        #pragma unroll
+        for (int dx = 1 - w; dx <= w; dx++)
+            row = _max(row, src(y + dy, x + dx, c));
+        v = _max(v, row);
+    }
+    return v;
 }
 #undef src
 
-// dilate: DilateGray (stencil, radius 1, border clamp); interior: no border rule
+// dilate: DilateGray (stencil, radius (ksize // 2) * iterations, border clamp); interior: no border rule
 #define src(y_, x_, c_) _in0[(size_t)(y_) * 301 + (x_)]
 static inline __attribute__((always_inline)) uchar _f0_dilate_in(_PARAMS, const int y, const int x, const int c)
 {
     const int src_height = 200, src_width = 301;
     typedef uchar src_t;
+    const uchar src_min = 0;
     const int dst_height = 200, dst_width = 301;
-    const src_t r0 = _max(_max(src(y - 1, x - 1, c), src(y - 1, x, c)), src(y - 1, x + 1, c));
-    const src_t r1 = _max(_max(src(y, x - 1, c), src(y, x, c)), src(y, x + 1, c));
-    const src_t r2 = _max(_max(src(y + 1, x - 1, c), src(y + 1, x, c)), src(y + 1, x + 1, c));
-    return _max(_max(r0, r1), r2);
+    const int ksize = 3;
+    const int shape = _m0_shape;
+    const int iterations = 1;
+    const int side = ksize / 2;
+    const int r = shape == 0 ? side * iterations : side;
+    src_t v = src_min;
+    #pragma unroll
+    for (int dy = -r; dy <= r; dy++) {
+        int w = shape == 0 ? r : shape == 1 ? (dy == 0 ? r : 0) : 0;
+        #pragma unroll
+        for (int k = 1; k <= (shape == 2 ? side : 0); k++)
+            w += (2 * k - 1) * (2 * k - 1) < 4 * (side * side - dy * dy);
+        src_t row = src(y + dy, x - w, c);
+        #pragma unroll
+        for (int dx = 1 - w; dx <= w; dx++)
+            row = _max(row, src(y + dy, x + dx, c));
+        v = _max(v, row);
+    }
+    return v;
 }
 #undef src
 
