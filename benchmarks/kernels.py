@@ -94,6 +94,9 @@ def _cases(cv2):
         "DilateGray": ("DilateGray", {}, lambda a: cv2.dilate(a, K3)),
         "MedianBlur": ("MedianBlur", {}, lambda a: cv2.medianBlur(a, 3)),
         "MedianBlurGray": ("MedianBlurGray", {}, lambda a: cv2.medianBlur(a, 3)),
+        "MedianBlur k5": ("MedianBlur", {"ksize": 5}, lambda a: cv2.medianBlur(a, 5)),
+        "MedianBlurGray k5": ("MedianBlurGray", {"ksize": 5}, lambda a: cv2.medianBlur(a, 5)),
+        "MedianBlurGray k7": ("MedianBlurGray", {"ksize": 7}, lambda a: cv2.medianBlur(a, 7)),
         "BoxBlur r1": ("BoxBlur", {"radius": 1}, lambda a: cv2.blur(
             a, (3, 3), borderType=cv2.BORDER_REPLICATE)),
         "Crop": ("Crop", {"left": 16, "top": 8, "width": 320, "height": 240},

@@ -326,11 +326,15 @@ def element(shape: int, ksize: int) -> np.ndarray:
     return found
 
 
-def median_blur(image: np.ndarray, *, out: np.ndarray | None = None) -> np.ndarray:
-    """MedianBlur / MedianBlurGray: cv2.medianBlur(image, 3), bit-exact: the median of the
-    3x3 window, edges repeated (BORDER_REPLICATE, as OpenCV's medianBlur)."""
+def median_blur(image: np.ndarray, *, ksize: int = 3,
+                out: np.ndarray | None = None) -> np.ndarray:
+    """MedianBlur / MedianBlurGray: cv2.medianBlur(image, ksize), bit-exact: the middle
+    of the ksize x ksize window's sorted values, edges repeated (BORDER_REPLICATE, as
+    OpenCV's medianBlur)."""
+    middle = ksize * ksize // 2
     return _window(image, "MedianBlur", "median",
-                   lambda w, axis: np.sort(w, axis=axis).take(4, axis=axis), out)
+                   lambda w, axis: np.sort(w, axis=axis).take(middle, axis=axis), out,
+                   np.ones((ksize, ksize), bool))
 
 
 def _window(image, type_name, port, reduce, out=None, mask=None,

@@ -1,11 +1,14 @@
 """Erode and Dilate with OpenCV's structuring elements (issue 26: 'morphology is 3x3, one
 iteration'): rectangles, crosses and ellipses of odd sides 1..15, a rectangle iterated up
-to 4 times, over uint8, int16 and float32 frames of one and three channels.
+to 4 times, over uint8, int16 and float32 frames of one and three channels; MedianBlur's
+windows 3 and 5 over the three element types and up to 15 over uint8 (OpenCV's limits).
 
 On crops of photographs (and a frame smaller than the window), cv2.erode / cv2.dilate, the
 CPU form, the generated kernel and the numpy reference (imgproc_reference: the element
 from its definition, the minimum or maximum over it with the edge repeated, applied
-iterations times, not folded into one wider window) are all equal, bit for bit.
+iterations times, not folded into one wider window; the median the middle of the sorted
+window) are all equal, bit for bit.  The median network of 5 x 5 is checked on its own
+over random and many-tied windows.
 """
 
 from __future__ import annotations
@@ -15,7 +18,8 @@ import numpy as np
 import pytest
 from conftest import require_opencl, run_generated
 
-from gpucompgen.library import cpu_ops
+from gpucompgen.library import cpu_kernels, cpu_ops
+from gpucompgen.library.kernel_tables import median_network
 from gpucompgen.model import library_types
 
 cv2 = pytest.importorskip("cv2")
@@ -80,3 +84,39 @@ def test_erode_and_dilate_equal_opencv(op, element, dtype, channels, crops, gpu)
         np.testing.assert_array_equal(cpu_ops.CPU_OPS[op](src, **params), expected,
                                       err_msg=f"CPU form {what}")
         np.testing.assert_array_equal(gpu(op, src, params), expected, err_msg=f"GPU {what}")
+
+
+def test_the_median_network_leaves_the_median_in_its_slot():
+    count, slot, *flat = median_network(5)
+    pairs = list(zip(flat[::2], flat[1::2], strict=True))
+    assert count == len(pairs) == 113 and all(0 <= a < 25 and 0 <= b < 25 for a, b in pairs)
+    rng = np.random.default_rng(26)
+    for trial in range(3000):  # values from few (ties everywhere) to many
+        values = list(rng.integers(0, (2, 6, 1000)[trial % 3], 25))
+        expected = sorted(values)[12]
+        for a, b in pairs:
+            values[a], values[b] = min(values[a], values[b]), max(values[a], values[b])
+        assert values[slot] == expected
+    assert median_network(3) == median_network(7) == (0, 0)
+
+
+# (ksize, element type, channels): 3 and 5 over every element type, then uint8's larger
+# windows (OpenCV's medianBlur takes 7 and above for uint8 only), up to 15
+MEDIANS = [(5, "uint8", 1), (5, "int16", 3), (5, "float32", 1), (3, "float32", 3),
+           (7, "uint8", 3), (9, "uint8", 1), (15, "uint8", 1)]
+
+
+@pytest.mark.parametrize(("ksize", "dtype", "channels"), MEDIANS,
+                         ids=[f"k{k}_{d}_{c}ch" for k, d, c in MEDIANS])
+def test_median_blur_equals_opencv(ksize, dtype, channels, crops, gpu):
+    for i, src in enumerate(crops[dtype][channels]):
+        what = f"MedianBlur ksize {ksize} on {dtype} crop {i}, {channels} channels"
+        expected = cv2.medianBlur(src, ksize)
+        np.testing.assert_array_equal(imgproc_reference.median_blur(src, ksize=ksize),
+                                      expected, err_msg=f"numpy reference {what}")
+        np.testing.assert_array_equal(cpu_kernels.median_blur(src, ksize=ksize), expected,
+                                      err_msg=f"CPU form {what}")
+        np.testing.assert_array_equal(gpu("MedianBlur", src, {"ksize": ksize}), expected,
+                                      err_msg=f"GPU {what}")
+    with pytest.raises(ValueError, match="odd up to 15 for uint8 frames"):
+        cpu_kernels.median_blur(crops["int16"][1][0], ksize=7)

@@ -878,7 +878,9 @@ def member_reach(m):
     from ..snippet.reach import reach
 
     decl = m.type.fusable
-    values = {k: v for k, v in m.params.items() if isinstance(v, (int, float))}
+    values = {k: v for k, v in m.params.items() if isinstance(v, (int, float, tuple))}
+    if decl.form == "stencil":  # its tables, whose entries may bound its loops
+        values.update(decl.tables_of(m.params))
     for pname, port in {**m.inputs, **m.outputs}.items():
         values.update({f"{pname}_height": port.data.height, f"{pname}_width": port.data.width,
                        f"{pname}_channels": port.channels})

@@ -259,11 +259,23 @@ def gaussian_blur(src: np.ndarray, *, ksize: int, ksize_y: int = 0, sigma: float
                             dst=_output(out, src.shape, "GaussianBlur", "dst"))
 
 
-def median_blur(src: np.ndarray, *, out: np.ndarray | None = None) -> np.ndarray:
-    """MedianBlur / MedianBlurGray: cv2.medianBlur(image, 3): the median of the 3x3
-    window, edges repeated (BORDER_REPLICATE, as OpenCV's medianBlur)."""
+MAX_MEDIAN_KSIZE = 15
+
+
+def median_blur(src: np.ndarray, *, ksize: int = 3,
+                out: np.ndarray | None = None) -> np.ndarray:
+    """MedianBlur / MedianBlurGray: cv2.medianBlur(image, ksize): the median of the
+    ksize x ksize window (3 or 5; up to 15 for uint8), edges repeated (BORDER_REPLICATE,
+    as OpenCV's medianBlur)."""
     _channels("MedianBlur", "src", src, DTYPES3)
-    return cv2.medianBlur(src, 3, dst=_output(out, src.shape, "MedianBlur", "dst", src.dtype))
+    ksize = int(ksize)
+    if ksize < 3 or ksize % 2 == 0 or ksize > MAX_MEDIAN_KSIZE or \
+            (ksize > 5 and src.dtype != np.uint8):
+        raise ValueError(f"MedianBlur: ksize must be 3 or 5, or odd up to "
+                         f"{MAX_MEDIAN_KSIZE} for uint8 frames (OpenCV's), not {ksize} "
+                         f"for {src.dtype}")
+    return cv2.medianBlur(src, ksize,
+                          dst=_output(out, src.shape, "MedianBlur", "dst", src.dtype))
 
 
 def _channels(type_name: str, port: str, array: np.ndarray, dtypes=(np.uint8,)) -> int:

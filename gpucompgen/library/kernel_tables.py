@@ -131,8 +131,61 @@ def smoothing_taps(ksize: int) -> tuple:
     return sobel_taps(ksize, 0)
 
 
+def median_network(ksize: int) -> tuple:
+    """A compare-exchange network that leaves the median of ksize x ksize values (in
+    slots 0..ksize^2-1, row by row) in one slot: (count, slot of the median, then count
+    pairs (a, b): a takes the smaller, b the larger).  Batcher's odd-even merge sort of
+    the next power of two, the slots beyond the values holding the largest value (a
+    comparison with one of those moves nothing, or swaps two slots' names: neither is
+    written), then only the exchanges the median depends on.  (0, 0) for ksize 3 and
+    above 5: MedianBlur sorts 3 x 3 by a network of its own and counts above 5."""
+    ksize = int(ksize)
+    if ksize != 5:
+        return (0, 0)
+    n = ksize * ksize
+    size = 1 << (n - 1).bit_length()
+    pairs: list[tuple[int, int]] = []
+
+    def merge(lo: int, length: int, r: int) -> None:
+        step = 2 * r
+        if step < length:
+            merge(lo, length, step)
+            merge(lo + r, length, step)
+            pairs.extend((i, i + r) for i in range(lo + r, lo + length - r, step))
+        else:
+            pairs.append((lo, lo + r))
+
+    def sort(lo: int, length: int) -> None:
+        if length > 1:
+            sort(lo, length // 2)
+            sort(lo + length // 2, length // 2)
+            merge(lo, length, 1)
+
+    sort(0, size)
+    slot = list(range(size))  # the slot holding the value at each position
+    largest = set(range(n, size))  # positions holding the padding (the largest value)
+    kept = []
+    for i, j in pairs:
+        if j in largest:
+            continue
+        if i in largest:  # the value moves down, the padding up: rename, do not compute
+            slot[i], slot[j] = slot[j], slot[i]
+            largest.discard(i)
+            largest.add(j)
+            continue
+        kept.append((slot[i], slot[j]))
+    live = {slot[n // 2]}
+    needed = []
+    for a, b in reversed(kept):
+        if a in live or b in live:
+            needed.append((a, b))
+            live |= {a, b}
+    needed.reverse()
+    return (len(needed), slot[n // 2], *(v for pair in needed for v in pair))
+
+
 # the functions a type's 'tables:' may call, by name: (function, least and most arguments)
 TABLES = {"gaussian_q8": (gaussian_q8, 2, 4), "gaussian_q8_reduced": (gaussian_q8_reduced, 2, 4),
           "sobel_taps": (sobel_taps, 2, 2), "scharr_taps": (scharr_taps, 1, 1),
           "second_derivative_taps": (second_derivative_taps, 1, 1),
-          "smoothing_taps": (smoothing_taps, 1, 1)}
+          "smoothing_taps": (smoothing_taps, 1, 1), "median_network": (median_network, 1, 1)}

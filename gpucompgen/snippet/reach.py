@@ -10,8 +10,10 @@ bounds are numbers), a choice on a number takes its branch, a choice on an eleme
 takes both, and a choice on y or x against a number narrows its range in each branch
 (``x < left_width ? left(y, x, c) : right(y, x - left_width, c)``).  A read whose row is
 plus or minus y plus a number, and whose column the same of x, is bounded; one whose
-position depends on anything else (an element's value, a table, a loop the walk cannot
-finish) is not.  Nothing is compiled or run: this reads the tree.
+position depends on anything else (an element's value, a loop the walk cannot finish) is
+not.  A table's or an array parameter's entry at a known index is its number (a loop over
+MedianBlur's exchange network runs its course).  Nothing is compiled or run: this reads
+the tree.
 """
 
 from __future__ import annotations
@@ -234,8 +236,16 @@ class _Walk:
             self.assign(e.target, v, env)
             return v
         if isinstance(e, S.Index):
+            # an element of a table or an array parameter, at a known index: its number
+            # (a loop bounded by a table's entry runs its course)
+            base = unparen(e.base)
+            table = self.values.get(base.name) if isinstance(base, S.Name) and \
+                base.name not in env else None
+            index = self.expr(e.index, env)
+            if isinstance(table, tuple) and isinstance(index, int) and \
+                    0 <= index < len(table) and _number(table[index]):
+                return table[index]
             self.expr(e.base, env)
-            self.expr(e.index, env)
             return UNKNOWN
         if isinstance(e, (S.VectorLiteral, S.InitList)):
             for a in (e.args if isinstance(e, S.VectorLiteral) else e.items):
@@ -373,6 +383,10 @@ class _Walk:
             if min(ends) < 0 or max(ends) > n - 1:
                 return False
         return True
+
+
+def _number(v) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool)
 
 
 def _arith(op: str, a, b):
