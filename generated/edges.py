@@ -88,8 +88,8 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 #       estimate: 0.081 ms a frame as one kernel, 0.207 ms apart (2.5x; constants for a cpu
 #       device)
 #     not fused: gray.dst -> blur.src:
-#       cost model: with gray the group's kernel takes an estimated 0.321 ms a frame,
-#       against 0.073 ms with gray apart (it would run 28 times per output element of the
+#       cost model: with gray the group's kernel takes an estimated 0.332 ms a frame,
+#       against 0.074 ms with gray apart (it would run 29 times per output element of the
 #       group; constants for a cpu device)
 #     not fused: blur.dst -> dx.src:
 #       read by several consumers: blur.dst is also read by the CPU (canny.src, through

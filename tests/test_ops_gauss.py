@@ -149,6 +149,39 @@ def test_gaussian_blur_equals_opencv(case, channels, crops, gpu):
                                       err_msg=f"GPU {what}")
 
 
+# int16 and float32 frames: OpenCV's float32 weights; the kernel and the CPU form give the
+# same bytes, within 1 level (int16) or 2^-20 sum |weight| |pixel| (float32) of OpenCV
+WIDE_GAUSS = [((5, 0, 0.0, 0.0, 4), "float32", 1), ((7, 0, 1.3, 0.0, 0), "int16", 3),
+              ((31, 0, 0.5, 0.0, 1), "float32", 1), ((3, 9, 0.0, 2.0, 2), "float32", 3),
+              ((9, 0, 0.0, 0.0, 2), "int16", 1)]
+
+
+@pytest.mark.parametrize(("case", "dtype", "channels"), WIDE_GAUSS,
+                         ids=["k{}x{}_s{}_{}_b{}".format(*c) + f"_{d}_{n}ch"
+                              for c, d, n in WIDE_GAUSS])
+def test_gaussian_blur_of_int16_and_float32_frames(case, dtype, channels, crops, gpu):
+    params = dict(zip(KEYS, case, strict=True))
+    ksize, ksize_y, sigma, sigma_y, border = case
+    for i, versions in enumerate(crops):
+        src = versions[channels]
+        src = (src.astype(np.int16) - 128) * 97 if dtype == "int16" else \
+            (src.astype(np.float32) - np.float32(100.3)) * np.float32(0.37)
+        what = f"{params} on {dtype} crop {i}, {channels} channels"
+        expected = cv2.GaussianBlur(src, (ksize, ksize_y or ksize), sigma, sigmaY=sigma_y,
+                                    borderType=border)
+        cpu = cpu_kernels.gaussian_blur(src, **params)
+        np.testing.assert_array_equal(gpu("GaussianBlur", src, params), cpu,
+                                      err_msg=f"GPU against the CPU form, {what}")
+        off = np.abs(cpu.astype(np.float64) - expected)
+        if dtype == "int16":
+            assert off.max() <= 1, what
+            continue
+        # the weights are positive and sum to 1: sum |weight| |pixel| is the blur of |src|
+        magnitude = cv2.GaussianBlur(np.abs(src).astype(np.float64), (ksize, ksize_y or ksize),
+                                     sigma, sigmaY=sigma_y, borderType=border)
+        assert (off <= 2.0 ** -20 * magnitude + 1e-30).all(), what
+
+
 # -- Filter2D ---------------------------------------------------------------------------------
 def _kernels():
     rng = np.random.default_rng(5)

@@ -491,3 +491,47 @@ def test_operations_of_library_snippets(name, ops):
 
     decl = library_types()[name].fusable
     assert operations(decl.tree, decl.names) == ops
+
+
+# -- prune: the branches a build decides --------------------------------------------------
+def _pruned(text: str, values: dict, types: dict) -> str:
+    from gpucompgen.snippet.printer import print_text
+    from gpucompgen.snippet.prune import prune
+    from gpucompgen.snippet.syntax import parse
+
+    tree = parse(text, {"src_t": "uchar"})  # src_t names a type (the port's element type)
+    return print_text(prune(tree, values, types)).rstrip("\n")
+
+
+SUMS = ("const bool whole = (src_t)0.5f == (src_t)0;\n"
+        "if (whole) {\n    int s = src(y, x, c);\n    return s + 1;\n}\n"
+        "float f = src(y, x, c);\nreturn f * scale;")
+
+
+def test_prune_takes_the_branch_the_element_type_decides():
+    # uint8: the integer branch in place, what follows its return dropped, 'whole' unread
+    assert _pruned(SUMS, {}, {"src_t": "uchar"}) == \
+        "int s = src(y, x, c);\nreturn s + 1;"
+    # float32: the branch dropped, the rest kept; 'scale' (--set may change it) stays
+    assert _pruned(SUMS, {}, {"src_t": "float"}) == "float f = src(y, x, c);\nreturn f * scale;"
+    # an element type the build does not know: nothing decided
+    assert "if (whole)" in _pruned(SUMS, {}, {})
+
+
+def test_prune_follows_constants_and_keeps_what_it_cannot_decide():
+    text = ("const int r = ksize / 2;\nif (r > 1 && src(y, x, c) > 3)\n    return 1;\n"
+            "if (ksize == 3 || mode)\n    return 2;\nreturn 3;")
+    # ksize 5: r is 2, the first condition still reads an element: kept; the second is
+    # decided by ksize alone (|| of a false and an unknown: unknown): kept
+    assert _pruned(text, {"ksize": 5}, {}) == text
+    # ksize 3: r is 1, the first condition false whatever the element; the second true
+    assert _pruned(text, {"ksize": 3}, {}) == "return 2;"
+    # C's integer division and conversions: (uchar)300 is 44, -7 / 2 is -3
+    assert _pruned("if ((uchar)300 == 44 && -7 / 2 == -3)\n    return 1;\nreturn 0;",
+                   {}, {}) == "return 1;"
+
+
+def test_prune_keeps_a_block_whose_names_the_rest_declares():
+    text = "if (k == 1) {\n    int v = 1;\n    x += v;\n}\nint v = 2;\nreturn v + x;"
+    assert _pruned(text, {"k": 1}, {}) == \
+        "{\n    int v = 1;\n    x += v;\n}\nint v = 2;\nreturn v + x;"

@@ -172,7 +172,7 @@ def test_what_the_compiler_is_given_to_unroll_stays_bounded_for_every_parameter_
             for m in fused.expand(group)[0].members:  # each function's own loops
                 function = text.split(f"\n// {m.name}: ")[1].split("\n}\n")[0]
                 if "#pragma unroll" in function:
-                    assert m.type.fusable.reads_of(params) <= fused.MAX_UNROLLED_LOOPS
+                    assert fused.member_reads(m) <= fused.MAX_UNROLLED_LOOPS
             checked += 1
     assert checked > 300  # MorphologyEx: 7 ops x 3 shapes x 8 sizes, iterations (rect)
 
@@ -219,8 +219,9 @@ def test_the_reads_a_stencil_states_bound_what_its_snippet_reads(cl_context, cl_
     group = fused.group_of_one(ctype, params, {"src": (81, 81), "dst": (81, 81)})
     for member in fused.expand(group)[0].members:
         decl = member.type.fusable
-        program, local = fused._tables(member, 0)
-        lines = [*fused._port_constants(member), *local]
+        everything = set(decl.names)  # the whole snippet is run here, every branch
+        program, local = fused._tables(member, 0, everything)
+        lines = [*fused._port_constants(member, everything), *local]
         lines += [f"    const {'float' if isinstance(v, float) else 'int'} {p} = {v};"
                   for p, v in params.items() if not isinstance(v, tuple)]
         # a read with a fill value counted as a read

@@ -107,7 +107,6 @@ __constant int _m0_ky[3] = {
 static inline __attribute__((always_inline)) short _f0_sobel(_PARAMS, const int y, const int x, const int c)
 {
     const int src_height = 200, src_width = 301;
-    typedef uchar src_t;
     const int dst_height = 200, dst_width = 301;
     typedef short dst_t;
     const short dst_min = -32768, dst_max = 32767;
@@ -122,51 +121,22 @@ static inline __attribute__((always_inline)) short _f0_sobel(_PARAMS, const int 
     const int ddepth = _m0_ddepth;
     const int rx = ksize == 1 ? _min(dx, 1) : _max(1, ksize / 2);
     const int ry = ksize == 1 ? _min(dy, 1) : _max(1, ksize / 2);
-    const bool whole_src = (src_t)0.5f == (src_t)0;
-    const bool whole_dst = (dst_t)0.5f == (dst_t)0;
     float value = 0.0f;
-    if (whole_src) {
-        int sum = 0;
+    int sum = 0;
+    #pragma unroll
+    for (int j = -ry; j <= ry; j++) {
+        int row = 0;
         #pragma unroll
-        for (int j = -ry; j <= ry; j++) {
-            int row = 0;
-            #pragma unroll
-            for (int i = -rx; i <= rx; i++)
-                row += kx[rx + i] * src(y + j, x + i, c);
-            sum += ky[ry + j] * row;
-        }
-        if ((scale == (int)scale) & (delta == (int)delta) & (_fabs(scale) < 16.0f)) {
-            const int exact = sum * (int)scale + (int)delta;
-            if (!whole_dst)
-                return (float)exact;
-            return (dst_t)_clamp3(exact, (int)dst_min, (int)dst_max);
-        }
-        const float scaled = (float)sum * scale;
-        value = scaled + delta;
+        for (int i = -rx; i <= rx; i++)
+            row += kx[rx + i] * src(y + j, x + i, c);
+        sum += ky[ry + j] * row;
     }
-    else {
-        float sum = 0.0f;
-        #pragma unroll
-        for (int j = -ry; j <= ry; j++) {
-            float row = 0.0f;
-            #pragma unroll
-            for (int i = -rx; i <= rx; i++)
-                if (kx[rx + i] != 0) {
-                    const float product = kx[rx + i] * src(y + j, x + i, c);
-                    row = row + product;
-                }
-            if (ky[ry + j] != 0) {
-                const float part = ky[ry + j] * row;
-                sum = sum + part;
-            }
-        }
-        const float scaled = sum * scale;
-        value = scaled + delta;
+    if ((scale == (int)scale) & (delta == (int)delta) & (_fabs(scale) < 16.0f)) {
+        const int exact = sum * (int)scale + (int)delta;
+        return (dst_t)_clamp3(exact, (int)dst_min, (int)dst_max);
     }
-    if (!whole_dst)
-        return value;
-    if (dst_max == 255)
-        return _convert_uchar_sat_rte(value);
+    const float scaled = (float)sum * scale;
+    value = scaled + delta;
     return (dst_t)_clamp3(rint(value), (float)dst_min, (float)dst_max);
 }
 #undef src
@@ -230,7 +200,6 @@ static inline __attribute__((always_inline)) uchar _f3_cut(_PARAMS, const int y,
 static inline __attribute__((always_inline)) short _f0_sobel_in(_PARAMS, const int y, const int x, const int c)
 {
     const int src_height = 200, src_width = 301;
-    typedef uchar src_t;
     const int dst_height = 200, dst_width = 301;
     typedef short dst_t;
     const short dst_min = -32768, dst_max = 32767;
@@ -245,51 +214,22 @@ static inline __attribute__((always_inline)) short _f0_sobel_in(_PARAMS, const i
     const int ddepth = _m0_ddepth;
     const int rx = ksize == 1 ? _min(dx, 1) : _max(1, ksize / 2);
     const int ry = ksize == 1 ? _min(dy, 1) : _max(1, ksize / 2);
-    const bool whole_src = (src_t)0.5f == (src_t)0;
-    const bool whole_dst = (dst_t)0.5f == (dst_t)0;
     float value = 0.0f;
-    if (whole_src) {
-        int sum = 0;
+    int sum = 0;
+    #pragma unroll
+    for (int j = -ry; j <= ry; j++) {
+        int row = 0;
         #pragma unroll
-        for (int j = -ry; j <= ry; j++) {
-            int row = 0;
-            #pragma unroll
-            for (int i = -rx; i <= rx; i++)
-                row += kx[rx + i] * src(y + j, x + i, c);
-            sum += ky[ry + j] * row;
-        }
-        if ((scale == (int)scale) & (delta == (int)delta) & (_fabs(scale) < 16.0f)) {
-            const int exact = sum * (int)scale + (int)delta;
-            if (!whole_dst)
-                return (float)exact;
-            return (dst_t)_clamp3(exact, (int)dst_min, (int)dst_max);
-        }
-        const float scaled = (float)sum * scale;
-        value = scaled + delta;
+        for (int i = -rx; i <= rx; i++)
+            row += kx[rx + i] * src(y + j, x + i, c);
+        sum += ky[ry + j] * row;
     }
-    else {
-        float sum = 0.0f;
-        #pragma unroll
-        for (int j = -ry; j <= ry; j++) {
-            float row = 0.0f;
-            #pragma unroll
-            for (int i = -rx; i <= rx; i++)
-                if (kx[rx + i] != 0) {
-                    const float product = kx[rx + i] * src(y + j, x + i, c);
-                    row = row + product;
-                }
-            if (ky[ry + j] != 0) {
-                const float part = ky[ry + j] * row;
-                sum = sum + part;
-            }
-        }
-        const float scaled = sum * scale;
-        value = scaled + delta;
+    if ((scale == (int)scale) & (delta == (int)delta) & (_fabs(scale) < 16.0f)) {
+        const int exact = sum * (int)scale + (int)delta;
+        return (dst_t)_clamp3(exact, (int)dst_min, (int)dst_max);
     }
-    if (!whole_dst)
-        return value;
-    if (dst_max == 255)
-        return _convert_uchar_sat_rte(value);
+    const float scaled = (float)sum * scale;
+    value = scaled + delta;
     return (dst_t)_clamp3(rint(value), (float)dst_min, (float)dst_max);
 }
 #undef src

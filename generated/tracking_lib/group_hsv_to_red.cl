@@ -99,7 +99,6 @@ static inline __attribute__((always_inline)) uchar _f0_hsv(_PARAMS, const int y,
 static inline __attribute__((always_inline)) uchar _f1_low_red(_PARAMS, const int y, const int x, const int c)
 {
     const int src_height = 480, src_width = 640;
-    const int src_channels = 3;
     typedef uchar src_t;
     const int dst_height = 480, dst_width = 640;
     const float lowerb_0 = _m1_lowerb_0;
@@ -117,8 +116,6 @@ static inline __attribute__((always_inline)) uchar _f1_low_red(_PARAMS, const in
     const float a2 = whole ? ((lowerb_2 < -m ? -m : lowerb_2 > m ? m : lowerb_2) + k) - k : lowerb_2;
     const float b2 = whole ? ((upperb_2 < -m ? -m : upperb_2 > m ? m : upperb_2) + k) - k : upperb_2;
     const float p0 = src(y, x, 0);
-    if (src_channels == 1)
-        return (p0 >= a0 & p0 <= b0) ? 255 : 0;
     const float p1 = src(y, x, 1), p2 = src(y, x, 2);
     return (p0 >= a0 & p0 <= b0 & p1 >= a1 & p1 <= b1 & p2 >= a2 & p2 <= b2) ? 255 : 0;
 }
@@ -129,7 +126,6 @@ static inline __attribute__((always_inline)) uchar _f1_low_red(_PARAMS, const in
 static inline __attribute__((always_inline)) uchar _f2_high_red(_PARAMS, const int y, const int x, const int c)
 {
     const int src_height = 480, src_width = 640;
-    const int src_channels = 3;
     typedef uchar src_t;
     const int dst_height = 480, dst_width = 640;
     const float lowerb_0 = _m2_lowerb_0;
@@ -147,8 +143,6 @@ static inline __attribute__((always_inline)) uchar _f2_high_red(_PARAMS, const i
     const float a2 = whole ? ((lowerb_2 < -m ? -m : lowerb_2 > m ? m : lowerb_2) + k) - k : lowerb_2;
     const float b2 = whole ? ((upperb_2 < -m ? -m : upperb_2 > m ? m : upperb_2) + k) - k : upperb_2;
     const float p0 = src(y, x, 0);
-    if (src_channels == 1)
-        return (p0 >= a0 & p0 <= b0) ? 255 : 0;
     const float p1 = src(y, x, 1), p2 = src(y, x, 2);
     return (p0 >= a0 & p0 <= b0 & p1 >= a1 & p1 <= b1 & p2 >= a2 & p2 <= b2) ? 255 : 0;
 }

@@ -76,9 +76,12 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass, replace
 
+from ..fusable import unrolled_calls
 from ..ir import GroupNode
 from ..model import DTYPES, Endpoint
 from ..snippet import accessor_calls, is_name, is_shifted, uses_outside_calls
+from ..snippet.printer import names_in, print_lines
+from ..snippet.prune import prune
 
 MAX_UNROLLED_CHANNELS = 4  # a pixel of at most this many channels: one store statement each
 # On a CPU a work-item computes this many rows of a stencil group's interior in one loop, so
@@ -360,7 +363,7 @@ def unrolled_reads(group: GroupNode, staged: frozenset = frozenset(),
     for m in group.members:  # in run order: producers first
         inner = max((1 if p in staged else count[p] for p in producers.get(m.name, ())),
                     default=1)
-        count[m.name] = m.type.fusable.reads_of(m.params) * inner
+        count[m.name] = member_reads(m) * inner
     return count[root or group.root.name]
 
 
@@ -417,7 +420,7 @@ def staged_pieces(group: GroupNode, how: str) -> tuple[frozenset, tuple[int, int
     for m in group.members:  # producers first: a staged producer is a load to the next
         consumers = [group.member(e.target.component) for e in group.internal
                      if e.source.component == m.name]
-        inline = max((c.type.fusable.reads_of(c.params) for c in consumers
+        inline = max((member_reads(c) for c in consumers
                       if c.type.fusable.form == "stencil" and _radius(c) > 0), default=0)
         own = unrolled_reads(group, frozenset(staged), m.name)
         if m.type.fusable.form == "stencil" and own > 1 and inline * own > MIN_STAGED_READS:
@@ -811,7 +814,9 @@ def _member(m, feeds: dict[Endpoint, str], producer: dict[Endpoint, Endpoint], i
     macros, defines = _accessors(m, feeds, producer, index, names, flat, interior, slots,
                                  fills, guarded)
     lines += defines
-    tables, locals_ = _tables(m, index[m.name])
+    tree = member_tree(m)  # the branches its build's constants decide, taken
+    read = names_in(tree)
+    tables, locals_ = _tables(m, index[m.name], read)
     if not interior:  # once, before the member's first version
         lines[1:1] = tables
     attribute = " __attribute__((always_inline))" if inline else ""
@@ -823,12 +828,12 @@ def _member(m, feeds: dict[Endpoint, str], producer: dict[Endpoint, Endpoint], i
     lines.append(f"static inline{attribute} {ctype} {_function(m.name, index, interior)}"
                  f"({fparams}, const int y, const int x, const int c)")
     lines.append("{")
-    lines += _port_constants(m)
+    lines += _port_constants(m, read)
     lines += locals_
     lines += _param_lines(m, names, owner, fixed)
     # printed from the parsed snippet; built-in calls swapped for their inline versions
-    unroll = decl.reads_of(m.params) <= MAX_UNROLLED_LOOPS
-    for line in inline_builtins("\n".join(decl.lines(fills=fills)), used).splitlines():
+    unroll = member_reads(m) <= MAX_UNROLLED_LOOPS
+    for line in inline_builtins("\n".join(print_lines(tree, None, fills)), used).splitlines():
         if unroll and line.lstrip().startswith("for ("):
             # sizes and a stencil's radius are constants: a loop over a window unrolls
             # (PoCL left BoxBlur's 3x3 loop rolled: 9 ms a 1280x720 frame, unrolled 0.6)
@@ -838,6 +843,34 @@ def _member(m, feeds: dict[Endpoint, str], producer: dict[Endpoint, Endpoint], i
     lines += [f"#undef {p}" for p in macros]
     lines.append("")
     return lines
+
+
+def member_tree(m):
+    """Member m's snippet with the choices its build decides made (snippet.prune): the
+    parameters that fix its window (constants of its kernel; the others --set may change)
+    and its ports' sizes, element types and their limits."""
+    decl = m.type.fusable
+    fixed = getattr(m.type, "fixed", None) or decl.radius_names()
+    values = {p: m.params[p] for p in fixed if p in m.params}
+    types = {}
+    for pname, port in {**m.inputs, **m.outputs}.items():
+        values.update({f"{pname}_height": port.data.height, f"{pname}_width": port.data.width,
+                       f"{pname}_channels": port.channels,
+                       f"{pname}_min": _limit_value(port.dtype, "min"),
+                       f"{pname}_max": _limit_value(port.dtype, "max")})
+        types[f"{pname}_t"] = DTYPES[port.dtype][1]
+    return prune(decl.tree, values, types)
+
+
+def member_reads(m) -> int:
+    """Input elements one evaluation of member m reads with its loops unrolled: its
+    type's declared count, else its accessor calls in the branches its build takes
+    (member_tree), a call inside n loops counted (2 radius + 1)^n times for a stencil."""
+    decl = m.type.fusable
+    if decl.reads is not None:
+        return decl.reads_of(m.params)
+    side = 2 * decl.radius_of(m.params) + 1 if decl.form == "stencil" else 1
+    return max(1, unrolled_calls(member_tree(m).body, side))
 
 
 def _param_lines(m, names, owner: str, fixed: set[str]) -> list[str]:
@@ -902,11 +935,12 @@ def guarded_ports(m) -> set[str]:
     return set(member_reach(m).outside)
 
 
-def _port_constants(m) -> list[str]:
+def _port_constants(m, used: set[str]) -> list[str]:
     """What the snippet is given of each port: its sizes (its channels where named), and
-    its element type and that type's least and greatest values where the snippet names
-    them (src_t, src_min)."""
-    names, lines = m.type.fusable.names, []
+    its element type and that type's least and greatest values where the snippet (the
+    branches its build takes: used) names them (src_t, src_min)."""
+    names = {n: kind for n, kind in m.type.fusable.names.items() if n in used}
+    lines = []
     for pname, port in {**m.inputs, **m.outputs}.items():
         lines.append(f"    const int {pname}_height = {port.data.height}, "
                      f"{pname}_width = {port.data.width};")
@@ -922,6 +956,17 @@ def _port_constants(m) -> list[str]:
     return lines
 
 
+def _limit_value(dtype: str, end: str) -> int | float:
+    """The least ('min') or greatest ('max') value of an element type."""
+    import numpy as np
+
+    if dtype == "float32":
+        top = float(np.finfo(np.float32).max)
+        return -top if end == "min" else top
+    info = np.iinfo(DTYPES[dtype][0])
+    return int(info.min if end == "min" else info.max)
+
+
 def _limit(dtype: str, end: str) -> str:
     """The least ('min') or greatest ('max') value of an element type, as a C literal."""
     import numpy as np
@@ -935,14 +980,18 @@ def _limit(dtype: str, end: str) -> str:
     return f"{value}u" if value >= 1 << 31 else str(value)
 
 
-def _tables(m, i: int) -> tuple[list[str], list[str]]:
-    """A member's arrays: its array parameters and the tables its stencil computes from
-    parameters, as program-scope __constant tables and the lines of its function that
-    name them (and the arrays' lengths the snippet names)."""
+def _tables(m, i: int, used: set[str]) -> tuple[list[str], list[str]]:
+    """A member's arrays that its snippet (the branches its build takes) reads: its array
+    parameters and the tables its stencil computes from parameters, as program-scope
+    __constant tables and the lines of its function that name them (and the arrays'
+    lengths the snippet names)."""
     decl = m.type.fusable
-    arrays = {p: (d.element, m.params[p]) for p, d in m.type.params.items() if d.shape}
-    tables = decl.tables_of(m.params) if decl.form == "stencil" else {}
-    arrays.update((t, ("int", v)) for t, v in tables.items())
+    arrays = {p: (d.element, m.params[p]) for p, d in m.type.params.items()
+              if d.shape and p in used}
+    tables = {t: v for t, v in decl.tables_of(m.params).items() if t in used} \
+        if decl.form == "stencil" else {}
+    arrays.update((t, ("float" if any(isinstance(x, float) for x in v) else "int", v))
+                  for t, v in tables.items())
     program = [line for p, (element, v) in arrays.items()
                for line in _constant_table(f"_m{i}_{p}", element, v)]
     local = []
@@ -952,7 +1001,7 @@ def _tables(m, i: int) -> tuple[list[str], list[str]]:
         inner = "".join(f"[{d}]" for d in _dims(value)[1:])
         local.append(f"    __constant const {c} (*{pname}){inner} = _m{i}_{pname};" if inner
                      else f"    __constant const {c} *{pname} = _m{i}_{pname};")
-    lengths = {n: v for n, v in decl.lengths_of(m.params).items() if n in decl.names}
+    lengths = {n: v for n, v in decl.lengths_of(m.params).items() if n in used}
     if lengths:
         local.append("    const int " + ", ".join(f"{n} = {v}" for n, v in lengths.items())
                      + ";")

@@ -242,9 +242,12 @@ def gaussian_blur(src: np.ndarray, *, ksize: int, ksize_y: int = 0, sigma: float
 
     Window sides odd, 1..31 (ksize_y 0: ksize); sigma 0 from the side, sigma_y 0 sigma;
     border 0 CONSTANT, 1 REPLICATE, 2 REFLECT, 4 REFLECT_101 (OpenCV's default).  OpenCV
-    computes 8-bit images in fixed point (weights in 1/256), bit-exact.
+    computes 8-bit images in fixed point (weights in 1/256), bit-exact: its call.  int16
+    and float32 frames: the generated kernel's bytes (OpenCV's float32 weights, each row's
+    products in order, then the rows, each operation rounded to float32; int16 rounded to
+    nearest even and saturated), within docs/library.md's bound of OpenCV's.
     """
-    _channels("GaussianBlur", "src", src)
+    _channels("GaussianBlur", "src", src, DTYPES3)
     width, height = int(ksize), int(ksize_y) or int(ksize)
     for name, side in (("ksize", width), ("ksize_y", height)):
         if side < 1 or side > 31 or side % 2 == 0:
@@ -254,9 +257,20 @@ def gaussian_blur(src: np.ndarray, *, ksize: int, ksize_y: int = 0, sigma: float
                          f"and {sigma_y}")
     if int(border_type) not in (0, 1, 2, 4):
         raise ValueError(f"GaussianBlur: border_type must be 0, 1, 2 or 4, not {border_type}")
-    return cv2.GaussianBlur(src, (width, height), float(sigma), sigmaY=float(sigma_y),
-                            borderType=int(border_type),
-                            dst=_output(out, src.shape, "GaussianBlur", "dst"))
+    dst = _output(out, src.shape, "GaussianBlur", "dst", src.dtype)
+    if src.dtype == np.uint8:
+        return cv2.GaussianBlur(src, (width, height), float(sigma), sigmaY=float(sigma_y),
+                                borderType=int(border_type), dst=dst)
+    from .cpu_ops import _correlation
+    from .kernel_tables import gaussian_f32
+
+    planes = src.astype(np.float32).reshape(src.shape[0], src.shape[1], -1)
+    total = _correlation(planes, gaussian_f32(width, sigma),
+                         gaussian_f32(height, sigma_y, width, sigma), int(border_type))
+    if src.dtype == np.int16:
+        total = np.clip(np.rint(total), -32768, 32767)
+    dst[...] = total.reshape(dst.shape)
+    return dst
 
 
 MAX_MEDIAN_KSIZE = 15

@@ -1,6 +1,7 @@
 """Tables a generated kernel reads, computed from a component's parameters when the kernel
 is generated (a stencil's 'tables:', gpucompgen/fusable.py): plain Python, the same
-numbers on every machine, never code of a type file.
+numbers on every machine, never code of a type file.  A table of floats (gaussian_f32)
+becomes a float __constant table, one of integers an int one.
 
 gaussian_q8: the 1-D Gaussian kernel OpenCV's GaussianBlur applies to 8-bit images, in
 fixed point with 8 fraction bits (OpenCV's ufixedpoint16), as found in OpenCV's
@@ -25,6 +26,7 @@ cv2.getGaussianKernel's doubles, every one.
 from __future__ import annotations
 
 import math
+import struct
 from fractions import Fraction
 
 # sigma <= 0: OpenCV's fixed tables (their sums: 1, 4, 16, 128, 256)
@@ -80,6 +82,15 @@ def gaussian_q8(n: int, sigma: float, n_else: int = 0, sigma_else: float = 0.0,
             common //= 2
         weights = tuple(w // common for w in weights)
     return weights
+
+
+def gaussian_f32(n: int, sigma: float, n_else: int = 0, sigma_else: float = 0.0) -> tuple:
+    """OpenCV's Gaussian weights in float32 (its kernel for int16 and float32 frames:
+    the double kernel rounded to float32), n taps for sigma, n <= 0 taking n_else and
+    sigma <= 0 sigma_else (as gaussian_q8)."""
+    n = int(n) if n > 0 else int(n_else)
+    sigma = float(sigma) if sigma > 0 else float(sigma_else)
+    return tuple(struct.unpack("f", struct.pack("f", v))[0] for v in gaussian_kernel(n, sigma))
 
 
 def gaussian_q8_reduced(n: int, sigma: float, n_else: int = 0,
@@ -186,6 +197,7 @@ def median_network(ksize: int) -> tuple:
 
 # the functions a type's 'tables:' may call, by name: (function, least and most arguments)
 TABLES = {"gaussian_q8": (gaussian_q8, 2, 4), "gaussian_q8_reduced": (gaussian_q8_reduced, 2, 4),
+          "gaussian_f32": (gaussian_f32, 2, 4),
           "sobel_taps": (sobel_taps, 2, 2), "scharr_taps": (scharr_taps, 1, 1),
           "second_derivative_taps": (second_derivative_taps, 1, 1),
           "smoothing_taps": (smoothing_taps, 1, 1), "median_network": (median_network, 1, 1)}

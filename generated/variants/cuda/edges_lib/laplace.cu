@@ -156,16 +156,6 @@ static inline __attribute__((overloadable)) uint _clamp3(const uint v, const uin
 static inline __attribute__((overloadable)) int _clamp3(const int v, const int lo, const int hi) { return v < lo ? lo : v > hi ? hi : v; }
 static inline __attribute__((overloadable)) float _clamp3(const float v, const float lo, const float hi) { return v < lo ? lo : v > hi ? hi : v; }
 static inline float _fabs(const float v) { return v < 0.0f ? -v : v; }
-#ifdef __clang__
-#define _rint(v) __builtin_rintf(v)
-#else
-#define _rint(v) rint(v)
-#endif
-static inline uchar _convert_uchar_sat_rte(float v)
-{
-    v = v >= 0.0f ? v : 0.0f;  /* NaN too */
-    return (uchar)_rint(v <= 255.0f ? v : 255.0f);
-}
 
 // laplace: LaplacianGray (stencil, radius max(1, ksize // 2), border reflect101); every element
 __constant__ int _m0_kd[3] = {
@@ -178,7 +168,6 @@ __constant__ int _m0_ks[3] = {
 static inline __attribute__((always_inline)) short _f0_laplace(_PARAMS, const int y, const int x, const int c)
 {
     const int src_height = 200, src_width = 301;
-    typedef uchar src_t;
     const int dst_height = 200, dst_width = 301;
     typedef short dst_t;
     const short dst_min = -32768, dst_max = 32767;
@@ -190,71 +179,30 @@ static inline __attribute__((always_inline)) short _f0_laplace(_PARAMS, const in
     const int border_type = 4;
     const int ddepth = _m0_ddepth;
     const int rd = _max(1, ksize / 2), rs = ksize / 2;
-    const bool whole_src = (src_t)0.5f == (src_t)0;
-    const bool whole_dst = (dst_t)0.5f == (dst_t)0;
     float value = 0.0f;
-    if (whole_src) {
-        int sum = 0;
+    int sum = 0;
+    #pragma unroll
+    for (int j = -rs; j <= rs; j++) {
+        int row = 0;
         #pragma unroll
-        for (int j = -rs; j <= rs; j++) {
-            int row = 0;
-            #pragma unroll
-            for (int i = -rd; i <= rd; i++)
-                row += kd[rd + i] * src(y + j, x + i, c);
-            sum += ks[rs + j] * row;
-        }
-        #pragma unroll
-        for (int j = -rd; j <= rd; j++) {
-            int row = 0;
-            #pragma unroll
-            for (int i = -rs; i <= rs; i++)
-                row += ks[rs + i] * src(y + j, x + i, c);
-            sum += kd[rd + j] * row;
-        }
-        if ((scale == (int)scale) & (delta == (int)delta) & (_fabs(scale) < 16.0f)) {
-            const int exact = sum * (int)scale + (int)delta;
-            if (!whole_dst)
-                return (float)exact;
-            return (dst_t)_clamp3(exact, (int)dst_min, (int)dst_max);
-        }
-        const float scaled = (float)sum * scale;
-        value = scaled + delta;
+        for (int i = -rd; i <= rd; i++)
+            row += kd[rd + i] * src(y + j, x + i, c);
+        sum += ks[rs + j] * row;
     }
-    else {
-        float along_x = 0.0f, along_y = 0.0f;
+    #pragma unroll
+    for (int j = -rd; j <= rd; j++) {
+        int row = 0;
         #pragma unroll
-        for (int j = -rs; j <= rs; j++) {
-            float row = 0.0f;
-            #pragma unroll
-            for (int i = -rd; i <= rd; i++)
-                if (kd[rd + i] != 0) {
-                    const float product = kd[rd + i] * src(y + j, x + i, c);
-                    row = row + product;
-                }
-            const float part = ks[rs + j] * row;
-            along_x = along_x + part;
-        }
-        #pragma unroll
-        for (int j = -rd; j <= rd; j++) {
-            float row = 0.0f;
-            #pragma unroll
-            for (int i = -rs; i <= rs; i++) {
-                const float product = ks[rs + i] * src(y + j, x + i, c);
-                row = row + product;
-            }
-            if (kd[rd + j] != 0) {
-                const float part = kd[rd + j] * row;
-                along_y = along_y + part;
-            }
-        }
-        const float sum = along_x + along_y;
-        const float scaled = sum * scale;
-        value = scaled + delta;
+        for (int i = -rs; i <= rs; i++)
+            row += ks[rs + i] * src(y + j, x + i, c);
+        sum += kd[rd + j] * row;
     }
-    if (!whole_dst)
-        return value;
-    if (dst_max == 255)
-        return _convert_uchar_sat_rte(value);
+    if ((scale == (int)scale) & (delta == (int)delta) & (_fabs(scale) < 16.0f)) {
+        const int exact = sum * (int)scale + (int)delta;
+        return (dst_t)_clamp3(exact, (int)dst_min, (int)dst_max);
+    }
+    const float scaled = (float)sum * scale;
+    value = scaled + delta;
     return (dst_t)_clamp3(rint(value), (float)dst_min, (float)dst_max);
 }
 #undef src
@@ -264,7 +212,6 @@ static inline __attribute__((always_inline)) short _f0_laplace(_PARAMS, const in
 static inline __attribute__((always_inline)) short _f0_laplace_in(_PARAMS, const int y, const int x, const int c)
 {
     const int src_height = 200, src_width = 301;
-    typedef uchar src_t;
     const int dst_height = 200, dst_width = 301;
     typedef short dst_t;
     const short dst_min = -32768, dst_max = 32767;
@@ -276,71 +223,30 @@ static inline __attribute__((always_inline)) short _f0_laplace_in(_PARAMS, const
     const int border_type = 4;
     const int ddepth = _m0_ddepth;
     const int rd = _max(1, ksize / 2), rs = ksize / 2;
-    const bool whole_src = (src_t)0.5f == (src_t)0;
-    const bool whole_dst = (dst_t)0.5f == (dst_t)0;
     float value = 0.0f;
-    if (whole_src) {
-        int sum = 0;
+    int sum = 0;
+    #pragma unroll
+    for (int j = -rs; j <= rs; j++) {
+        int row = 0;
         #pragma unroll
-        for (int j = -rs; j <= rs; j++) {
-            int row = 0;
-            #pragma unroll
-            for (int i = -rd; i <= rd; i++)
-                row += kd[rd + i] * src(y + j, x + i, c);
-            sum += ks[rs + j] * row;
-        }
-        #pragma unroll
-        for (int j = -rd; j <= rd; j++) {
-            int row = 0;
-            #pragma unroll
-            for (int i = -rs; i <= rs; i++)
-                row += ks[rs + i] * src(y + j, x + i, c);
-            sum += kd[rd + j] * row;
-        }
-        if ((scale == (int)scale) & (delta == (int)delta) & (_fabs(scale) < 16.0f)) {
-            const int exact = sum * (int)scale + (int)delta;
-            if (!whole_dst)
-                return (float)exact;
-            return (dst_t)_clamp3(exact, (int)dst_min, (int)dst_max);
-        }
-        const float scaled = (float)sum * scale;
-        value = scaled + delta;
+        for (int i = -rd; i <= rd; i++)
+            row += kd[rd + i] * src(y + j, x + i, c);
+        sum += ks[rs + j] * row;
     }
-    else {
-        float along_x = 0.0f, along_y = 0.0f;
+    #pragma unroll
+    for (int j = -rd; j <= rd; j++) {
+        int row = 0;
         #pragma unroll
-        for (int j = -rs; j <= rs; j++) {
-            float row = 0.0f;
-            #pragma unroll
-            for (int i = -rd; i <= rd; i++)
-                if (kd[rd + i] != 0) {
-                    const float product = kd[rd + i] * src(y + j, x + i, c);
-                    row = row + product;
-                }
-            const float part = ks[rs + j] * row;
-            along_x = along_x + part;
-        }
-        #pragma unroll
-        for (int j = -rd; j <= rd; j++) {
-            float row = 0.0f;
-            #pragma unroll
-            for (int i = -rs; i <= rs; i++) {
-                const float product = ks[rs + i] * src(y + j, x + i, c);
-                row = row + product;
-            }
-            if (kd[rd + j] != 0) {
-                const float part = kd[rd + j] * row;
-                along_y = along_y + part;
-            }
-        }
-        const float sum = along_x + along_y;
-        const float scaled = sum * scale;
-        value = scaled + delta;
+        for (int i = -rs; i <= rs; i++)
+            row += ks[rs + i] * src(y + j, x + i, c);
+        sum += kd[rd + j] * row;
     }
-    if (!whole_dst)
-        return value;
-    if (dst_max == 255)
-        return _convert_uchar_sat_rte(value);
+    if ((scale == (int)scale) & (delta == (int)delta) & (_fabs(scale) < 16.0f)) {
+        const int exact = sum * (int)scale + (int)delta;
+        return (dst_t)_clamp3(exact, (int)dst_min, (int)dst_max);
+    }
+    const float scaled = (float)sum * scale;
+    value = scaled + delta;
     return (dst_t)_clamp3(rint(value), (float)dst_min, (float)dst_max);
 }
 #undef src

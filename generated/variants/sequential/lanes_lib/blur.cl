@@ -32,13 +32,6 @@ static inline __attribute__((overloadable)) short _min(const short a, const shor
 static inline __attribute__((overloadable)) uint _min(const uint a, const uint b) { return a < b ? a : b; }
 static inline __attribute__((overloadable)) int _min(const int a, const int b) { return a < b ? a : b; }
 static inline __attribute__((overloadable)) float _min(const float a, const float b) { return a < b ? a : b; }
-static inline __attribute__((overloadable)) uchar _max(const uchar a, const uchar b) { return a > b ? a : b; }
-static inline __attribute__((overloadable)) char _max(const char a, const char b) { return a > b ? a : b; }
-static inline __attribute__((overloadable)) ushort _max(const ushort a, const ushort b) { return a > b ? a : b; }
-static inline __attribute__((overloadable)) short _max(const short a, const short b) { return a > b ? a : b; }
-static inline __attribute__((overloadable)) uint _max(const uint a, const uint b) { return a > b ? a : b; }
-static inline __attribute__((overloadable)) int _max(const int a, const int b) { return a > b ? a : b; }
-static inline __attribute__((overloadable)) float _max(const float a, const float b) { return a > b ? a : b; }
 
 // blur: GaussianBlurGray (stencil, radius max(ksize, ksize_y) // 2, border reflect101); every element
 __constant int _m0_kx[5] = {
@@ -61,27 +54,15 @@ static inline __attribute__((always_inline)) uchar _f0_blur(_PARAMS, const int y
     const int border_type = 4;
     const int rx = ksize / 2, ry = (ksize_y > 0 ? ksize_y : ksize) / 2;
     int sum = 0;
-    if (_max(rx, ry) <= 2) {
-        const int x1 = _min(1, rx), x2 = _min(2, rx), y1 = _min(1, ry), y2 = _min(2, ry);
-        const int a1 = rx >= 1 ? kx[rx + 1] : 0, a2 = rx >= 2 ? kx[rx + 2] : 0;
-        const int b1 = ry >= 1 ? ky[ry + 1] : 0, b2 = ry >= 2 ? ky[ry + 2] : 0;
-        const int h0 = kx[rx] * src(y - y2, x, c) + a1 * (src(y - y2, x - x1, c) + src(y - y2, x + x1, c)) + a2 * (src(y - y2, x - x2, c) + src(y - y2, x + x2, c));
-        const int h1 = kx[rx] * src(y - y1, x, c) + a1 * (src(y - y1, x - x1, c) + src(y - y1, x + x1, c)) + a2 * (src(y - y1, x - x2, c) + src(y - y1, x + x2, c));
-        const int h2 = kx[rx] * src(y, x, c) + a1 * (src(y, x - x1, c) + src(y, x + x1, c)) + a2 * (src(y, x - x2, c) + src(y, x + x2, c));
-        const int h3 = kx[rx] * src(y + y1, x, c) + a1 * (src(y + y1, x - x1, c) + src(y + y1, x + x1, c)) + a2 * (src(y + y1, x - x2, c) + src(y + y1, x + x2, c));
-        const int h4 = kx[rx] * src(y + y2, x, c) + a1 * (src(y + y2, x - x1, c) + src(y + y2, x + x1, c)) + a2 * (src(y + y2, x - x2, c) + src(y + y2, x + x2, c));
-        sum = ky[ry] * h2 + b1 * (h1 + h3) + b2 * (h0 + h4);
-    }
-    else {
-        #pragma unroll
-        for (int dy = -ry; dy <= ry; dy++) {
-            int row = kx[rx] * src(y + dy, x, c);
-            #pragma unroll
-            for (int dx = 1; dx <= rx; dx++)
-                row += kx[rx + dx] * (src(y + dy, x - dx, c) + src(y + dy, x + dx, c));
-            sum += ky[ry + dy] * row;
-        }
-    }
+    const int x1 = _min(1, rx), x2 = _min(2, rx), y1 = _min(1, ry), y2 = _min(2, ry);
+    const int a1 = rx >= 1 ? kx[rx + 1] : 0, a2 = rx >= 2 ? kx[rx + 2] : 0;
+    const int b1 = ry >= 1 ? ky[ry + 1] : 0, b2 = ry >= 2 ? ky[ry + 2] : 0;
+    const int h0 = kx[rx] * src(y - y2, x, c) + a1 * (src(y - y2, x - x1, c) + src(y - y2, x + x1, c)) + a2 * (src(y - y2, x - x2, c) + src(y - y2, x + x2, c));
+    const int h1 = kx[rx] * src(y - y1, x, c) + a1 * (src(y - y1, x - x1, c) + src(y - y1, x + x1, c)) + a2 * (src(y - y1, x - x2, c) + src(y - y1, x + x2, c));
+    const int h2 = kx[rx] * src(y, x, c) + a1 * (src(y, x - x1, c) + src(y, x + x1, c)) + a2 * (src(y, x - x2, c) + src(y, x + x2, c));
+    const int h3 = kx[rx] * src(y + y1, x, c) + a1 * (src(y + y1, x - x1, c) + src(y + y1, x + x1, c)) + a2 * (src(y + y1, x - x2, c) + src(y + y1, x + x2, c));
+    const int h4 = kx[rx] * src(y + y2, x, c) + a1 * (src(y + y2, x - x1, c) + src(y + y2, x + x1, c)) + a2 * (src(y + y2, x - x2, c) + src(y + y2, x + x2, c));
+    sum = ky[ry] * h2 + b1 * (h1 + h3) + b2 * (h0 + h4);
     int sx = kx[rx], sy = ky[ry];
     #pragma unroll
     for (int i = 1; i <= rx; i++)
@@ -109,27 +90,15 @@ static inline __attribute__((always_inline)) uchar _f0_blur_in(_PARAMS, const in
     const int border_type = 4;
     const int rx = ksize / 2, ry = (ksize_y > 0 ? ksize_y : ksize) / 2;
     int sum = 0;
-    if (_max(rx, ry) <= 2) {
-        const int x1 = _min(1, rx), x2 = _min(2, rx), y1 = _min(1, ry), y2 = _min(2, ry);
-        const int a1 = rx >= 1 ? kx[rx + 1] : 0, a2 = rx >= 2 ? kx[rx + 2] : 0;
-        const int b1 = ry >= 1 ? ky[ry + 1] : 0, b2 = ry >= 2 ? ky[ry + 2] : 0;
-        const int h0 = kx[rx] * src(y - y2, x, c) + a1 * (src(y - y2, x - x1, c) + src(y - y2, x + x1, c)) + a2 * (src(y - y2, x - x2, c) + src(y - y2, x + x2, c));
-        const int h1 = kx[rx] * src(y - y1, x, c) + a1 * (src(y - y1, x - x1, c) + src(y - y1, x + x1, c)) + a2 * (src(y - y1, x - x2, c) + src(y - y1, x + x2, c));
-        const int h2 = kx[rx] * src(y, x, c) + a1 * (src(y, x - x1, c) + src(y, x + x1, c)) + a2 * (src(y, x - x2, c) + src(y, x + x2, c));
-        const int h3 = kx[rx] * src(y + y1, x, c) + a1 * (src(y + y1, x - x1, c) + src(y + y1, x + x1, c)) + a2 * (src(y + y1, x - x2, c) + src(y + y1, x + x2, c));
-        const int h4 = kx[rx] * src(y + y2, x, c) + a1 * (src(y + y2, x - x1, c) + src(y + y2, x + x1, c)) + a2 * (src(y + y2, x - x2, c) + src(y + y2, x + x2, c));
-        sum = ky[ry] * h2 + b1 * (h1 + h3) + b2 * (h0 + h4);
-    }
-    else {
-        #pragma unroll
-        for (int dy = -ry; dy <= ry; dy++) {
-            int row = kx[rx] * src(y + dy, x, c);
-            #pragma unroll
-            for (int dx = 1; dx <= rx; dx++)
-                row += kx[rx + dx] * (src(y + dy, x - dx, c) + src(y + dy, x + dx, c));
-            sum += ky[ry + dy] * row;
-        }
-    }
+    const int x1 = _min(1, rx), x2 = _min(2, rx), y1 = _min(1, ry), y2 = _min(2, ry);
+    const int a1 = rx >= 1 ? kx[rx + 1] : 0, a2 = rx >= 2 ? kx[rx + 2] : 0;
+    const int b1 = ry >= 1 ? ky[ry + 1] : 0, b2 = ry >= 2 ? ky[ry + 2] : 0;
+    const int h0 = kx[rx] * src(y - y2, x, c) + a1 * (src(y - y2, x - x1, c) + src(y - y2, x + x1, c)) + a2 * (src(y - y2, x - x2, c) + src(y - y2, x + x2, c));
+    const int h1 = kx[rx] * src(y - y1, x, c) + a1 * (src(y - y1, x - x1, c) + src(y - y1, x + x1, c)) + a2 * (src(y - y1, x - x2, c) + src(y - y1, x + x2, c));
+    const int h2 = kx[rx] * src(y, x, c) + a1 * (src(y, x - x1, c) + src(y, x + x1, c)) + a2 * (src(y, x - x2, c) + src(y, x + x2, c));
+    const int h3 = kx[rx] * src(y + y1, x, c) + a1 * (src(y + y1, x - x1, c) + src(y + y1, x + x1, c)) + a2 * (src(y + y1, x - x2, c) + src(y + y1, x + x2, c));
+    const int h4 = kx[rx] * src(y + y2, x, c) + a1 * (src(y + y2, x - x1, c) + src(y + y2, x + x1, c)) + a2 * (src(y + y2, x - x2, c) + src(y + y2, x + x2, c));
+    sum = ky[ry] * h2 + b1 * (h1 + h3) + b2 * (h0 + h4);
     int sx = kx[rx], sy = ky[ry];
     #pragma unroll
     for (int i = 1; i <= rx; i++)

@@ -31,13 +31,6 @@
     _out
 
 // built-ins the snippets call, inline (see fused.py: HELPERS)
-static inline __attribute__((overloadable)) uchar _clamp3(const uchar v, const uchar lo, const uchar hi) { return v < lo ? lo : v > hi ? hi : v; }
-static inline __attribute__((overloadable)) char _clamp3(const char v, const char lo, const char hi) { return v < lo ? lo : v > hi ? hi : v; }
-static inline __attribute__((overloadable)) ushort _clamp3(const ushort v, const ushort lo, const ushort hi) { return v < lo ? lo : v > hi ? hi : v; }
-static inline __attribute__((overloadable)) short _clamp3(const short v, const short lo, const short hi) { return v < lo ? lo : v > hi ? hi : v; }
-static inline __attribute__((overloadable)) uint _clamp3(const uint v, const uint lo, const uint hi) { return v < lo ? lo : v > hi ? hi : v; }
-static inline __attribute__((overloadable)) int _clamp3(const int v, const int lo, const int hi) { return v < lo ? lo : v > hi ? hi : v; }
-static inline __attribute__((overloadable)) float _clamp3(const float v, const float lo, const float hi) { return v < lo ? lo : v > hi ? hi : v; }
 #ifdef __clang__
 #define _fma(a, b, c) __builtin_fmaf((a), (b), (c))
 #else
@@ -62,22 +55,12 @@ static inline __attribute__((always_inline)) uchar _f0_sobel(_PARAMS, const int 
     const int src1_height = 200, src1_width = 301;
     const int src2_height = 200, src2_width = 301;
     const int dst_height = 200, dst_width = 301;
-    typedef uchar dst_t;
-    const uchar dst_min = 0, dst_max = 255;
     const float alpha = _m0_alpha;
     const float beta = _m0_beta;
     const float gamma = _m0_gamma;
     const float a = src1(y, x, c), b = src2(y, x, c);
-    if ((dst_t)0.5f == (dst_t)0) {
-        const float v = _fma(a, alpha, _fma(b, beta, gamma));
-        if (dst_max == 255)
-            return _convert_uchar_sat_rte(v);
-        return (dst_t)_clamp3(rint(v), (float)dst_min, (float)dst_max);
-    }
-    const float p = a * alpha;
-    const float q = b * beta;
-    const float sum = p + q;
-    return sum + gamma;
+    const float v = _fma(a, alpha, _fma(b, beta, gamma));
+    return _convert_uchar_sat_rte(v);
 }
 #undef src1
 #undef src2

@@ -101,7 +101,6 @@ static inline __attribute__((noinline)) uchar _f1_clean(_PARAMS, _LOCALS, const 
     const int iterations = 1;
     const int side = ksize / 2;
     const int r = shape == 0 ? side * iterations : side;
-    const bool nested = op == 2 || op == 3 || op == 5 || op == 6;
     const bool erode_first = op == 2 || op == 5;
     src_t lo = src_max, hi = src_min;
     src_t outer = erode_first ? src_min : src_max;
@@ -111,36 +110,13 @@ static inline __attribute__((noinline)) uchar _f1_clean(_PARAMS, _LOCALS, const 
         #pragma unroll
         for (int k = 1; k <= (shape == 2 ? side : 0); k++)
             w += (2 * k - 1) * (2 * k - 1) < 4 * (side * side - dy * dy);
-        if (!nested) {
-            src_t row_lo = src(y + dy, x - w, c);
-            src_t row_hi = row_lo;
-            #pragma unroll
-            for (int dx = 1 - w; dx <= w; dx++) {
-                const src_t v = src(y + dy, x + dx, c);
-                row_lo = _min(row_lo, v);
-                row_hi = _max(row_hi, v);
-            }
-            lo = _min(lo, row_lo);
-            hi = _max(hi, row_hi);
-            continue;
-        }
         #pragma unroll
         for (int dx = -w; dx <= w; dx++) {
             const src_t tap = _fill_inner(y + dy, x + dx, c, erode_first ? src_min : src_max);
             outer = erode_first ? _max(outer, tap) : _min(outer, tap);
         }
     }
-    if (op == 0)
-        return lo;
-    if (op == 1)
-        return hi;
-    if (op == 4)
-        return hi - lo > src_max ? src_max : hi - lo;
-    if (op == 2 || op == 3)
-        return outer;
-    const src_t p = src(y, x, c);
-    const src_t more = op == 5 ? p : outer, less = op == 5 ? outer : p;
-    return more > less ? (more - less > src_max ? src_max : more - less) : 0;
+    return outer;
 }
 #undef src
 #undef inner
@@ -198,7 +174,6 @@ static inline __attribute__((always_inline)) uchar _f1_clean_in(_PARAMS, _LOCALS
     const int iterations = 1;
     const int side = ksize / 2;
     const int r = shape == 0 ? side * iterations : side;
-    const bool nested = op == 2 || op == 3 || op == 5 || op == 6;
     const bool erode_first = op == 2 || op == 5;
     src_t lo = src_max, hi = src_min;
     src_t outer = erode_first ? src_min : src_max;
@@ -208,36 +183,13 @@ static inline __attribute__((always_inline)) uchar _f1_clean_in(_PARAMS, _LOCALS
         #pragma unroll
         for (int k = 1; k <= (shape == 2 ? side : 0); k++)
             w += (2 * k - 1) * (2 * k - 1) < 4 * (side * side - dy * dy);
-        if (!nested) {
-            src_t row_lo = src(y + dy, x - w, c);
-            src_t row_hi = row_lo;
-            #pragma unroll
-            for (int dx = 1 - w; dx <= w; dx++) {
-                const src_t v = src(y + dy, x + dx, c);
-                row_lo = _min(row_lo, v);
-                row_hi = _max(row_hi, v);
-            }
-            lo = _min(lo, row_lo);
-            hi = _max(hi, row_hi);
-            continue;
-        }
         #pragma unroll
         for (int dx = -w; dx <= w; dx++) {
             const src_t tap = _fill_inner(y + dy, x + dx, c, erode_first ? src_min : src_max);
             outer = erode_first ? _max(outer, tap) : _min(outer, tap);
         }
     }
-    if (op == 0)
-        return lo;
-    if (op == 1)
-        return hi;
-    if (op == 4)
-        return hi - lo > src_max ? src_max : hi - lo;
-    if (op == 2 || op == 3)
-        return outer;
-    const src_t p = src(y, x, c);
-    const src_t more = op == 5 ? p : outer, less = op == 5 ? outer : p;
-    return more > less ? (more - less > src_max ? src_max : more - less) : 0;
+    return outer;
 }
 #undef src
 #undef inner

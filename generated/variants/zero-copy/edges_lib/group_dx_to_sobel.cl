@@ -122,7 +122,6 @@ __constant int _m0_ky[3] = {
 static inline __attribute__((always_inline)) short _f0_dx(_PARAMS, const int y, const int x, const int c)
 {
     const int src_height = 200, src_width = 301;
-    typedef uchar src_t;
     const int dst_height = 200, dst_width = 301;
     typedef short dst_t;
     const short dst_min = -32768, dst_max = 32767;
@@ -137,51 +136,22 @@ static inline __attribute__((always_inline)) short _f0_dx(_PARAMS, const int y, 
     const int ddepth = _m0_ddepth;
     const int rx = ksize == 1 ? _min(dx, 1) : _max(1, ksize / 2);
     const int ry = ksize == 1 ? _min(dy, 1) : _max(1, ksize / 2);
-    const bool whole_src = (src_t)0.5f == (src_t)0;
-    const bool whole_dst = (dst_t)0.5f == (dst_t)0;
     float value = 0.0f;
-    if (whole_src) {
-        int sum = 0;
+    int sum = 0;
+    #pragma unroll
+    for (int j = -ry; j <= ry; j++) {
+        int row = 0;
         #pragma unroll
-        for (int j = -ry; j <= ry; j++) {
-            int row = 0;
-            #pragma unroll
-            for (int i = -rx; i <= rx; i++)
-                row += kx[rx + i] * src(y + j, x + i, c);
-            sum += ky[ry + j] * row;
-        }
-        if ((scale == (int)scale) & (delta == (int)delta) & (_fabs(scale) < 16.0f)) {
-            const int exact = sum * (int)scale + (int)delta;
-            if (!whole_dst)
-                return (float)exact;
-            return (dst_t)_clamp3(exact, (int)dst_min, (int)dst_max);
-        }
-        const float scaled = (float)sum * scale;
-        value = scaled + delta;
+        for (int i = -rx; i <= rx; i++)
+            row += kx[rx + i] * src(y + j, x + i, c);
+        sum += ky[ry + j] * row;
     }
-    else {
-        float sum = 0.0f;
-        #pragma unroll
-        for (int j = -ry; j <= ry; j++) {
-            float row = 0.0f;
-            #pragma unroll
-            for (int i = -rx; i <= rx; i++)
-                if (kx[rx + i] != 0) {
-                    const float product = kx[rx + i] * src(y + j, x + i, c);
-                    row = row + product;
-                }
-            if (ky[ry + j] != 0) {
-                const float part = ky[ry + j] * row;
-                sum = sum + part;
-            }
-        }
-        const float scaled = sum * scale;
-        value = scaled + delta;
+    if ((scale == (int)scale) & (delta == (int)delta) & (_fabs(scale) < 16.0f)) {
+        const int exact = sum * (int)scale + (int)delta;
+        return (dst_t)_clamp3(exact, (int)dst_min, (int)dst_max);
     }
-    if (!whole_dst)
-        return value;
-    if (dst_max == 255)
-        return _convert_uchar_sat_rte(value);
+    const float scaled = (float)sum * scale;
+    value = scaled + delta;
     return (dst_t)_clamp3(rint(value), (float)dst_min, (float)dst_max);
 }
 #undef src
@@ -197,7 +167,6 @@ __constant int _m1_ky[3] = {
 static inline __attribute__((always_inline)) short _f1_dy(_PARAMS, const int y, const int x, const int c)
 {
     const int src_height = 200, src_width = 301;
-    typedef uchar src_t;
     const int dst_height = 200, dst_width = 301;
     typedef short dst_t;
     const short dst_min = -32768, dst_max = 32767;
@@ -212,51 +181,22 @@ static inline __attribute__((always_inline)) short _f1_dy(_PARAMS, const int y, 
     const int ddepth = _m1_ddepth;
     const int rx = ksize == 1 ? _min(dx, 1) : _max(1, ksize / 2);
     const int ry = ksize == 1 ? _min(dy, 1) : _max(1, ksize / 2);
-    const bool whole_src = (src_t)0.5f == (src_t)0;
-    const bool whole_dst = (dst_t)0.5f == (dst_t)0;
     float value = 0.0f;
-    if (whole_src) {
-        int sum = 0;
+    int sum = 0;
+    #pragma unroll
+    for (int j = -ry; j <= ry; j++) {
+        int row = 0;
         #pragma unroll
-        for (int j = -ry; j <= ry; j++) {
-            int row = 0;
-            #pragma unroll
-            for (int i = -rx; i <= rx; i++)
-                row += kx[rx + i] * src(y + j, x + i, c);
-            sum += ky[ry + j] * row;
-        }
-        if ((scale == (int)scale) & (delta == (int)delta) & (_fabs(scale) < 16.0f)) {
-            const int exact = sum * (int)scale + (int)delta;
-            if (!whole_dst)
-                return (float)exact;
-            return (dst_t)_clamp3(exact, (int)dst_min, (int)dst_max);
-        }
-        const float scaled = (float)sum * scale;
-        value = scaled + delta;
+        for (int i = -rx; i <= rx; i++)
+            row += kx[rx + i] * src(y + j, x + i, c);
+        sum += ky[ry + j] * row;
     }
-    else {
-        float sum = 0.0f;
-        #pragma unroll
-        for (int j = -ry; j <= ry; j++) {
-            float row = 0.0f;
-            #pragma unroll
-            for (int i = -rx; i <= rx; i++)
-                if (kx[rx + i] != 0) {
-                    const float product = kx[rx + i] * src(y + j, x + i, c);
-                    row = row + product;
-                }
-            if (ky[ry + j] != 0) {
-                const float part = ky[ry + j] * row;
-                sum = sum + part;
-            }
-        }
-        const float scaled = sum * scale;
-        value = scaled + delta;
+    if ((scale == (int)scale) & (delta == (int)delta) & (_fabs(scale) < 16.0f)) {
+        const int exact = sum * (int)scale + (int)delta;
+        return (dst_t)_clamp3(exact, (int)dst_min, (int)dst_max);
     }
-    if (!whole_dst)
-        return value;
-    if (dst_max == 255)
-        return _convert_uchar_sat_rte(value);
+    const float scaled = (float)sum * scale;
+    value = scaled + delta;
     return (dst_t)_clamp3(rint(value), (float)dst_min, (float)dst_max);
 }
 #undef src
@@ -293,22 +233,12 @@ static inline __attribute__((always_inline)) uchar _f4_sobel(_PARAMS, const int 
     const int src1_height = 200, src1_width = 301;
     const int src2_height = 200, src2_width = 301;
     const int dst_height = 200, dst_width = 301;
-    typedef uchar dst_t;
-    const uchar dst_min = 0, dst_max = 255;
     const float alpha = _m4_alpha;
     const float beta = _m4_beta;
     const float gamma = _m4_gamma;
     const float a = src1(y, x, c), b = src2(y, x, c);
-    if ((dst_t)0.5f == (dst_t)0) {
-        const float v = _fma(a, alpha, _fma(b, beta, gamma));
-        if (dst_max == 255)
-            return _convert_uchar_sat_rte(v);
-        return (dst_t)_clamp3(rint(v), (float)dst_min, (float)dst_max);
-    }
-    const float p = a * alpha;
-    const float q = b * beta;
-    const float sum = p + q;
-    return sum + gamma;
+    const float v = _fma(a, alpha, _fma(b, beta, gamma));
+    return _convert_uchar_sat_rte(v);
 }
 #undef src1
 #undef src2
@@ -318,7 +248,6 @@ static inline __attribute__((always_inline)) uchar _f4_sobel(_PARAMS, const int 
 static inline __attribute__((always_inline)) short _f0_dx_in(_PARAMS, const int y, const int x, const int c)
 {
     const int src_height = 200, src_width = 301;
-    typedef uchar src_t;
     const int dst_height = 200, dst_width = 301;
     typedef short dst_t;
     const short dst_min = -32768, dst_max = 32767;
@@ -333,51 +262,22 @@ static inline __attribute__((always_inline)) short _f0_dx_in(_PARAMS, const int 
     const int ddepth = _m0_ddepth;
     const int rx = ksize == 1 ? _min(dx, 1) : _max(1, ksize / 2);
     const int ry = ksize == 1 ? _min(dy, 1) : _max(1, ksize / 2);
-    const bool whole_src = (src_t)0.5f == (src_t)0;
-    const bool whole_dst = (dst_t)0.5f == (dst_t)0;
     float value = 0.0f;
-    if (whole_src) {
-        int sum = 0;
+    int sum = 0;
+    #pragma unroll
+    for (int j = -ry; j <= ry; j++) {
+        int row = 0;
         #pragma unroll
-        for (int j = -ry; j <= ry; j++) {
-            int row = 0;
-            #pragma unroll
-            for (int i = -rx; i <= rx; i++)
-                row += kx[rx + i] * src(y + j, x + i, c);
-            sum += ky[ry + j] * row;
-        }
-        if ((scale == (int)scale) & (delta == (int)delta) & (_fabs(scale) < 16.0f)) {
-            const int exact = sum * (int)scale + (int)delta;
-            if (!whole_dst)
-                return (float)exact;
-            return (dst_t)_clamp3(exact, (int)dst_min, (int)dst_max);
-        }
-        const float scaled = (float)sum * scale;
-        value = scaled + delta;
+        for (int i = -rx; i <= rx; i++)
+            row += kx[rx + i] * src(y + j, x + i, c);
+        sum += ky[ry + j] * row;
     }
-    else {
-        float sum = 0.0f;
-        #pragma unroll
-        for (int j = -ry; j <= ry; j++) {
-            float row = 0.0f;
-            #pragma unroll
-            for (int i = -rx; i <= rx; i++)
-                if (kx[rx + i] != 0) {
-                    const float product = kx[rx + i] * src(y + j, x + i, c);
-                    row = row + product;
-                }
-            if (ky[ry + j] != 0) {
-                const float part = ky[ry + j] * row;
-                sum = sum + part;
-            }
-        }
-        const float scaled = sum * scale;
-        value = scaled + delta;
+    if ((scale == (int)scale) & (delta == (int)delta) & (_fabs(scale) < 16.0f)) {
+        const int exact = sum * (int)scale + (int)delta;
+        return (dst_t)_clamp3(exact, (int)dst_min, (int)dst_max);
     }
-    if (!whole_dst)
-        return value;
-    if (dst_max == 255)
-        return _convert_uchar_sat_rte(value);
+    const float scaled = (float)sum * scale;
+    value = scaled + delta;
     return (dst_t)_clamp3(rint(value), (float)dst_min, (float)dst_max);
 }
 #undef src
@@ -387,7 +287,6 @@ static inline __attribute__((always_inline)) short _f0_dx_in(_PARAMS, const int 
 static inline __attribute__((always_inline)) short _f1_dy_in(_PARAMS, const int y, const int x, const int c)
 {
     const int src_height = 200, src_width = 301;
-    typedef uchar src_t;
     const int dst_height = 200, dst_width = 301;
     typedef short dst_t;
     const short dst_min = -32768, dst_max = 32767;
@@ -402,51 +301,22 @@ static inline __attribute__((always_inline)) short _f1_dy_in(_PARAMS, const int 
     const int ddepth = _m1_ddepth;
     const int rx = ksize == 1 ? _min(dx, 1) : _max(1, ksize / 2);
     const int ry = ksize == 1 ? _min(dy, 1) : _max(1, ksize / 2);
-    const bool whole_src = (src_t)0.5f == (src_t)0;
-    const bool whole_dst = (dst_t)0.5f == (dst_t)0;
     float value = 0.0f;
-    if (whole_src) {
-        int sum = 0;
+    int sum = 0;
+    #pragma unroll
+    for (int j = -ry; j <= ry; j++) {
+        int row = 0;
         #pragma unroll
-        for (int j = -ry; j <= ry; j++) {
-            int row = 0;
-            #pragma unroll
-            for (int i = -rx; i <= rx; i++)
-                row += kx[rx + i] * src(y + j, x + i, c);
-            sum += ky[ry + j] * row;
-        }
-        if ((scale == (int)scale) & (delta == (int)delta) & (_fabs(scale) < 16.0f)) {
-            const int exact = sum * (int)scale + (int)delta;
-            if (!whole_dst)
-                return (float)exact;
-            return (dst_t)_clamp3(exact, (int)dst_min, (int)dst_max);
-        }
-        const float scaled = (float)sum * scale;
-        value = scaled + delta;
+        for (int i = -rx; i <= rx; i++)
+            row += kx[rx + i] * src(y + j, x + i, c);
+        sum += ky[ry + j] * row;
     }
-    else {
-        float sum = 0.0f;
-        #pragma unroll
-        for (int j = -ry; j <= ry; j++) {
-            float row = 0.0f;
-            #pragma unroll
-            for (int i = -rx; i <= rx; i++)
-                if (kx[rx + i] != 0) {
-                    const float product = kx[rx + i] * src(y + j, x + i, c);
-                    row = row + product;
-                }
-            if (ky[ry + j] != 0) {
-                const float part = ky[ry + j] * row;
-                sum = sum + part;
-            }
-        }
-        const float scaled = sum * scale;
-        value = scaled + delta;
+    if ((scale == (int)scale) & (delta == (int)delta) & (_fabs(scale) < 16.0f)) {
+        const int exact = sum * (int)scale + (int)delta;
+        return (dst_t)_clamp3(exact, (int)dst_min, (int)dst_max);
     }
-    if (!whole_dst)
-        return value;
-    if (dst_max == 255)
-        return _convert_uchar_sat_rte(value);
+    const float scaled = (float)sum * scale;
+    value = scaled + delta;
     return (dst_t)_clamp3(rint(value), (float)dst_min, (float)dst_max);
 }
 #undef src
@@ -483,22 +353,12 @@ static inline __attribute__((always_inline)) uchar _f4_sobel_in(_PARAMS, const i
     const int src1_height = 200, src1_width = 301;
     const int src2_height = 200, src2_width = 301;
     const int dst_height = 200, dst_width = 301;
-    typedef uchar dst_t;
-    const uchar dst_min = 0, dst_max = 255;
     const float alpha = _m4_alpha;
     const float beta = _m4_beta;
     const float gamma = _m4_gamma;
     const float a = src1(y, x, c), b = src2(y, x, c);
-    if ((dst_t)0.5f == (dst_t)0) {
-        const float v = _fma(a, alpha, _fma(b, beta, gamma));
-        if (dst_max == 255)
-            return _convert_uchar_sat_rte(v);
-        return (dst_t)_clamp3(rint(v), (float)dst_min, (float)dst_max);
-    }
-    const float p = a * alpha;
-    const float q = b * beta;
-    const float sum = p + q;
-    return sum + gamma;
+    const float v = _fma(a, alpha, _fma(b, beta, gamma));
+    return _convert_uchar_sat_rte(v);
 }
 #undef src1
 #undef src2
