@@ -130,7 +130,7 @@ def test_deprecated_names_resolve_to_the_same_ports(tmp_path):
      ["m.yaml:8:5: error: channel mismatch: 'four.dst' gives 4 channel(s), 'blur.src' "
       "takes 1 or 3"]),
     ({"gray": "{type: Source, params: {n: 1}}", "floats": "{type: Floats}",
-      "blur": "{type: GaussianBlur}", "sink": "{type: Keep}"},
+      "blur": "{type: BoxBlur}", "sink": "{type: Keep}"},
      ["gray.dst -> floats.src", "floats.dst -> blur.src", "blur.dst -> sink.src"],
      ["m.yaml:10:5: error: element type mismatch: 'floats.dst' gives float32, 'blur.src' "
       "takes uint8"]),
