@@ -62,8 +62,8 @@ static inline __attribute__((noinline)) uchar _f0_clean_inner(_PARAMS, _LOCALS, 
     const int ksize = 3;
     const int iterations = 1;
     const int side = ksize / 2;
-    const bool nested = op == 2 || op == 3 || op == 5 || op == 6;
-    const bool erode_first = op == 2 || op == 5;
+    const bool nested = (op == 2) | (op == 3) | (op == 5) | (op == 6);
+    const bool erode_first = (op == 2) | (op == 5);
     const int r = !nested ? 0 : shape == 0 ? side * iterations : side;
     const int eside = nested ? side : 0;
     src_t v = erode_first ? src_max : src_min;
@@ -101,7 +101,7 @@ static inline __attribute__((noinline)) uchar _f1_clean(_PARAMS, _LOCALS, const 
     const int iterations = 1;
     const int side = ksize / 2;
     const int r = shape == 0 ? side * iterations : side;
-    const bool erode_first = op == 2 || op == 5;
+    const bool erode_first = (op == 2) | (op == 5);
     src_t lo = src_max, hi = src_min;
     src_t outer = erode_first ? src_min : src_max;
     #pragma unroll
@@ -135,8 +135,8 @@ static inline __attribute__((always_inline)) uchar _f0_clean_inner_in(_PARAMS, _
     const int ksize = 3;
     const int iterations = 1;
     const int side = ksize / 2;
-    const bool nested = op == 2 || op == 3 || op == 5 || op == 6;
-    const bool erode_first = op == 2 || op == 5;
+    const bool nested = (op == 2) | (op == 3) | (op == 5) | (op == 6);
+    const bool erode_first = (op == 2) | (op == 5);
     const int r = !nested ? 0 : shape == 0 ? side * iterations : side;
     const int eside = nested ? side : 0;
     src_t v = erode_first ? src_max : src_min;
@@ -174,7 +174,7 @@ static inline __attribute__((always_inline)) uchar _f1_clean_in(_PARAMS, _LOCALS
     const int iterations = 1;
     const int side = ksize / 2;
     const int r = shape == 0 ? side * iterations : side;
-    const bool erode_first = op == 2 || op == 5;
+    const bool erode_first = (op == 2) | (op == 5);
     src_t lo = src_max, hi = src_min;
     src_t outer = erode_first ? src_min : src_max;
     #pragma unroll
