@@ -97,6 +97,21 @@ def build(tmp_path):
 _GENERATED: dict = {}  # (type, port shapes) -> (program, group): sizes are constants
 
 
+@pytest.fixture(scope="session")
+def run_alone(cl_context, cl_queue):
+    """run(type_name, image, params): the kernel the generator writes for a library type's
+    lone component, run on one frame (run_generated), its output of the frame's shape."""
+    require_opencl()
+    from gpucompgen.model import library_types
+
+    types = library_types()
+
+    def run(type_name, image, params):
+        return run_generated(cl_context, cl_queue, types[type_name], params, [image],
+                             image.shape)
+    return run
+
+
 def run_generated(context, queue, ctype, params: dict, arrays, out_shape: tuple,
                   settings=(16, 16, 16, 1)):
     """Run the kernel the generator writes for a component of fusable type ctype alone

@@ -23,12 +23,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import require_opencl, run_generated
 from test_imgproc_ops import _pad
 
 from gpucompgen.library import cpu_ops
 from gpucompgen.library.kernel_tables import scharr_taps, sobel_taps
-from gpucompgen.model import library_types
 
 cv2 = pytest.importorskip("cv2")
 skdata = pytest.importorskip("skimage.data")
@@ -69,14 +67,8 @@ def crops():
 
 
 @pytest.fixture(scope="module")
-def gpu(cl_context, cl_queue):
-    require_opencl()
-    types = library_types()
-
-    def run(type_name, image, params):
-        return run_generated(cl_context, cl_queue, types[type_name], params, [image],
-                             image.shape)
-    return run
+def gpu(run_alone):
+    return run_alone
 
 
 def _opencv(type_name, src, p):

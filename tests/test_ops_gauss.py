@@ -26,12 +26,11 @@ import sys
 
 import numpy as np
 import pytest
-from conftest import ROOT, require_opencl, run_generated
+from conftest import ROOT, require_opencl
 from test_imgproc_ops import FRAMES, _camera_frames, _pad, fused_unfused_cpu
 
 from gpucompgen.library import cpu_kernels
 from gpucompgen.library.kernel_tables import gaussian_q8
-from gpucompgen.model import library_types
 
 cv2 = pytest.importorskip("cv2")
 skdata = pytest.importorskip("skimage.data")
@@ -112,14 +111,8 @@ def crops():
 
 
 @pytest.fixture(scope="module")
-def gpu(cl_context, cl_queue):
-    require_opencl()
-    types = library_types()
-
-    def run(type_name, image, params):
-        return run_generated(cl_context, cl_queue, types[type_name], params, [image],
-                             image.shape)
-    return run
+def gpu(run_alone):
+    return run_alone
 
 
 # each case over one channel count, the largest windows also over the small frame: sizes

@@ -16,11 +16,9 @@ from __future__ import annotations
 import imgproc_reference
 import numpy as np
 import pytest
-from conftest import require_opencl, run_generated
 
 from gpucompgen.library import cpu_kernels, cpu_ops
 from gpucompgen.library.kernel_tables import median_network
-from gpucompgen.model import library_types
 
 cv2 = pytest.importorskip("cv2")
 skdata = pytest.importorskip("skimage.data")
@@ -47,14 +45,8 @@ def crops():
 
 
 @pytest.fixture(scope="module")
-def gpu(cl_context, cl_queue):
-    require_opencl()
-    types = library_types()
-
-    def run(type_name, image, params):
-        return run_generated(cl_context, cl_queue, types[type_name], params, [image],
-                             image.shape)
-    return run
+def gpu(run_alone):
+    return run_alone
 
 
 # (ksize, shape, iterations): the sides 1 and 15 (a rectangle and a cross; the ellipse to
@@ -110,7 +102,9 @@ MEDIANS = [(5, "uint8", 3), (5, "int16", 1), (5, "float32", 1), (3, "float32", 3
 @pytest.mark.parametrize(("ksize", "dtype", "channels"), MEDIANS,
                          ids=[f"k{k}_{d}_{c}ch" for k, d, c in MEDIANS])
 def test_median_blur_equals_opencv(ksize, dtype, channels, crops, gpu):
-    for i, src in enumerate(crops[dtype][channels]):
+    # each frame size is a build: three channels of 5x5 (12 s each) on the first crop only
+    frames = crops[dtype][channels][:1 if channels == 3 and ksize == 5 else None]
+    for i, src in enumerate(frames):
         what = f"MedianBlur ksize {ksize} on {dtype} crop {i}, {channels} channels"
         expected = cv2.medianBlur(src, ksize)
         np.testing.assert_array_equal(imgproc_reference.median_blur(src, ksize=ksize),

@@ -22,7 +22,7 @@ from collections.abc import Mapping
 from dataclasses import replace
 
 from . import syntax as S
-from .query import unparen
+from .query import nodes, unparen
 
 _INT_TYPES = {"char": (8, True), "uchar": (8, False), "short": (16, True),
               "ushort": (16, False), "int": (32, True), "uint": (32, False),
@@ -259,17 +259,4 @@ def _pure(e) -> bool:
 
 def _names_read(tree) -> set[str]:
     """Every name the statements read (a declaration's own name is not a read)."""
-    found: set[str] = set()
-
-    def walk(node) -> None:
-        if isinstance(node, S.Name):
-            found.add(node.name)
-        if isinstance(node, S.Node):
-            for value in vars(node).values():
-                walk(value)
-        elif isinstance(node, tuple):
-            for item in node:
-                walk(item)
-
-    walk(tree)
-    return found
+    return {n.name for n in nodes(tree) if isinstance(n, S.Name)}

@@ -81,7 +81,7 @@ def operations(tree: S.Node, names: Mapping[str, str]) -> int:
     names: the snippet's names and their kinds (FusableDecl.names)."""
     static = {n for n, kind in names.items() if kind in _STATIC_KINDS}
     assigned = set()
-    for a in _walk(tree):
+    for a in nodes(tree):
         target = a.target if isinstance(a, S.Assign) else \
             a.operand if isinstance(a, (S.Unary, S.Postfix)) and a.op in ("++", "--") else None
         if target is not None and isinstance(unparen(target), S.Name):
@@ -89,10 +89,11 @@ def operations(tree: S.Node, names: Mapping[str, str]) -> int:
     return _Counter(static, assigned).statement(tree)
 
 
-def _walk(node) -> Iterator:
+def nodes(node) -> Iterator:
+    """node and every node below it, depth first (the tree's values that are nodes)."""
     yield node
     for child in _children(node):
-        yield from _walk(child)
+        yield from nodes(child)
 
 
 class _Counter:
