@@ -852,14 +852,20 @@ def member_tree(m):
     decl = m.type.fusable
     fixed = getattr(m.type, "fixed", None) or decl.radius_names()
     values = {p: m.params[p] for p in fixed if p in m.params}
-    types = {}
+    values.update(_port_values(m))
     for pname, port in {**m.inputs, **m.outputs}.items():
-        values.update({f"{pname}_height": port.data.height, f"{pname}_width": port.data.width,
-                       f"{pname}_channels": port.channels,
-                       f"{pname}_min": _limit_value(port.dtype, "min"),
+        values.update({f"{pname}_min": _limit_value(port.dtype, "min"),
                        f"{pname}_max": _limit_value(port.dtype, "max")})
-        types[f"{pname}_t"] = DTYPES[port.dtype][1]
+    types = {f"{p}_t": DTYPES[port.dtype][1] for p, port in {**m.inputs, **m.outputs}.items()}
     return prune(decl.tree, values, types)
+
+
+def _port_values(m) -> dict[str, int]:
+    """The sizes a member's snippet is given of each port (port_height, port_width,
+    port_channels): constants of its kernel."""
+    return {f"{p}_{what}": v for p, port in {**m.inputs, **m.outputs}.items()
+            for what, v in (("height", port.data.height), ("width", port.data.width),
+                            ("channels", port.channels))}
 
 
 def member_reads(m) -> int:
@@ -914,9 +920,7 @@ def member_reach(m):
     values = {k: v for k, v in m.params.items() if isinstance(v, (int, float, tuple))}
     if decl.form == "stencil":  # its tables, whose entries may bound its loops
         values.update(decl.tables_of(m.params))
-    for pname, port in {**m.inputs, **m.outputs}.items():
-        values.update({f"{pname}_height": port.data.height, f"{pname}_width": port.data.width,
-                       f"{pname}_channels": port.channels})
+    values.update(_port_values(m))
     values.update(decl.lengths_of(m.params))
     out = next(iter(m.outputs.values())).data
     return reach(decl.tree, values, list(m.inputs), (out.height, out.width),
@@ -969,12 +973,9 @@ def _limit_value(dtype: str, end: str) -> int | float:
 
 def _limit(dtype: str, end: str) -> str:
     """The least ('min') or greatest ('max') value of an element type, as a C literal."""
-    import numpy as np
-
-    if dtype == "float32":
-        return ("-" if end == "min" else "") + _float_literal(np.finfo(np.float32).max)
-    info = np.iinfo(DTYPES[dtype][0])
-    value = int(info.min if end == "min" else info.max)
+    value = _limit_value(dtype, end)
+    if isinstance(value, float):
+        return ("-" if value < 0 else "") + _float_literal(abs(value))
     if value == -(1 << 31):
         return "(-2147483647 - 1)"
     return f"{value}u" if value >= 1 << 31 else str(value)

@@ -153,7 +153,7 @@ def analyse(text: str, form: str, inputs: list[str], outputs: list[str],
     resolver = _Resolver(form, given, set(inputs), set(outputs), frozenset(arrays),
                          port_types(inputs, outputs))
     resolver.block(tree.body)
-    if not tree.expression and not _returns(tree.body):
+    if not tree.expression and not returns(tree.body):
         last = tree.body[-1] if tree.body else tree
         resolver.problem(last, "a path through the statements ends without returning the "
                          "element", "end every path with 'return ...;'")
@@ -480,7 +480,7 @@ def fold(op: str, a, b):
             "||": lambda: int(bool(a) or bool(b))}[op]()
 
 
-def _returns(body) -> bool:
+def returns(body) -> bool:
     """Every path through the statements ends in 'return' (loops are not counted on)."""
     for s in body:
         if _returns_one(s):
@@ -492,7 +492,7 @@ def _returns_one(s: Node) -> bool:
     if isinstance(s, Return):
         return True
     if isinstance(s, Block):
-        return _returns(s.body)
+        return returns(s.body)
     if isinstance(s, If):
         return s.other is not None and _returns_one(s.then) and _returns_one(s.other)
     return False

@@ -22,6 +22,7 @@ from collections.abc import Mapping
 from dataclasses import replace
 
 from . import syntax as S
+from .check import fold, returns
 from .query import nodes, unparen
 
 _INT_TYPES = {"char": (8, True), "uchar": (8, False), "short": (16, True),
@@ -59,11 +60,11 @@ class _Pruner:
                                else S.Block(inner, at=taken.at))
                 else:
                     out.extend(inner)
-                if _returns(inner):
+                if returns(inner):
                     break
                 continue
             out.append(kept)
-            if isinstance(kept, S.Return):
+            if returns((kept,)):
                 break
         return tuple(out)
 
@@ -147,30 +148,8 @@ class _Pruner:
         b = self.expr(e.right, env)
         if a is None or b is None:
             return None
-        try:
-            return _arith(e.op, a, b)
-        except (ZeroDivisionError, OverflowError, ValueError, TypeError):
-            return None
-
-
-def _arith(op: str, a, b):
-    compare = {"<": a < b, "<=": a <= b, ">": a > b, ">=": a >= b, "==": a == b,
-               "!=": a != b}
-    if op in compare:
-        return int(compare[op])
-    floats = isinstance(a, float) or isinstance(b, float)
-    if op == "+":
-        return a + b
-    if op == "-":
-        return a - b
-    if op == "*":
-        return a * b
-    if op == "/":
-        return a / b if floats else int(a / b) if (a < 0) != (b < 0) else a // b
-    if not floats and op in ("%", "&", "|", "^", "<<", ">>"):
-        return {"%": lambda: a - b * int(a / b), "&": lambda: a & b, "|": lambda: a | b,
-                "^": lambda: a ^ b, "<<": lambda: a << b, ">>": lambda: a >> b}[op]()
-    raise ValueError(op)
+        v = fold(e.op, a, b)  # as C computes it; None where C gives no number
+        return None if v is None or isinstance(v, int) and abs(v) > 1 << 64 else v
 
 
 def _cast(v, ctype: str):
@@ -191,22 +170,6 @@ def _cast(v, ctype: str):
 def _declared(body) -> set[str]:
     """The names declared at the top level of these statements."""
     return {d.name for s in body if isinstance(s, S.Decl) for d in s.declarators}
-
-
-def _returns(body) -> bool:
-    """Whether these statements always end by returning: their last one returns, or is an
-    if whose both branches do."""
-    if not body:
-        return False
-    last = body[-1]
-    if isinstance(last, S.Return):
-        return True
-    if isinstance(last, S.Block):
-        return _returns(last.body)
-    if isinstance(last, S.If) and last.other is not None:
-        return all(_returns(b.body if isinstance(b, S.Block) else (b,))
-                   for b in (last.then, last.other))
-    return False
 
 
 def _drop_unused(body: tuple) -> tuple:
