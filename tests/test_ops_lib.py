@@ -169,8 +169,9 @@ def test_morphology_ex_element_types_on_photographs(dtype, photos, gpu):
 
 
 # -- Filter2D's output depth ---------------------------------------------------------------
+SHARPEN_3 = [[0, -1, 0], [-1, 5, -1], [0, -1, 0]]
 FILTER_CASES = [  # (which photograph, weights, delta, border_type)
-    (0, [[0, -1, 0], [-1, 5, -1], [0, -1, 0]], 0.0, 4),
+    (0, SHARPEN_3, 0.0, 4),
     (1, [[0.31, -1.7, 0.25], [2.5, -0.61, 0.0], [0.125, 1.1, -3.3], [0.7, 0.0, -0.2],
          [-0.9, 0.45, 1.3]], 3.25, 0),
 ]
@@ -209,6 +210,58 @@ def test_filter2d_float32_from_130_elements_within_the_bound(photos, gpu):
     assert np.abs(found - opencv).max() <= bound
     np.testing.assert_array_equal(cpu_kernels.CPU_IMPLEMENTATIONS["Filter2D"](src, **params),
                                   opencv)
+
+
+# (which photograph, weights: a sharpening kernel, OpenCV's DFT sizes for an int16 frame
+# (from 50) and for float32 to float32 (from 130) and below them, delta, border_type)
+_RNG = np.random.default_rng(11)
+WIDE_FILTERS = [
+    (0, np.float32(SHARPEN_3), 0.5, 4),
+    (1, (_RNG.standard_normal((7, 7)) * 0.3).astype(np.float32), -3.25, 0),  # 49: direct
+    (1, (_RNG.standard_normal((8, 7)) * 0.3).astype(np.float32), 1.5, 2),  # 56: int16's DFT
+    (0, (_RNG.standard_normal((13, 11)) * 0.3).astype(np.float32), 0.0, 1),  # 143: DFT
+]
+
+
+@pytest.mark.parametrize(("dtype", "ddepth"), [("int16", -1), ("int16", 5), ("float32", -1)])
+def test_filter2d_of_int16_and_float32_frames(dtype, ddepth, photos, gpu):
+    """int16 frames: OpenCV's direct sums below 50 weights (int16 out: fma, as for uint8;
+    float32 out: each product rounded, no vector code), bit-exact; from 50 its DFT, within
+    1 level (int16) or 2^-22 (sum |weight| |pixel| + |delta|) (float32).  float32 frames:
+    OpenCV's vector fma but for the last elements of a row (its scalar code): within that
+    bound at every size (docs/library.md)."""
+    for which, weights, delta, border in WIDE_FILTERS:
+        src = photos[dtype][which]
+        what = f"{dtype} ddepth {ddepth} {weights.shape} border {border}"
+        reference = cv2.filter2D(src, ddepth, weights, delta=delta, borderType=border)
+        params = {"weights": tuple(map(tuple, weights.tolist())), "delta": delta,
+                  "border_type": border, "ddepth": ddepth}
+        cpu = cpu_kernels.CPU_IMPLEMENTATIONS["Filter2D"](src, **params)
+        np.testing.assert_array_equal(cpu, reference, err_msg=f"CPU {what}")
+        found = gpu("Filter2D", [src], params, reference.shape)
+        assert found.dtype == reference.dtype, what
+        direct = dtype == "int16" and weights.size < 50
+        if reference.dtype == np.int16:
+            check("Filter2D", [src], params, reference, gpu, what,
+                  within_one=0.0 if direct else 0.005)
+            continue
+        if direct:
+            np.testing.assert_array_equal(found, reference, err_msg=f"GPU {what}")
+            continue
+        magnitude = cv2.filter2D(np.abs(src).astype(np.float64), -1,
+                                 np.abs(weights).astype(np.float64), borderType=border)
+        off = np.abs(found.astype(np.float64) - reference)
+        assert (off <= 2.0 ** -22 * (magnitude + abs(delta))).all(), \
+            f"{what}: {(off / (magnitude + abs(delta))).max() / 2.0 ** -22:.2f} x 2^-22"
+
+
+@pytest.mark.parametrize(("dtype", "ddepth"), [("int16", 0), ("float32", 0), ("float32", 3)])
+def test_filter2d_refuses_opencvs_refused_depths(dtype, ddepth, photos):
+    """cv2.filter2D gives uint8 of uint8 frames only, float32 of float32 ones: the CPU
+    form says so, as the model's check does (tests/test_bad_models.py)."""
+    with pytest.raises(ValueError, match="ddepth must be"):
+        cpu_kernels.CPU_IMPLEMENTATIONS["Filter2D"](photos[dtype][1], weights=[[1.0]],
+                                                    ddepth=ddepth)
 
 
 # -- one generated program: the types above over their element types and channel counts,

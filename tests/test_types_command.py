@@ -36,7 +36,7 @@ def test_listing_names_every_library_type_once_with_its_kind(capsys):
     # (cut with '...' where the columns before it leave too little room)
     assert re.search(r"^  Resize +flexible   8U\|16S\|32F C1\|3 -> same +Scales a frame"
                      r".*\.\.\.$", out, re.MULTILINE)
-    assert re.search(r"^  Filter2D +flexible   8UC1\|3 -> D\(ddepth\) ", out, re.MULTILINE)
+    assert re.search(r"^  Filter2D +flexible   8U\|16S\|32F C1\|3 -> D\(ddepth\) ", out, re.MULTILINE)
     assert re.search(r"^  Sobel +flexible   8U\|32F C1\|3 -> D\(ddepth\) +Derivative of order",
                      out, re.MULTILINE)
     assert re.search(r"^  ConvertScale +flexible   8U\|16S\|32F C1\|3 -> 8U ", out, re.MULTILINE)

@@ -131,9 +131,11 @@ def filter_2d(src: np.ndarray, *, weights, delta: float = 0.0, border_type: int 
               ddepth: int = -1, out: np.ndarray | None = None) -> np.ndarray:
     """Filter2D: cv2.filter2D(src, ddepth, np.float32(weights), delta=delta,
     borderType=border_type): the correlation with the kernel weights (rows x cols, 1..15
-    each, anchored at (cols / 2, rows / 2)) plus delta, rounded and saturated to uint8
-    (ddepth -1 or 0) or int16 (3), or float32 (5)."""
-    _image("Filter2D", "src", src)
+    each, anchored at (cols / 2, rows / 2)) plus delta, of a uint8, int16 or float32 frame,
+    rounded and saturated to uint8 (ddepth 0) or int16 (3), or float32 (5), -1 the
+    frame's own type (OpenCV's combinations: uint8 of uint8 frames, int16 of uint8 and
+    int16 ones)."""
+    _channels("Filter2D", "src", src, DTYPES3)
     weights = np.array(weights, np.float32)
     if weights.ndim != 2 or not (1 <= weights.shape[0] <= 15 and 1 <= weights.shape[1] <= 15):
         raise ValueError(f"Filter2D: weights must be rows x cols, 1..15 each, not "
@@ -143,11 +145,13 @@ def filter_2d(src: np.ndarray, *, weights, delta: float = 0.0, border_type: int 
         raise ValueError(f"Filter2D: border_type must be one of {sorted(BORDERS)}, "
                          f"not {border}")
     depth = int(ddepth)
-    if depth not in FILTER_DEPTHS:
-        raise ValueError(f"Filter2D: ddepth must be -1 or 0 (uint8), 3 (int16) or 5 (float32), "
-                         f"not {depth}")
+    dtype = src.dtype if depth == -1 else FILTER_DEPTHS.get(depth)
+    if dtype is None or np.dtype(dtype).itemsize < src.dtype.itemsize:
+        raise ValueError(f"Filter2D: ddepth must be -1 (the input's), 0 (uint8, of uint8 "
+                         f"frames), 3 (int16, of uint8 and int16 frames) or 5 (float32); "
+                         f"not {depth} for {src.dtype.name} frames")
     return cv2.filter2D(src, depth, weights, delta=float(delta), borderType=border,
-                        dst=_output(out, src.shape, "Filter2D", "dst", FILTER_DEPTHS[depth]))
+                        dst=_output(out, src.shape, "Filter2D", "dst", dtype))
 
 
 # -- derivatives: Sobel, Scharr, Laplacian ---------------------------------------------------
