@@ -140,15 +140,33 @@ def test_crop_any_element_type(dtype, which, photos, gpu):
 WIDE = ("int16", "float32")  # the element types new to these operations
 
 
-@pytest.mark.parametrize("dtype", ["int16"])
+@pytest.mark.parametrize("dtype", WIDE)
 def test_blur_element_types_on_photographs(dtype, photos, gpu):
-    """int16: sums in int, rounded to nearest (negative ones too), as OpenCV (float32 is
-    not taken: docs/library.md)."""
-    for which, ksize, border in ((0, 3, 4), (1, 5, 0), (1, 7, 2)):
+    """int16: sums in int, rounded to nearest (negative ones too), as OpenCV.  float32:
+    OpenCV sums in double, the kernel in float32 (each row's sum, then the column's):
+    the CPU form adds in the kernel's order (the same bytes, whatever the placement),
+    within 2^-24 (2 ksize - 1) of the mean of |src| of OpenCV (docs/library.md); windows
+    up to 31, wider than the crop (reflected more than once), every border code."""
+    cases = ((0, 3, 4), (1, 5, 0), (1, 7, 2))
+    if dtype == "float32":
+        cases += ((0, 31, 1), (1, 13, 4))
+    for which, ksize, border in cases:
         src = photos[dtype][which]
+        what = f"{dtype} ksize {ksize} border {border}"
+        params = {"ksize": ksize, "border_type": border}
         reference = cv2.blur(src, (ksize, ksize), borderType=border)
-        check("Blur", [src], {"ksize": ksize, "border_type": border}, reference, gpu,
-              f"{dtype} ksize {ksize} border {border}")
+        if dtype == "int16":
+            check("Blur", [src], params, reference, gpu, what)
+            continue
+        cpu = cpu_kernels.CPU_IMPLEMENTATIONS["Blur"](src, **params)
+        np.testing.assert_array_equal(gpu("Blur", [src], params, reference.shape), cpu,
+                                      err_msg=f"GPU against the CPU form, {what}")
+        magnitude = cv2.blur(np.abs(src).astype(np.float64), (ksize, ksize),
+                             borderType=border)
+        off = np.abs(cpu.astype(np.float64) - reference)
+        bound = 2.0 ** -24 * (2 * ksize - 1) * magnitude
+        assert (off <= bound).all(), f"{what}: {(off / bound).max():.2f} of the bound"
+        assert off.max() > 0 or ksize < 5, "a case where float32 and double sums differ"
 
 
 @pytest.mark.parametrize("dtype", WIDE)

@@ -113,14 +113,27 @@ def blur(src: np.ndarray, *, ksize: int, border_type: int,
     """Blur / BlurGray: cv2.blur(src, (ksize, ksize), borderType=border_type): the mean of
     the ksize x ksize window (ksize odd, 1..31, so the mean is never a tie), rounded, with
     OpenCV's border rule of that code: 0 CONSTANT (zeros), 1 REPLICATE, 2 REFLECT,
-    4 REFLECT_101.  uint8, int16 (sums in int, as OpenCV) or float32 (OpenCV sums in
-    double)."""
+    4 REFLECT_101.  uint8 and int16: OpenCV's (sums in int).  float32: the generated
+    kernel's sums (OpenCV's are in double): each row's from the left, then the column's
+    from the top, in float32, times 1 / ksize^2 (a float32 constant)."""
     _channels("Blur", "src", src, DTYPES3)
     ksize, border = _odd_ksize("Blur", ksize), int(border_type)
     if border not in BORDERS:
         raise ValueError(f"Blur: border_type must be one of {sorted(BORDERS)}, not {border}")
-    return cv2.blur(src, (ksize, ksize), dst=_output(out, src.shape, "Blur", "dst", src.dtype),
-                    borderType=border)
+    dst = _output(out, src.shape, "Blur", "dst", src.dtype)
+    if src.dtype != np.float32:
+        return cv2.blur(src, (ksize, ksize), dst=dst, borderType=border)
+    h, w, r = src.shape[0], src.shape[1], ksize // 2
+    padded = cv2.copyMakeBorder(src, r, r, r, r, border).reshape(h + 2 * r, w + 2 * r, -1)
+    rows = np.zeros((h + 2 * r, w, padded.shape[2]), np.float32)
+    for i in range(ksize):
+        rows = rows + padded[:, i:i + w]
+    total = np.zeros((h, w, padded.shape[2]), np.float32)
+    for j in range(ksize):
+        total = total + rows[j:j + h]
+    np.multiply(total, np.float32(1) / np.float32(ksize * ksize), out=total)
+    dst[...] = total.reshape(dst.shape)
+    return dst
 
 
 FILTER_DEPTHS = {-1: np.uint8, 0: np.uint8, 3: np.int16, 5: np.float32}  # OpenCV's codes
