@@ -136,6 +136,19 @@ def test_crop_any_element_type(dtype, which, photos, gpu):
     check("Crop", [src], params, np.ascontiguousarray(src[3:20, 5:26]), gpu, dtype)
 
 
+# -- colour order and gray to three channels of float32 frames ----------------------------
+@pytest.mark.parametrize(("type_name", "code", "which"), [
+    ("GrayToRgb", cv2.COLOR_GRAY2RGB, 1), ("RgbToBgr", cv2.COLOR_RGB2BGR, 0),
+    ("BgrToRgb", cv2.COLOR_BGR2RGB, 0)])
+def test_channel_order_of_float32_frames(type_name, code, which, photos, gpu):
+    """cv2.cvtColor takes float32 frames as uint8 ones (int16 it refuses): the same
+    copies, bit-exact."""
+    src = photos["float32"][which]
+    check(type_name, [src], {}, cv2.cvtColor(src, code), gpu, "float32")
+    with pytest.raises(TypeError, match="uint8 or float32"):
+        cpu_kernels.CPU_IMPLEMENTATIONS[type_name](photos["int16"][which])
+
+
 # -- element types for Blur and MorphologyEx ---------------------------------------------
 WIDE = ("int16", "float32")  # the element types new to these operations
 

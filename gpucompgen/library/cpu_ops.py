@@ -30,20 +30,25 @@ INTEGER = (np.uint8, np.int16)  # the element types of the bitwise operations
 
 
 # -- conversions --------------------------------------------------------------------------
+COLOUR_DTYPES = (np.uint8, np.float32)  # what cv2.cvtColor takes of the library's types
+
+
 def gray_to_rgb(src: np.ndarray, *, out: np.ndarray | None = None) -> np.ndarray:
-    """GrayToRgb: cv2.cvtColor(src, cv2.COLOR_GRAY2RGB): the value in all three channels."""
-    if _image("GrayToRgb", "src", src) != 1:
+    """GrayToRgb: cv2.cvtColor(src, cv2.COLOR_GRAY2RGB): the value in all three channels,
+    uint8 or float32."""
+    if _channels("GrayToRgb", "src", src, COLOUR_DTYPES) != 1:
         raise ValueError(f"GrayToRgb: 'src' must have one channel, not {src.shape}")
     return cv2.cvtColor(src, cv2.COLOR_GRAY2RGB,
-                        dst=_output(out, src.shape[:2] + (3,), "GrayToRgb", "dst"))
+                        dst=_output(out, src.shape[:2] + (3,), "GrayToRgb", "dst", src.dtype))
 
 
 def swap_red_blue(src: np.ndarray, *, out: np.ndarray | None = None) -> np.ndarray:
     """RgbToBgr and BgrToRgb: cv2.cvtColor(src, cv2.COLOR_RGB2BGR), channels 0 and 2
-    exchanged (the same operation both ways)."""
-    if _image("RgbToBgr", "src", src) != 3:
+    exchanged (the same operation both ways), uint8 or float32."""
+    if _channels("RgbToBgr", "src", src, COLOUR_DTYPES) != 3:
         raise ValueError(f"RgbToBgr: 'src' must have three channels, not {src.shape}")
-    return cv2.cvtColor(src, cv2.COLOR_RGB2BGR, dst=_output(out, src.shape, "RgbToBgr", "dst"))
+    return cv2.cvtColor(src, cv2.COLOR_RGB2BGR,
+                        dst=_output(out, src.shape, "RgbToBgr", "dst", src.dtype))
 
 
 def flip_vertical(src: np.ndarray, *, out: np.ndarray | None = None) -> np.ndarray:
