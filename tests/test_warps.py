@@ -77,8 +77,10 @@ def _sample(src, sx, sy, interpolation, border_mode, border_value):
         x0, y0 = fx.astype(int), fy.astype(int)
         top = _fma(ax, tap(y0, x0 + 1) - tap(y0, x0), tap(y0, x0))
         bottom = _fma(ax, tap(y0 + 1, x0 + 1) - tap(y0 + 1, x0), tap(y0 + 1, x0))
-        out = np.clip(np.rint(_fma(ay, bottom - top, top)), 0, 255)
-    return out.astype(np.uint8).reshape(sx.shape + src.shape[2:])
+        out = _fma(ay, bottom - top, top)
+        if src.dtype == np.uint8:  # float32: the blend as it is
+            out = np.clip(np.rint(out), 0, 255)
+    return out.astype(src.dtype).reshape(sx.shape + src.shape[2:])
 
 
 def numpy_warp_affine(src, m, width, height, flags, border_mode, border_value):
@@ -217,7 +219,9 @@ def camera(w, h):
 # bilinear warps: OpenCV's last SIMD-width columns of a row (its scalar tail) and a few
 # perspective positions differ from the vector code in the last bit of the position,
 # which moves a blend lying within 1e-4 of a half to the other side
+# (nearest: a position within an ulp of a half there takes the other pixel)
 BOUNDS = {("WarpAffine", 1): (1, 1e-4), ("WarpPerspective", 1): (1, 2e-4),
+          ("WarpAffine", 0): (255, 1e-4), ("WarpPerspective", 0): (255, 1e-4),
           ("Undistort", 1): (8, 5e-4)}  # the position in float, OpenCV's map in double
 
 
@@ -263,8 +267,10 @@ def gpu(cl_context, cl_queue):
     require_opencl()
 
     def run(type_name, arrays, params, shape, setting=(16, 16, 16, 1)):
-        return run_generated(cl_context, cl_queue, warp_types()[type_name], params, arrays,
-                             shape, setting)
+        src = arrays[0]
+        ctype = warp_types()[type_name].specialized(
+            src.dtype.name, src.shape[2] if src.ndim == 3 else 1, params)
+        return run_generated(cl_context, cl_queue, ctype, params, arrays, shape, setting)
     return run
 
 
@@ -316,6 +322,66 @@ def test_undistort_reference_is_opencv_on_photographs(photos):
             params = camera(src.shape[1], src.shape[0])
             np.testing.assert_array_equal(numpy_undistort(src, **params),
                                           opencv("Undistort", [src], params))
+
+
+# float32 frames: OpenCV's float arithmetic as for uint8, the blend not rounded; a border
+# value with a fraction, negative. Remap bit-exact; the warps but for the last columns of a
+# row that OpenCV's vector loop leaves to its scalar code (fewer than two vector widths:
+# 32 columns covers AVX-512), where the position may differ by an ulp
+TAIL = 32
+
+
+@pytest.mark.parametrize("type_name", ["WarpAffine", "WarpPerspective", "Remap"])
+def test_float32_frames_on_photographs(type_name, photos, gpu):
+    for i, versions in enumerate(photos):
+        src = (versions[1 + 2 * (i % 2)].astype(F32) - F32(100.3)) * F32(0.37)
+        h, w = src.shape[:2]
+        if type_name == "Remap":
+            arrays, cases = remap_inputs(src), REMAP_CASES[i::2]
+        else:
+            arrays, cases = [src], warp_cases(type_name, w, h)[i::3]
+        for case in cases:
+            params = {**case, "border_value": -7.25 if case["border_value"] else 0.0}
+            what = f"{type_name} float32 photo {i} {params}"
+            reference = opencv(type_name, arrays, params)
+            assert reference.dtype == F32
+            cpu = cpu_kernels.CPU_IMPLEMENTATIONS[type_name](*arrays, **params)
+            np.testing.assert_array_equal(cpu, reference, err_msg=f"CPU form {what}")
+            for name, found in (("numpy", NUMPY[type_name](*arrays, **params)),
+                                ("GPU", gpu(type_name, arrays, params, reference.shape))):
+                assert found.dtype == F32, what
+                differ = (found != reference).reshape(reference.shape[:2] + (-1,)).any(-1)
+                if type_name == "Remap":
+                    assert not differ.any(), f"{name} {what}"
+                    continue
+                columns = np.nonzero(differ)[1]
+                assert (columns >= reference.shape[1] - TAIL).all(), f"{name} {what}"
+                if params.get("flags", 1) & 1:  # a position an ulp off, times the slope
+                    largest = max(h, w) + 4.0
+                    limit = 2.0 ** -21 * largest * float(src.max() - src.min()) + 1e-5
+                    off = np.abs(found.astype(np.float64) - reference).max()
+                    assert off <= limit, f"{name} {what}: {off} > {limit}"
+                else:
+                    assert differ.mean() <= 1e-3, f"{name} {what}"
+
+
+def test_int16_frames_are_a_check_time_error(tmp_path):
+    """OpenCV warps int16 frames with its fixed point of before (positions in 1/32
+    pixel), which the kernels do not follow: the model is refused, where the frame
+    enters."""
+    from gpucompgen.build import compile_model
+    from gpucompgen.errors import GpucompgenError
+
+    model = tmp_path / "m.yaml"
+    model.write_text("system: s\ncomponents:\n"
+                     "  camera: {type: Camera, params: {width: 64, height: 48}}\n"
+                     "  dx: {type: Sobel}\n  warp: {type: WarpAffine}\n"
+                     "  to8: {type: ConvertScale}\n  sink: {type: FrameSink}\n"
+                     "connections: [camera.image -> dx.src, dx.dst -> warp.src, "
+                     "warp.dst -> to8.src, to8.dst -> sink.image]\n")
+    with pytest.raises(GpucompgenError) as info:
+        compile_model(model, tmp_path / "out")
+    assert "'dx.dst' gives int16, 'warp.src' takes uint8 or float32" in str(info.value)
 
 
 @st.composite

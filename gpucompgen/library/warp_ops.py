@@ -15,6 +15,7 @@ import cv2
 import numpy as np
 
 WARP_INVERSE_MAP = 16  # cv2.WARP_INVERSE_MAP
+FRAME_DTYPES = (np.uint8, np.float32)  # int16: OpenCV's fixed point of before, not taken
 BORDER_MODES = (0, 1)  # cv2.BORDER_CONSTANT, cv2.BORDER_REPLICATE
 
 
@@ -27,12 +28,13 @@ def _matrix(type_name: str, m, shape: tuple[int, int]) -> np.ndarray:
     return matrix.astype(np.float64)
 
 
-def _checked(type_name: str, flags: int, border_mode: int, border_value: int) -> tuple:
+def _checked(type_name: str, flags: int, border_mode: int, border_value: float) -> tuple:
     if int(flags) not in (0, 1, 16, 17):
         raise ValueError(f"{type_name}: flags must be 0 or 1, plus 16, not {flags}")
     if int(border_mode) not in BORDER_MODES:
         raise ValueError(f"{type_name}: border_mode must be 0 or 1, not {border_mode}")
-    return int(flags), int(border_mode), (int(border_value),) * 4
+    # the kernel's parameter is a float32: OpenCV's saturate_cast of it, as there
+    return int(flags), int(border_mode), (float(np.float32(border_value)),) * 4
 
 
 def _finish(result: np.ndarray, src: np.ndarray, out: np.ndarray | None) -> np.ndarray:
@@ -41,15 +43,15 @@ def _finish(result: np.ndarray, src: np.ndarray, out: np.ndarray | None) -> np.n
     result = result.reshape(result.shape[:2] + src.shape[2:])
     if out is None:
         return result
-    if out.shape != result.shape or out.dtype != np.uint8:
-        raise ValueError(f"out= must be a uint8 array of shape {result.shape}, not "
+    if out.shape != result.shape or out.dtype != result.dtype:
+        raise ValueError(f"out= must be a {result.dtype} array of shape {result.shape}, not "
                          f"{out.dtype} {out.shape}")
     np.copyto(out, result)
     return out
 
 
 def warp_affine(src: np.ndarray, *, m, width: int, height: int, flags: int,
-                border_mode: int, border_value: int,
+                border_mode: int, border_value: float,
                 out: np.ndarray | None = None) -> np.ndarray:
     """WarpAffine: cv2.warpAffine(src, m, (width, height), flags=, borderMode=,
     borderValue=)."""
@@ -58,7 +60,7 @@ def warp_affine(src: np.ndarray, *, m, width: int, height: int, flags: int,
 
 
 def warp_perspective(src: np.ndarray, *, m, width: int, height: int, flags: int,
-                     border_mode: int, border_value: int,
+                     border_mode: int, border_value: float,
                      out: np.ndarray | None = None) -> np.ndarray:
     """WarpPerspective: cv2.warpPerspective(src, m, (width, height), flags=, borderMode=,
     borderValue=)."""
@@ -68,17 +70,17 @@ def warp_perspective(src: np.ndarray, *, m, width: int, height: int, flags: int,
 
 def _warp(call, type_name: str, shape: tuple[int, int], src, m, width, height, flags,
           border_mode, border_value, out) -> np.ndarray:
-    _image(type_name, "src", src)
+    _channels(type_name, "src", src, FRAME_DTYPES)
     flags, border_mode, value = _checked(type_name, flags, border_mode, border_value)
     return _finish(call(src, _matrix(type_name, m, shape), (int(width), int(height)),
                         flags=flags, borderMode=border_mode, borderValue=value), src, out)
 
 
 def remap(src: np.ndarray, map1: np.ndarray, map2: np.ndarray, *, interpolation: int,
-          border_mode: int, border_value: int, out: np.ndarray | None = None) -> np.ndarray:
+          border_mode: int, border_value: float, out: np.ndarray | None = None) -> np.ndarray:
     """Remap: cv2.remap(src, map1, map2, interpolation, borderMode=, borderValue=), map1
     and map2 the float32 x and y positions (height x width, or x 1)."""
-    _image("Remap", "src", src)
+    _channels("Remap", "src", src, FRAME_DTYPES)
     maps = []
     for name, a in (("map1", map1), ("map2", map2)):
         _image("Remap", name, a, np.float32)
@@ -115,4 +117,4 @@ WARP_OPS = {"WarpAffine": warp_affine, "WarpPerspective": warp_perspective,
 # last, as in cpu_ops.py, so that any of the library's CPU modules may be imported first (a
 # generated program whose only CPU-placed library type is a warp imports this one first):
 # cpu_ops imports cpu_kernels, which imports WARP_OPS from here
-from .cpu_ops import _image
+from .cpu_ops import _channels, _image
