@@ -164,6 +164,14 @@ def _cases(cv2):
                         lambda a: cv2.blur(a, (3, 3), borderType=4)),
         "BlurGray k7": ("BlurGray", {"ksize": 7, "border_type": 4},
                         lambda a: cv2.blur(a, (7, 7), borderType=4)),
+        # float32 frames (a fourth element: the input's element type)
+        "Blur k5 32F": ("Blur", {"ksize": 5, "border_type": 4},
+                        lambda a: cv2.blur(a, (5, 5), borderType=4), "float32"),
+        "BlurGray k31 32F": ("BlurGray", {"ksize": 31, "border_type": 4},
+                             lambda a: cv2.blur(a, (31, 31), borderType=4), "float32"),
+        "Filter2D 5x5 32F": ("Filter2D", {"weights": SMOOTH5, "delta": 0.0, "border_type": 4},
+                             lambda a: cv2.filter2D(a, -1, np.float32(SMOOTH5), borderType=4),
+                             "float32"),
         # large windows (the staged schedule: row sums, then column sums)
         **{f"{t} k{k}": (t, {"ksize": k, "border_type": 4},
                          lambda a, k=k: cv2.blur(a, (k, k), borderType=4))
@@ -185,6 +193,8 @@ def _cases(cv2):
 # maps dst to src: WARP_INVERSE_MAP), a mild homography; Remap reads _remap_maps
 ROTATION = ((0.886327, 0.156283, 2.858), (-0.156283, 0.886327, 69.6))
 HOMOGRAPHY = ((0.95, 0.05, 10.0), (-0.03, 0.98, 12.0), (1e-5, 2e-5, 1.0))
+SMOOTH5 = tuple(tuple(float(np.float32(v / 44.0)) for v in row) for row in (
+    (1, 1, 2, 1, 1), (1, 2, 3, 2, 1), (2, 3, -4, 3, 2), (1, 2, 3, 2, 1), (1, 1, 2, 1, 1)))
 CAMERA = ((600.0, 0.0, 320.0), (0.0, 600.0, 180.0), (0.0, 0.0, 1.0))
 DISTORTION = (-0.28, 0.09, 0.001, -0.0015, -0.01)
 
@@ -207,6 +217,12 @@ def _warp_cases(cv2) -> dict:
                          lambda a, m1, m2: cv2.remap(a, m1, m2, cv2.INTER_LINEAR)),
         "Undistort": ("Undistort", {"camera_matrix": CAMERA, "dist_coeffs": DISTORTION},
                       lambda a: cv2.undistort(a, m64(CAMERA), m64(DISTORTION))),
+        # float32 frames (a fourth element: the input's element type)
+        "WarpAffine linear 32F": (*warp("WarpAffine", ROTATION, 17), "float32"),
+        "Remap linear 32F": ("Remap", {"interpolation": 1, "border_mode": 0,
+                                       "border_value": 0},
+                             lambda a, m1, m2: cv2.remap(a, m1, m2, cv2.INTER_LINEAR),
+                             "float32"),
     }
 
 
@@ -219,15 +235,23 @@ def _remap_maps(h, w):
             (h / 2 + s * dx + c * dy).astype(np.float32))
 
 
-def _instance(t, params):
+def _instance(t, params, dtype=None):
     """A case's type as a component of it gets it: a generic type over the most channels
     it takes (the plain name is the RGB case; its 'Gray' alias the one-channel one), its
-    output's element type from the parameters (ddepth)."""
+    first element type or dtype, its output's element type from the parameters (ddepth)."""
     port = next(iter(t.inputs.values()))
     if not t.generic:
         return t
-    return t.specialized((port.dtypes or (port.dtype,))[0],
+    return t.specialized(dtype or (port.dtypes or (port.dtype,))[0],
                          max(port.channel_counts or (port.channels,)), params)
+
+
+def _as(frame: np.ndarray, dtype: str | None = None) -> np.ndarray:
+    """A photograph as a frame of a case's element type: float32 with fractions and
+    negatives, as a pipeline's float frames."""
+    if dtype != "float32":
+        return frame
+    return frame.astype(np.float32) * np.float32(0.73) - np.float32(41.5)
 
 
 def _frames(cv2, h, w):
@@ -517,9 +541,10 @@ def main(argv=None) -> int:
         w, h = map(int, size.split("x"))
         frames = _frames(cv2, h, w)
         runs = {}
-        for name, (tname, params, ref) in cases.items():
-            t = _instance(types[tname], params)
-            arrays = [frames[p.channels][k] if p.dtype != "float32" else _remap_maps(h, w)[k - 1]
+        for name, (tname, params, ref, *dtype) in cases.items():
+            t = _instance(types[tname], params, *dtype)
+            arrays = [_as(frames[p.channels][k], *dtype) if k == 0 else frames[p.channels][k]
+                      if p.dtype != "float32" else _remap_maps(h, w)[k - 1]
                       for k, p in enumerate(t.inputs.values())]
             expected = ref(*arrays)
             variants = {}
@@ -534,7 +559,11 @@ def main(argv=None) -> int:
                 got = v.output()
                 diff = np.abs(got.astype(np.float64) - expected.astype(np.float64)).max()
                 # the bounds docs/library.md states
-                if diff > (8 if name == "Undistort" else 1 if "linear" in name else 0):
+                # float32: within 1e-5 of the largest value (docs/library.md's bounds)
+                limit = 8 if name == "Undistort" else 1 if "linear" in name else 0
+                if got.dtype == np.float32:
+                    limit = 1e-5 * float(np.abs(expected).max())
+                if diff > limit:
                     print(f"  {name} {size} {k}: differs from OpenCV by {diff}")
                     return 1
             runs[name] = (variants, ref, arrays, {k: [] for k in [*variants, "cv2"]})

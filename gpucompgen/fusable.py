@@ -246,9 +246,10 @@ class FusableDecl:
 
 @dataclass(frozen=True)
 class Stage:
-    """A stage of a stencil (FusableDecl.stages): its element type (one of DTYPES, or
-    '<input>.dtype': a generic type's input's) and its own form, a stencil with the type's
-    border."""
+    """A stage of a stencil (FusableDecl.stages): its element type (one of DTYPES;
+    '<input>.dtype': a generic type's input's; '<input>.sum_dtype': the type a sum of
+    that input's elements is kept in, SUM_DTYPES) and its own form, a stencil with the
+    type's border."""
 
     name: str
     dtype: str
@@ -256,9 +257,18 @@ class Stage:
 
     def dtype_for(self, inputs: dict) -> str:
         """The stage's element type for a component whose input ports are inputs (name ->
-        a port with .dtype): '<input>.dtype' is that input's."""
+        a port with .dtype): '<input>.dtype' is that input's, '<input>.sum_dtype' the
+        type its sums are kept in."""
         port, _, of = self.dtype.partition(".")
+        if of == "sum_dtype":
+            return SUM_DTYPES.get(inputs[port].dtype, "int32")
         return inputs[port].dtype if of == "dtype" else self.dtype
+
+
+# what '<input>.sum_dtype' is (a stage of sums, as Blur's row sums): int32 for every
+# integer element type (exact for the windows of uint8 and int16 frames), float32 for
+# float32 (as OpenCV's sumType, which is double for float32: docs/library.md's bounds)
+SUM_DTYPES = {"float32": "float32"}
 
 
 _LOOPS = (For, While, DoWhile)

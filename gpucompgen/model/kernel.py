@@ -281,7 +281,8 @@ def _load_stages(doc, rep, path, ctype: ComponentType, fspec, tables,
         _unknown_keys(doc, rep, where, sspec, STAGE_KEYS, "stage")
         dtype, value = sspec.get("dtype"), sspec.get("value")
         radius, reads = sspec.get("radius"), sspec.get("reads")
-        of_input = [f"{p}.dtype" for p in ctype.inputs]  # a generic type's element type
+        # a generic type's element type, or the type its sums are kept in
+        of_input = [f"{p}.{what}" for p in ctype.inputs for what in ("dtype", "sum_dtype")]
         if not _named(dtype, DTYPES) and dtype not in of_input:
             rep.error(doc.pos(*where, "dtype") if "dtype" in sspec else doc.key_pos(*where),
                       f"stage '{name}' of '{ctype.name}' needs 'dtype', one of "

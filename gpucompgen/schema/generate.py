@@ -229,9 +229,12 @@ def _fusable() -> dict:
                    "(0 constant, 1 clamp, 2 reflect, 4 reflect101)"},
         "stages": {"type": "object", "additionalProperties": _object(model.STAGE_KEYS, {
             "dtype": {"anyOf": [_enum(model.DTYPES, "the stage's element type"),
-                                {"type": "string", "pattern": r"^[A-Za-z_][A-Za-z0-9_]*\.dtype$",
+                                {"type": "string",
+                                 "pattern": r"^[A-Za-z_][A-Za-z0-9_]*\.(sum_)?dtype$",
                                  "description": "an input's element type (<port>.dtype), "
-                                                "for a type generic over element types"}]},
+                                                "for a type generic over element types; "
+                                                "<port>.sum_dtype: the type its sums are "
+                                                "kept in (int32, float32 for float32)"}]},
             "radius": {"type": ["integer", "string"],
                        "description": "the stage's window radius, a number or an int "
                                       "parameter or an expression of them"},
