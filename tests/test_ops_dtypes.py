@@ -122,6 +122,13 @@ def test_the_kernel_declares_the_types_and_bounds_the_snippet_uses():
     assert "_t;" not in _kernel("FlipHorizontal", "int16")  # only where used
 
 
+def _input_dtypes(type_name: str) -> tuple[str, ...]:
+    from gpucompgen.model import library_types
+
+    port = next(iter(library_types()[type_name].inputs.values()))
+    return port.dtypes or (port.dtype,)
+
+
 def test_the_cuda_backend_compiles_every_element_type():
     """The .cu text of each generic operation for int16 and float32 compiles with NVRTC
     (the typedef and the bounds are plain C++)."""
@@ -131,9 +138,10 @@ def test_the_cuda_backend_compiles_every_element_type():
 
     major, arch = TARGETS[-1]
     lib = nvrtc_of(major)
-    for name in ("Erode", "MedianBlur", "Threshold", "AbsDiff", "AddWeighted", "BitwiseNot"):
+    for name in ("Erode", "MedianBlur", "Threshold", "AbsDiff", "AddWeighted", "BitwiseNot",
+                 "Blur", "Filter2D", "WarpAffine", "Remap", "BgrToRgb"):
         for dtype in WIDE:
-            if name == "BitwiseNot" and dtype == "float32":
+            if dtype not in _input_dtypes(name):
                 continue
             compiled = lib.compile(prelude.cuda_source(_kernel(name, dtype, 3)),
                                    f"{name}-{dtype}.cu", arch)
