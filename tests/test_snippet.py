@@ -467,6 +467,13 @@ def test_accessor_calls_and_shifted_arguments_are_read_from_the_tree():
     ("return gain > 1 ? image(y, x, c) + 1 : image(y, x, c) * 2 - 3;", 2),
     # a choice on the element's value: both branches and the select
     ("return image(y, x, c) > gain ? image(y, x, c) + 1 : image(y, x, c) * 2 - 3;", 5),
+    # an 'if' whose body returns: the statements after it are its other branch (a type's
+    # rule for float frames before its integer code), priced as the choices above
+    ("if (gain > 1) return image(y, x, c) + 1; return image(y, x, c) * 2 - 3;", 2),
+    ("if (gain > 1) { const int v = image(y, x, c); return v + 1; } return image(y, x, c);",
+     1),
+    ("if (image(y, x, c) > gain) return image(y, x, c) + 1; return image(y, x, c) * 2 - 3;",
+     5),
     # a local of parameters is computed once; one of the element costs where computed
     ("const float k = gain * gain; const float v = image(y, x, c) * k; return v + k;", 2),
     # a local assigned after its declaration may change per element: never hoisted

@@ -8,6 +8,7 @@ from __future__ import annotations
 from collections.abc import Iterator, Mapping
 
 from . import syntax as S
+from .check import returns
 
 
 def _children(node) -> Iterator:
@@ -102,7 +103,7 @@ class _Counter:
 
     def statement(self, s) -> int:
         if isinstance(s, (S.Snippet, S.Block)):
-            return sum(self.statement(b) for b in s.body)
+            return self.block(s.body)
         if isinstance(s, S.Decl):
             total = 0
             for d in s.declarators:
@@ -128,6 +129,19 @@ class _Counter:
             return sum(self.statement(p) if not _is_expr(p) else self.expr(p)[0]
                        for p in parts)
         return 0  # break, continue
+
+    def block(self, body: tuple) -> int:
+        """A block's statements; an 'if' without 'else' whose body always returns makes
+        the statements after it its other branch (one or the other runs, as for an
+        if-else: 'if (float type) { ... return; } <the integer code>')."""
+        total = 0
+        for i, s in enumerate(body):
+            if isinstance(s, S.If) and s.other is None and returns([s.then]):
+                ops, fixed = self.expr(s.cond)
+                then, rest = self.statement(s.then), self.block(body[i + 1:])
+                return total + (max(then, rest) if fixed else ops + then + rest + 1)
+            total += self.statement(s)
+        return total
 
     def expr(self, e) -> tuple[int, bool]:
         """(operations, whether the value is the same for every element)."""

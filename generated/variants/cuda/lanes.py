@@ -66,8 +66,8 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 #       estimate: 0.035 ms a frame as one kernel, 0.104 ms apart (3.0x; constants for a cpu
 #       device)
 #     not fused: gray.dst -> blur.src:
-#       cost model: with gray the group's kernel takes an estimated 0.332 ms a frame,
-#       against 0.074 ms with gray apart (it would run 29 times per output element of the
+#       cost model: with gray the group's kernel takes an estimated 0.368 ms a frame,
+#       against 0.075 ms with gray apart (it would run 29 times per output element of the
 #       group; constants for a cpu device)
 #     not fused: blur.dst -> sobel.src:
 #       cost model: with blur the group's kernel takes an estimated 0.305 ms a frame,

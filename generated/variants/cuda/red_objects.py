@@ -50,11 +50,11 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 #     hsv_red: one kernel (group_hsv_red.cu) for
 #       hsv (RgbToHsv, pointwise)
 #       -> red (InRange, pointwise)
-#       estimate: 0.100 ms a frame as one kernel, 0.129 ms apart (1.3x; constants for a cpu
+#       estimate: 0.098 ms a frame as one kernel, 0.127 ms apart (1.3x; constants for a cpu
 #       device)
 #     not fused: red.dst -> erode.src:
-#       cost model: with red the group's kernel takes an estimated 0.153 ms a frame, against
-#       0.061 ms with red apart (it would run 9 times per output element of the group;
+#       cost model: with red the group's kernel takes an estimated 0.137 ms a frame, against
+#       0.059 ms with red apart (it would run 9 times per output element of the group;
 #       constants for a cpu device)
 #     not fused: erode.dst -> dilate.src:
 #       cost model: with erode the group's kernel takes an estimated 0.149 ms a frame,

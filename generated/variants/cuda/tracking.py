@@ -54,7 +54,7 @@ send each GPU-aware component its GPU settings, stream frames, free everything.
 #       -> low_red (InRange, pointwise)
 #       -> high_red (InRange, pointwise)
 #       -> red (BitwiseOr, pointwise)
-#       estimate: 0.465 ms a frame as one kernel, 0.609 ms apart (1.3x; constants for a cpu
+#       estimate: 0.448 ms a frame as one kernel, 0.591 ms apart (1.3x; constants for a cpu
 #       device)
 #     not fused: red.dst -> clean.src:
 #       cost model: with red the group's kernel takes an estimated 0.741 ms a frame, against
