@@ -68,6 +68,10 @@ def check(type_name: str, arrays: list, params: dict, reference: np.ndarray, gpu
     np.testing.assert_array_equal(found, reference, err_msg=f"GPU {type_name} {what} {params}")
 
 
+# OpenCV's AVX2 code (with FMA3) runs here: its float sums fuse each multiply-add
+FMA = "*AVX2" in cv2.getCPUFeaturesLine().split() and cv2.checkHardwareSupport(12)  # FMA3
+
+
 # -- InRange, Resize, Crop ---------------------------------------------------------------
 INRANGE = {  # bounds that are fractions, outside the type's range, empty (lower > upper)
     "uint8": {"lowerb_0": 40.5, "upperb_0": 200.5, "lowerb_1": -7, "upperb_1": 180,
@@ -147,6 +151,23 @@ def test_channel_order_of_float32_frames(type_name, code, which, photos, gpu):
     check(type_name, [src], {}, cv2.cvtColor(src, code), gpu, "float32")
     with pytest.raises(TypeError, match="uint8 or float32"):
         cpu_kernels.CPU_IMPLEMENTATIONS[type_name](photos["int16"][which])
+
+
+def test_gray_of_float32_frames(photos, gpu):
+    """RgbToGray of float32: OpenCV's vector code, fma(b, 0.114, fma(r, 0.299, g 0.587)),
+    bit-exact on a CPU with FMA, but for the last columns of a row, which its scalar code
+    computes in another order (fewer than a vector's width: 32 covers AVX-512), and
+    anywhere on a CPU without FMA: there within 2 ulp of the largest channel."""
+    src = photos["float32"][0]
+    reference = cv2.cvtColor(src, cv2.COLOR_RGB2GRAY)
+    np.testing.assert_array_equal(cpu_kernels.CPU_IMPLEMENTATIONS["RgbToGray"](src),
+                                  reference)
+    found = gpu("RgbToGray", [src], {}, reference.shape)
+    assert found.dtype == np.float32
+    differ = found != reference
+    if FMA:
+        assert (np.nonzero(differ)[1] >= reference.shape[1] - 32).all()
+    assert (np.abs(found - reference) <= 2 * np.spacing(np.abs(src).max(-1))).all()
 
 
 # -- element types for Blur and MorphologyEx ---------------------------------------------
