@@ -139,7 +139,7 @@ def test_the_cuda_backend_compiles_every_element_type():
     major, arch = TARGETS[-1]
     lib = nvrtc_of(major)
     for name in ("Erode", "MedianBlur", "Threshold", "AbsDiff", "AddWeighted", "BitwiseNot",
-                 "Blur", "Filter2D", "WarpAffine", "Remap", "BgrToRgb"):
+                 "Blur", "Filter2D", "WarpAffine", "Remap", "Undistort", "BgrToRgb", "RgbToGray"):
         for dtype in WIDE:
             if dtype not in _input_dtypes(name):
                 continue

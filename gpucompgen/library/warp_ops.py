@@ -102,8 +102,8 @@ def remap(src: np.ndarray, map1: np.ndarray, map2: np.ndarray, *, interpolation:
 def undistort(src: np.ndarray, *, camera_matrix, dist_coeffs,
               out: np.ndarray | None = None) -> np.ndarray:
     """Undistort: cv2.undistort(src, camera_matrix, dist_coeffs) (a remap with fixed-point
-    maps: positions in 1/32 pixel, zeros outside)."""
-    _image("Undistort", "src", src)
+    maps: positions in 1/32 pixel, zeros outside), uint8 or float32."""
+    _channels("Undistort", "src", src, FRAME_DTYPES)
     k = _matrix("Undistort", camera_matrix, (3, 3))
     d = np.asarray(dist_coeffs, np.float32).astype(np.float64)
     if d.shape != (5,):
