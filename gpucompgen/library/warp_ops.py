@@ -117,4 +117,5 @@ WARP_OPS = {"WarpAffine": warp_affine, "WarpPerspective": warp_perspective,
 # last, as in cpu_ops.py, so that any of the library's CPU modules may be imported first (a
 # generated program whose only CPU-placed library type is a warp imports this one first):
 # cpu_ops imports cpu_kernels, which imports WARP_OPS from here
-from .cpu_ops import _channels, _image
+from .cpu_kernels import _channels
+from .cpu_ops import _image
