@@ -248,7 +248,7 @@ class FusableDecl:
 class Stage:
     """A stage of a stencil (FusableDecl.stages): its element type (one of DTYPES;
     '<input>.dtype': a generic type's input's; '<input>.sum_dtype': the type a sum of
-    that input's elements is kept in, SUM_DTYPES) and its own form, a stencil with the
+    that input's elements is kept in) and its own form, a stencil with the
     type's border."""
 
     name: str
@@ -260,15 +260,10 @@ class Stage:
         a port with .dtype): '<input>.dtype' is that input's, '<input>.sum_dtype' the
         type its sums are kept in."""
         port, _, of = self.dtype.partition(".")
-        if of == "sum_dtype":
-            return SUM_DTYPES.get(inputs[port].dtype, "int32")
+        if of == "sum_dtype":  # int32 for integer types (exact for uint8 and int16
+            # windows), float32 for float32 (OpenCV's is double: docs/library.md's bounds)
+            return "float32" if inputs[port].dtype == "float32" else "int32"
         return inputs[port].dtype if of == "dtype" else self.dtype
-
-
-# what '<input>.sum_dtype' is (a stage of sums, as Blur's row sums): int32 for every
-# integer element type (exact for the windows of uint8 and int16 frames), float32 for
-# float32 (as OpenCV's sumType, which is double for float32: docs/library.md's bounds)
-SUM_DTYPES = {"float32": "float32"}
 
 
 _LOOPS = (For, While, DoWhile)

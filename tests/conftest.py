@@ -51,6 +51,14 @@ def _pin_device() -> str | None:
 _NO_DEVICE = _pin_device()
 
 
+def opencv_fuses_multiply_adds() -> bool:
+    """OpenCV's AVX2 code (with FMA3) runs here: its float sums fuse each multiply-add
+    (Filter2D's, RgbToGray's float32), as the generated kernels do."""
+    import cv2
+
+    return "*AVX2" in cv2.getCPUFeaturesLine().split() and cv2.checkHardwareSupport(12)
+
+
 def require_opencl():
     if _NO_DEVICE:
         if IN_CI:

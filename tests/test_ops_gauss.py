@@ -26,7 +26,7 @@ import sys
 
 import numpy as np
 import pytest
-from conftest import ROOT, require_opencl
+from conftest import ROOT, opencv_fuses_multiply_adds, require_opencl
 from test_imgproc_ops import FRAMES, _camera_frames, _pad, fused_unfused_cpu
 
 from gpucompgen.library import cpu_kernels
@@ -194,8 +194,7 @@ def _kernels():
 
 
 FILTERS = _kernels()
-# OpenCV's AVX2 code (with FMA3) runs here: its filter sums fuse each multiply-add
-FMA = "*AVX2" in cv2.getCPUFeaturesLine().split() and cv2.checkHardwareSupport(12)  # FMA3
+FMA = opencv_fuses_multiply_adds()
 
 
 @pytest.mark.parametrize("index", range(len(FILTERS)),

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import require_opencl, run_generated
+from conftest import opencv_fuses_multiply_adds, require_opencl, run_generated
 
 from gpucompgen.library import cpu_kernels
 
@@ -68,8 +68,7 @@ def check(type_name: str, arrays: list, params: dict, reference: np.ndarray, gpu
     np.testing.assert_array_equal(found, reference, err_msg=f"GPU {type_name} {what} {params}")
 
 
-# OpenCV's AVX2 code (with FMA3) runs here: its float sums fuse each multiply-add
-FMA = "*AVX2" in cv2.getCPUFeaturesLine().split() and cv2.checkHardwareSupport(12)  # FMA3
+FMA = opencv_fuses_multiply_adds()
 
 
 # -- InRange, Resize, Crop ---------------------------------------------------------------

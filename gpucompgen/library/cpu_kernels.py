@@ -106,7 +106,7 @@ def rgb_to_gray(src: np.ndarray, *, out: np.ndarray | None = None) -> np.ndarray
     """RgbToGray: cv2.cvtColor(image, cv2.COLOR_RGB2GRAY): uint8 (19596 r + 38470 g + 7470
     b + 2^15) >> 16, OpenCV's fixed-point weights (0.299, 0.587, 0.114 in 1/65536);
     float32 fma(b, 0.114, fma(r, 0.299, g 0.587)) in float32 (OpenCV's vector code)."""
-    if _channels("RgbToGray", "src", src, (np.uint8, np.float32)) != 3 or src.ndim != 3:
+    if _channels("RgbToGray", "src", src, (np.uint8, np.float32)) != 3:
         raise ValueError(f"RgbToGray: 'src' must be height x width x 3, not {src.shape}")
     return cv2.cvtColor(src, cv2.COLOR_RGB2GRAY,
                         dst=_output(out, src.shape[:2], "RgbToGray", "dst", src.dtype))

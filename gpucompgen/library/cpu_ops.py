@@ -128,16 +128,9 @@ def blur(src: np.ndarray, *, ksize: int, border_type: int,
     dst = _output(out, src.shape, "Blur", "dst", src.dtype)
     if src.dtype != np.float32:
         return cv2.blur(src, (ksize, ksize), dst=dst, borderType=border)
-    h, w, r = src.shape[0], src.shape[1], ksize // 2
-    padded = cv2.copyMakeBorder(src, r, r, r, r, border).reshape(h + 2 * r, w + 2 * r, -1)
-    rows = np.zeros((h + 2 * r, w, padded.shape[2]), np.float32)
-    for i in range(ksize):
-        rows = rows + padded[:, i:i + w]
-    total = np.zeros((h, w, padded.shape[2]), np.float32)
-    for j in range(ksize):
-        total = total + rows[j:j + h]
-    np.multiply(total, np.float32(1) / np.float32(ksize * ksize), out=total)
-    dst[...] = total.reshape(dst.shape)
+    ones = (1.0,) * ksize  # each row's sum from the left, then the rows from the top
+    total = _correlation(src.reshape(src.shape[0], src.shape[1], -1), ones, ones, border)
+    dst[...] = (total * (np.float32(1) / np.float32(ksize * ksize))).reshape(dst.shape)
     return dst
 
 
